@@ -1,0 +1,37 @@
+use thiserror::Error;
+
+/// Every way input to this crate can be wrong.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+pub enum Error {
+    /// A data frame was given more than 8 bytes.
+    #[error("a classic CAN frame carries at most 8 data bytes, got {0}")]
+    TooMuchData(usize),
+    /// A DLC above 8 (classic CAN only).
+    #[error("DLC {0} is out of range 0..=8")]
+    BadDlc(usize),
+    /// An identifier that does not fit its format.
+    #[error("identifier 0x{raw:X} does not fit in {bits} bits")]
+    IdOutOfRange {
+        /// The identifier as given.
+        raw: u32,
+        /// 11 for a base frame, 29 for an extended frame.
+        bits: u8,
+    },
+    /// The harvester identifier's priority field is 5 bits wide.
+    #[error("priority {0} is out of range 0..=31")]
+    BadPriority(u8),
+    /// The harvester protocol uses only extended identifiers.
+    #[error("the harvester protocol uses 29-bit identifiers; 0x{0:03X} is a base identifier")]
+    NotExtended(u16),
+    /// Text in the `ID#DATA` notation could not be read.
+    #[error("{0}")]
+    Syntax(String),
+    /// A payload does not match the catalogue's layout for its message.
+    #[error("message {message}: {reason}")]
+    Payload {
+        /// Catalogue name of the message.
+        message: &'static str,
+        /// What is wrong.
+        reason: String,
+    },
+}

@@ -1,0 +1,32 @@
+//! The pure core of harvemu: everything about a CAN bus that can be said without a clock, a
+//! socket or an actor.
+//!
+//! Contract:
+//! - [`Frame`] is a classic CAN 2.0 frame (data or remote, base or extended, DLC 0–8) on the
+//!   `embedded-can` identifier types; [`Frame::arbitration`] orders frames exactly as the bus
+//!   arbitrates them.
+//! - [`ident::AppId`] is the harvester's 29-bit application identifier (priority | frame type |
+//!   destination | source) with `parse`/`emit`; [`ident::Address`] names the nodes.
+//! - [`bits`] produces the exact stuffed bitstream of a frame, its CRC-15 and its length, so that
+//!   bus time can be kept in bit times.
+//! - [`filter`] holds the acceptance filters of the controllers the harvester uses.
+//! - [`fault`] is the TEC/REC fault-confinement state machine.
+//! - [`catalogue`] is the one list of every harvester message; decoding, the monitor and the DBC
+//!   export all read it.
+//! - [`candump`] reads and writes the `ID#DATA` frame notation of can-utils.
+//!
+//! Nothing here does I/O, reads a clock or panics on input; fallible input gives [`Error`].
+#![warn(missing_docs)]
+
+pub mod bits;
+pub mod candump;
+pub mod catalogue;
+mod error;
+pub mod fault;
+pub mod filter;
+mod frame;
+pub mod ident;
+
+pub use embedded_can::{ExtendedId, Id, StandardId};
+pub use error::Error;
+pub use frame::{ArbitrationKey, Frame};

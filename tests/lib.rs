@@ -1,0 +1,1 @@
+//! End-to-end tests of harvemu; the tests live in `tests/tests/`, one file per concern.
