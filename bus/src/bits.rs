@@ -1,1 +1,442 @@
-//! placeholder
+//! The exact bitstream of a classic CAN frame, and how long it lasts on the wire.
+//!
+//! [`encode`] lays a frame out field by field (CAN_FACTS.md, "Frame bits"), computes the CRC-15
+//! over the unstuffed bits from SOF to the end of the data field, and stuffs SOF through the last
+//! CRC bit. [`Encoded::total_bits`] adds the fixed tail (CRC delimiter, ACK slot and delimiter,
+//! 7 EOF bits, 3 intermission bits), which is what a frame costs the bus. The can-utils estimates
+//! ([`worst_case_bits`], [`no_stuffing_bits`]) are given beside it because other tools report
+//! them.
+//!
+//! The hub calls [`frame_bits`] once per frame, so it avoids allocation: the unstuffed frame fits
+//! in a `u128` (at most 118 bits) and the stuffed one in three words.
+
+use crate::Frame;
+use crc::{CRC_15_CAN, Crc};
+use embedded_can::Id;
+
+/// CRC delimiter, ACK slot, ACK delimiter, 7 EOF bits, 3 intermission bits.
+pub const TAIL_BITS: u32 = 3 + 7 + 3;
+
+const CAN_CRC: Crc<u16> = Crc::<u16>::new(&CRC_15_CAN);
+
+/// A sequence of up to 192 bits, first bit first.
+#[derive(Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub struct BitStream {
+    words: [u64; 3],
+    len: u8,
+}
+
+impl BitStream {
+    /// Capacity in bits.
+    pub const CAPACITY: usize = 192;
+
+    fn push(&mut self, bit: bool) {
+        let i = usize::from(self.len);
+        // Callers never exceed 147 bits (118 stuffed with at most 29 stuff bits).
+        if i < Self::CAPACITY {
+            if bit {
+                self.words[i / 64] |= 1 << (63 - i % 64);
+            }
+            self.len += 1;
+        }
+    }
+
+    /// Number of bits.
+    pub fn len(&self) -> usize {
+        usize::from(self.len)
+    }
+
+    /// True when there are no bits.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Bit `i` (true = recessive 1), or `None` past the end.
+    pub fn get(&self, i: usize) -> Option<bool> {
+        (i < self.len()).then(|| self.words[i / 64] >> (63 - i % 64) & 1 == 1)
+    }
+
+    /// The bits in order.
+    pub fn iter(&self) -> impl Iterator<Item = bool> + '_ {
+        (0..self.len()).map(|i| self.words[i / 64] >> (63 - i % 64) & 1 == 1)
+    }
+}
+
+impl core::fmt::Display for BitStream {
+    /// `0` for dominant, `1` for recessive, as CAN_FACTS.md writes bitstreams.
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        for bit in self.iter() {
+            f.write_str(if bit { "1" } else { "0" })?;
+        }
+        Ok(())
+    }
+}
+
+impl core::fmt::Debug for BitStream {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(f, "BitStream({self})")
+    }
+}
+
+/// A frame as it goes on the wire.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub struct Encoded {
+    /// SOF through the last CRC bit, stuffed.
+    pub stuffed: BitStream,
+    /// The CRC-15 sequence.
+    pub crc: u16,
+    /// Stuff bits inserted.
+    pub stuff_bits: u32,
+}
+
+impl Encoded {
+    /// Every bit the frame occupies the bus for, including the 3 intermission bits.
+    pub fn total_bits(&self) -> u32 {
+        self.stuffed.len() as u32 + TAIL_BITS
+    }
+}
+
+/// Bits of SOF..end of data, unstuffed and without CRC, as a right-aligned number and a length.
+fn unstuffed_head(frame: &Frame) -> (u128, u32) {
+    let mut v: u128 = 0;
+    let mut n: u32 = 0;
+    let mut put = |value: u128, width: u32| {
+        v = (v << width) | (value & ((1u128 << width) - 1));
+        n += width;
+    };
+    let rtr = u128::from(frame.is_remote());
+    put(0, 1); // SOF
+    match frame.id() {
+        Id::Standard(id) => {
+            put(u128::from(id.as_raw()), 11);
+            put(rtr, 1);
+            put(0, 1); // IDE dominant
+            put(0, 1); // r0
+        }
+        Id::Extended(id) => {
+            let raw = u128::from(id.as_raw());
+            put(raw >> 18, 11);
+            put(1, 1); // SRR recessive
+            put(1, 1); // IDE recessive
+            put(raw, 18);
+            put(rtr, 1);
+            put(0, 2); // r1, r0
+        }
+    }
+    put(u128::from(frame.dlc()), 4);
+    for &byte in frame.data() {
+        put(u128::from(byte), 8);
+    }
+    (v, n)
+}
+
+/// CRC-15 of a right-aligned bit string. With init 0 leading zero bits leave the register
+/// untouched, so left-padding to whole bytes lets the table-driven `crc` crate do the work.
+fn crc15(bits: u128, len: u32) -> u16 {
+    let nbytes = len.div_ceil(8) as usize;
+    let be = bits.to_be_bytes();
+    CAN_CRC.checksum(&be[16 - nbytes..])
+}
+
+/// Encodes a frame: stuffed bitstream, CRC and stuff-bit count.
+pub fn encode(frame: &Frame) -> Encoded {
+    let (head, head_len) = unstuffed_head(frame);
+    let crc = crc15(head, head_len);
+    let all = (head << 15) | u128::from(crc);
+    let len = head_len + 15;
+    let mut stuffed = BitStream::default();
+    let mut stuff_bits = 0;
+    let mut last = false;
+    let mut run = 0u32;
+    for i in (0..len).rev() {
+        let bit = (all >> i) & 1 == 1;
+        stuffed.push(bit);
+        if bit == last && run > 0 {
+            run += 1;
+        } else {
+            last = bit;
+            run = 1;
+        }
+        if run == 5 {
+            // The stuff bit is the complement and starts the next run.
+            stuffed.push(!bit);
+            stuff_bits += 1;
+            last = !bit;
+            run = 1;
+        }
+    }
+    Encoded {
+        stuffed,
+        crc,
+        stuff_bits,
+    }
+}
+
+/// Exact bus time of a frame in bits, intermission included (can-utils' "exact" mode).
+pub fn frame_bits(frame: &Frame) -> u32 {
+    encode(frame).total_bits()
+}
+
+/// Data bytes that count for the can-utils estimates: none for a remote frame.
+fn data_len(frame: &Frame) -> u32 {
+    frame.data().len() as u32
+}
+
+/// can-utils' worst case: 55 + 10n (base) or 80 + 10n (extended).
+pub fn worst_case_bits(frame: &Frame) -> u32 {
+    let n = data_len(frame);
+    if frame.is_extended() {
+        80 + 10 * n
+    } else {
+        55 + 10 * n
+    }
+}
+
+/// can-utils' length without stuffing: 47 + 8n (base) or 67 + 8n (extended).
+pub fn no_stuffing_bits(frame: &Frame) -> u32 {
+    let n = data_len(frame);
+    if frame.is_extended() {
+        67 + 8 * n
+    } else {
+        47 + 8 * n
+    }
+}
+
+/// A nominal bit rate in bit/s.
+#[derive(Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Debug)]
+pub struct BitRate(u32);
+
+impl BitRate {
+    /// 125 kbit/s.
+    pub const K125: BitRate = BitRate(125_000);
+    /// 250 kbit/s, the harvester's rate.
+    pub const K250: BitRate = BitRate(250_000);
+    /// 500 kbit/s.
+    pub const K500: BitRate = BitRate(500_000);
+    /// 1 Mbit/s.
+    pub const M1: BitRate = BitRate(1_000_000);
+
+    /// A bit rate; `None` for 0 or above 1 Mbit/s (classic CAN's limit).
+    pub fn new(bits_per_second: u32) -> Option<BitRate> {
+        (1..=1_000_000)
+            .contains(&bits_per_second)
+            .then_some(BitRate(bits_per_second))
+    }
+
+    /// Bits per second.
+    pub fn bits_per_second(self) -> u32 {
+        self.0
+    }
+
+    /// The bit time in nanoseconds when it is a whole number (true of 125, 250, 500 and
+    /// 1000 kbit/s), which the bus clock needs to stay exact.
+    pub fn exact_bit_time_ns(self) -> Option<u64> {
+        (1_000_000_000 % u64::from(self.0) == 0).then(|| 1_000_000_000 / u64::from(self.0))
+    }
+
+    /// How long `bits` last, in nanoseconds, rounded to the nearest nanosecond.
+    pub fn duration_ns(self, bits: u32) -> u64 {
+        let rate = u64::from(self.0);
+        (u64::from(bits) * 1_000_000_000 + rate / 2) / rate
+    }
+
+    /// How long `bits` last, in microseconds, unrounded.
+    pub fn duration_us(self, bits: u32) -> f64 {
+        f64::from(bits) * 1e6 / f64::from(self.0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::candump::parse_frame;
+    use crate::frame::{extended_id, standard_id};
+    use proptest::prelude::*;
+
+    /// (frame, CRC, stuff bits, total, worst case, no stuffing): the vectors of CAN_FACTS.md.
+    fn vectors() -> Vec<(Frame, u16, u32, u32, u32, u32)> {
+        let f = |t: &str| parse_frame(t).unwrap();
+        vec![
+            (f("123#DEADBEEF"), 0x4E6B, 2, 81, 95, 79),
+            (f("000#"), 0x0000, 6, 53, 55, 47),
+            (f("7FF#R"), 0x54EA, 3, 50, 55, 47),
+            (f("123#0000000000000000"), 0x044E, 14, 125, 135, 111),
+            (f("0300A0F5#0102030405060708"), 0x6311, 11, 142, 160, 131),
+            (f("1FFFFFFF#0000000000000000"), 0x7DA3, 20, 151, 160, 131),
+            (f("00000000#"), 0x4610, 7, 74, 80, 67),
+        ]
+    }
+
+    #[test]
+    fn can_facts_vectors() {
+        for (frame, crc, stuff, total, worst, plain) in vectors() {
+            let e = encode(&frame);
+            let got = (
+                e.crc,
+                e.stuff_bits,
+                e.total_bits(),
+                worst_case_bits(&frame),
+                no_stuffing_bits(&frame),
+            );
+            assert_eq!(got, (crc, stuff, total, worst, plain), "{frame:?}");
+        }
+    }
+
+    #[test]
+    fn can_facts_bitstream() {
+        let e = encode(&parse_frame("123#DEADBEEF").unwrap());
+        assert_eq!(
+            e.stuffed.to_string(),
+            "00010010001100001001101111010101101101111100111011111000111001101011"
+        );
+    }
+
+    #[test]
+    fn crc_check_value() {
+        // "123456789" as a bit string: the crc crate's check value for CRC-15/CAN.
+        let bytes = b"123456789";
+        let v = bytes
+            .iter()
+            .fold(0u128, |acc, &b| (acc << 8) | u128::from(b));
+        assert_eq!(crc15(v, 72), 0x059E);
+    }
+
+    #[test]
+    fn remote_frame_ignores_dlc_for_estimates() {
+        let r = Frame::new_remote(standard_id(0x7FF).unwrap(), 8).unwrap();
+        assert_eq!((worst_case_bits(&r), no_stuffing_bits(&r)), (55, 47));
+        // ...but the DLC is on the wire, so the exact length sees it.
+        let r0 = Frame::new_remote(standard_id(0x7FF).unwrap(), 0).unwrap();
+        assert_ne!(encode(&r).crc, encode(&r0).crc);
+    }
+
+    #[test]
+    fn durations() {
+        assert_eq!(BitRate::K250.exact_bit_time_ns(), Some(4000));
+        assert_eq!(BitRate::K125.exact_bit_time_ns(), Some(8000));
+        assert_eq!(BitRate::M1.exact_bit_time_ns(), Some(1000));
+        assert_eq!(BitRate::new(30_000).unwrap().exact_bit_time_ns(), None);
+        assert_eq!(BitRate::K250.duration_ns(142), 568_000);
+        assert_eq!(BitRate::new(30_000).unwrap().duration_ns(3), 100_000);
+        assert!(BitRate::new(0).is_none() && BitRate::new(1_000_001).is_none());
+    }
+
+    // ---- Independent bit-by-bit reference, written from the field table of CAN_FACTS.md ----
+
+    fn push_bits(out: &mut Vec<bool>, value: u32, width: u32) {
+        for i in (0..width).rev() {
+            out.push((value >> i) & 1 == 1);
+        }
+    }
+
+    /// SOF..end of data, unstuffed.
+    fn reference_head(f: &Frame) -> Vec<bool> {
+        let mut b = vec![false];
+        match f.id() {
+            Id::Standard(id) => {
+                push_bits(&mut b, u32::from(id.as_raw()), 11);
+                b.push(f.is_remote());
+                b.extend([false, false]);
+            }
+            Id::Extended(id) => {
+                let raw = id.as_raw();
+                push_bits(&mut b, raw >> 18, 11);
+                b.extend([true, true]);
+                push_bits(&mut b, raw & 0x3FFFF, 18);
+                b.push(f.is_remote());
+                b.extend([false, false]);
+            }
+        }
+        push_bits(&mut b, u32::from(f.dlc()), 4);
+        for &byte in f.data() {
+            push_bits(&mut b, u32::from(byte), 8);
+        }
+        b
+    }
+
+    /// The shift-register CRC of the Bosch specification, one bit at a time.
+    fn reference_crc(bits: &[bool]) -> u16 {
+        let mut reg: u16 = 0;
+        for &bit in bits {
+            let next = bit ^ (reg >> 14 & 1 == 1);
+            reg = (reg << 1) & 0x7FFF;
+            if next {
+                reg ^= 0x4599;
+            }
+        }
+        reg
+    }
+
+    /// Stuffing stated the other way round: look back at the last five bits already sent.
+    fn reference_stuff(bits: &[bool]) -> (Vec<bool>, u32) {
+        let mut out: Vec<bool> = Vec::new();
+        let mut stuffed = 0;
+        for &bit in bits {
+            out.push(bit);
+            let n = out.len();
+            // A stuff bit already sent counts in the run, so looking back at what went on the
+            // wire is the whole rule.
+            if n >= 5 && out[n - 5..].iter().all(|&x| x == bit) {
+                out.push(!bit);
+                stuffed += 1;
+            }
+        }
+        (out, stuffed)
+    }
+
+    fn arb_frame() -> impl Strategy<Value = Frame> {
+        (
+            any::<bool>(),
+            any::<u32>(),
+            any::<bool>(),
+            0usize..=8,
+            any::<[u8; 8]>(),
+        )
+            .prop_map(|(ext, raw, remote, len, data)| {
+                let id: Id = if ext {
+                    Id::Extended(extended_id(raw & 0x1FFF_FFFF).unwrap())
+                } else {
+                    Id::Standard(standard_id((raw & 0x7FF) as u16).unwrap())
+                };
+                if remote {
+                    Frame::new_remote(id, len).unwrap()
+                } else {
+                    Frame::new_data(id, &data[..len]).unwrap()
+                }
+            })
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(2000))]
+
+        #[test]
+        fn encoder_matches_reference(frame in arb_frame()) {
+            let mut bits = reference_head(&frame);
+            let crc = reference_crc(&bits);
+            push_bits(&mut bits, u32::from(crc), 15);
+            let (stuffed, count) = reference_stuff(&bits);
+            let e = encode(&frame);
+            prop_assert_eq!(e.crc, crc);
+            prop_assert_eq!(e.stuff_bits, count);
+            let text: String = stuffed.iter().map(|&b| if b { '1' } else { '0' }).collect();
+            prop_assert_eq!(e.stuffed.to_string(), text);
+            prop_assert_eq!(e.total_bits() as usize, stuffed.len() + 13);
+            prop_assert!(no_stuffing_bits(&frame) <= e.total_bits());
+            prop_assert!(e.total_bits() <= worst_case_bits(&frame));
+        }
+
+        #[test]
+        fn arbitration_key_is_bus_order(a in arb_frame(), b in arb_frame()) {
+            // On the wire the first differing arbitration bit decides, dominant (0) winning.
+            let arb = |f: &Frame| {
+                let head = reference_head(f);
+                let n = if f.is_extended() { 33 } else { 14 }; // through RTR / IDE
+                head[..n].to_vec()
+            };
+            let (x, y) = (arb(&a), arb(&b));
+            let n = x.len().min(y.len());
+            let expected = x[..n].cmp(&y[..n]);
+            prop_assert_eq!(a.arbitration().cmp(&b.arbitration()), expected);
+        }
+    }
+}
