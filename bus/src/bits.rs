@@ -295,9 +295,7 @@ mod tests {
     fn crc_check_value() {
         // "123456789" as a bit string: the crc crate's check value for CRC-15/CAN.
         let bytes = b"123456789";
-        let v = bytes
-            .iter()
-            .fold(0u128, |acc, &b| (acc << 8) | u128::from(b));
+        let v = bytes.iter().fold(0u128, |acc, &b| (acc << 8) | u128::from(b));
         assert_eq!(crc15(v, 72), 0x059E);
     }
 

@@ -58,10 +58,8 @@ pub fn parse_hex_bytes(text: &str) -> Result<Vec<u8>, Error> {
             *bad as char
         )));
     }
-    if digits.len() % 2 != 0 {
-        return Err(syntax(format!(
-            "data '{text}' has an odd number of hex digits"
-        )));
+    if !digits.len().is_multiple_of(2) {
+        return Err(syntax(format!("data '{text}' has an odd number of hex digits")));
     }
     if digits.len() > 16 {
         return Err(Error::TooMuchData(digits.len() / 2));
@@ -148,9 +146,6 @@ mod tests {
         ] {
             assert!(parse_frame(bad).is_err(), "{bad} should be rejected");
         }
-        assert_eq!(
-            parse_frame("123#000102030405060708"),
-            Err(Error::TooMuchData(9))
-        );
+        assert_eq!(parse_frame("123#000102030405060708"), Err(Error::TooMuchData(9)));
     }
 }

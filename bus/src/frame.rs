@@ -194,10 +194,7 @@ mod tests {
             Err(Error::IdOutOfRange { bits: 29, .. })
         ));
         let f = Frame::extended(0x0601F5D0, &[1, 2, 3]).unwrap();
-        assert_eq!(
-            (f.raw_id(), f.dlc(), f.data()),
-            (0x0601F5D0, 3, &[1u8, 2, 3][..])
-        );
+        assert_eq!((f.raw_id(), f.dlc(), f.data()), (0x0601F5D0, 3, &[1u8, 2, 3][..]));
         let r = Frame::new_remote(standard_id(0x7FF).unwrap(), 4).unwrap();
         assert_eq!((r.dlc(), r.data().len(), r.is_remote()), (4, 0, true));
     }

@@ -59,9 +59,7 @@ impl Address {
     pub fn name(self) -> Option<String> {
         let kind = self.kind()?;
         Some(match kind {
-            NodeKind::Monitor | NodeKind::RowAlignment | NodeKind::SpeedControl => {
-                kind.name().to_string()
-            }
+            NodeKind::Monitor | NodeKind::RowAlignment | NodeKind::SpeedControl => kind.name().to_string(),
             _ => format!("{} {self}", kind.name()),
         })
     }
@@ -256,12 +254,7 @@ mod field {
 
 impl AppId {
     /// The identifier for traffic between a field node and the monitor, with the node's class.
-    pub fn new(
-        priority: Priority,
-        frame_type: FrameType,
-        destination: Address,
-        source: Address,
-    ) -> AppId {
+    pub fn new(priority: Priority, frame_type: FrameType, destination: Address, source: Address) -> AppId {
         AppId {
             priority,
             frame_type,
@@ -350,10 +343,7 @@ mod tests {
             Address::ROW_ALIGNMENT,
         );
         assert_eq!(back.raw(), 0x0300F5A0);
-        assert_eq!(
-            cmd.to_string(),
-            "0300A0F5 (priority 3, broadcast, F5 -> A0)"
-        );
+        assert_eq!(cmd.to_string(), "0300A0F5 (priority 3, broadcast, F5 -> A0)");
     }
 
     #[test]
@@ -395,9 +385,7 @@ mod tests {
             8
         );
         assert_eq!(
-            all.iter()
-                .filter(|a| a.kind() == Some(NodeKind::Alarm))
-                .count(),
+            all.iter().filter(|a| a.kind() == Some(NodeKind::Alarm)).count(),
             4
         );
         assert_eq!(Address(0xD3).name().as_deref(), Some("flow sensor D3"));
@@ -413,10 +401,7 @@ mod tests {
             NodeKind::Parameter,
             NodeKind::FlowSensor,
         ];
-        let values: Vec<u8> = order
-            .iter()
-            .map(|k| k.priority().unwrap().value())
-            .collect();
+        let values: Vec<u8> = order.iter().map(|k| k.priority().unwrap().value()).collect();
         assert_eq!(values, [0b00010, 0b00011, 0b00100, 0b00101, 0b00110]);
         assert!(Priority::new(0).unwrap().is_reserved() && Priority::new(1).unwrap().is_reserved());
     }

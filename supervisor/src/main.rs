@@ -1,1 +1,62 @@
-fn main() {}
+//! `harvemu`: the command line of the emulated 4MZ-6A cotton harvester.
+//!
+//! Exit codes: 0 success, 1 a run that failed, 2 bad input (arguments, frames, configs).
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+use supervisor::{BadInput, inspect};
+
+#[derive(Parser)]
+#[command(
+    name = "harvemu",
+    version,
+    about = "Emulator of a cotton harvester's CAN network"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Decode one frame: identifier fields, catalogue message, CRC, bit lengths, filters.
+    Inspect(inspect::Args),
+    /// Print the message catalogue (`--markdown`: the generated part of docs/PROTOCOL.md).
+    Protocol {
+        /// Print the Markdown tables of docs/PROTOCOL.md.
+        #[arg(long)]
+        markdown: bool,
+    },
+}
+
+fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            // clap prints its own help and errors; its exit code for bad usage is 2.
+            let _ = e.print();
+            return ExitCode::from(if e.use_stderr() { 2 } else { 0 });
+        }
+    };
+    let result = match cli.command {
+        Command::Inspect(args) => inspect::run(&args),
+        Command::Protocol { markdown } => {
+            if markdown {
+                println!("{}", bus::catalogue::doc::markdown());
+            } else {
+                for m in bus::catalogue::MESSAGES {
+                    println!("{:02X} {:<24} {}", m.number, m.name, m.doc);
+                }
+            }
+            Ok(())
+        }
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            let bad_input = e.downcast_ref::<BadInput>().is_some();
+            eprintln!("harvemu: error: {e:#}");
+            ExitCode::from(if bad_input { 2 } else { 1 })
+        }
+    }
+}
