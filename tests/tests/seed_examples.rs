@@ -39,7 +39,11 @@ fn monitor_receives_everything_sent_to_it() {
     let dest_bits: u32 = 0xFF << 8;
     let acr = ((0xF5u32 << 8) << 3).to_be_bytes();
     let amr = (!(dest_bits << 3)).to_be_bytes();
-    let monitor = Sja1000Filter { mode: bus::filter::Sja1000Mode::Single, acr, amr };
+    let monitor = Sja1000Filter {
+        mode: bus::filter::Sja1000Mode::Single,
+        acr,
+        amr,
+    };
     for frame in every_catalogue_frame() {
         let decoded = catalogue::decode(&frame).unwrap().unwrap();
         let to_monitor = decoded.message.direction == Direction::ToMonitor;
@@ -59,7 +63,11 @@ fn d0_stream_of_the_seed_decodes_to_the_stated_units() {
     ];
     let decoded: Vec<_> = frames
         .iter()
-        .map(|t| catalogue::decode(&bus::candump::parse_frame(t).unwrap()).unwrap().unwrap())
+        .map(|t| {
+            catalogue::decode(&bus::candump::parse_frame(t).unwrap())
+                .unwrap()
+                .unwrap()
+        })
         .collect();
     let units: Vec<i64> = ["unit1", "unit2", "unit3"]
         .iter()
