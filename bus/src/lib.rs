@@ -21,11 +21,13 @@
 pub mod bits;
 pub mod candump;
 pub mod catalogue;
+pub mod engine;
 mod error;
 pub mod fault;
 pub mod filter;
 mod frame;
 pub mod ident;
+pub mod time;
 
 pub use embedded_can::{ExtendedId, Id, StandardId};
 pub use error::Error;

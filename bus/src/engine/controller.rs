@@ -1,0 +1,242 @@
+//! One node's CAN controller as the bus sees it: acceptance filter, receive FIFO, transmit
+//! queue, error counters, and the switches fault injection turns.
+
+use crate::Frame;
+use crate::fault::FaultConfinement;
+use crate::filter::{AcceptanceFilter, AtmelFilter, Sja1000Filter, SocketCanFilterSet};
+use crate::time::BusTime;
+use serde::{Deserialize, Serialize};
+use std::collections::VecDeque;
+
+/// Index of a controller on one bus.
+#[derive(Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Debug, Serialize, Deserialize)]
+pub struct NodeId(pub u16);
+
+impl NodeId {
+    /// As an index into per-node tables.
+    pub fn index(self) -> usize {
+        usize::from(self.0)
+    }
+}
+
+/// The acceptance filter of a controller, in any of the forms harvemu models.
+#[derive(Clone, PartialEq, Eq, Debug, Serialize, Deserialize)]
+pub enum Filter {
+    /// Keep every frame.
+    All,
+    /// Keep nothing (a transmit-only node).
+    Nothing,
+    /// SJA1000 ACR/AMR.
+    Sja1000(Sja1000Filter),
+    /// A raw socket's filter list.
+    SocketCan(SocketCanFilterSet),
+    /// An Atmel message object.
+    Atmel(AtmelFilter),
+}
+
+impl AcceptanceFilter for Filter {
+    fn accepts(&self, frame: &Frame) -> bool {
+        match self {
+            Filter::All => true,
+            Filter::Nothing => false,
+            Filter::Sja1000(f) => f.accepts(frame),
+            Filter::SocketCan(f) => f.accepts(frame),
+            Filter::Atmel(f) => f.accepts(frame),
+        }
+    }
+}
+
+/// How a controller is built.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ControllerConfig {
+    /// Name used in traces and reports ("D3", "monitor").
+    pub name: String,
+    /// Acceptance filter.
+    pub filter: Filter,
+    /// Receive FIFO size in bytes (the SJA1000 has 64).
+    pub rx_fifo_bytes: usize,
+    /// Frames the transmit queue holds before submissions are refused.
+    pub tx_queue_len: usize,
+    /// Error warning limit (SJA1000 EWLR), 96 by default.
+    pub warning_limit: u8,
+}
+
+impl Default for ControllerConfig {
+    fn default() -> Self {
+        ControllerConfig {
+            name: String::new(),
+            filter: Filter::All,
+            rx_fifo_bytes: SJA1000_FIFO_BYTES,
+            tx_queue_len: 16,
+            warning_limit: crate::fault::DEFAULT_WARNING_LIMIT,
+        }
+    }
+}
+
+impl ControllerConfig {
+    /// A controller named `name` with the other settings at their defaults.
+    pub fn named(name: impl Into<String>) -> ControllerConfig {
+        ControllerConfig {
+            name: name.into(),
+            ..ControllerConfig::default()
+        }
+    }
+    /// The same with another filter.
+    pub fn with_filter(mut self, filter: Filter) -> ControllerConfig {
+        self.filter = filter;
+        self
+    }
+}
+
+/// The SJA1000's receive FIFO, in bytes.
+pub const SJA1000_FIFO_BYTES: usize = 64;
+
+/// Bytes a received frame takes in an SJA1000 receive FIFO: frame information and identifier
+/// (3 bytes base, 5 extended) plus the data; a remote frame stores no data.
+pub fn fifo_bytes(frame: &Frame) -> usize {
+    let header = if frame.is_extended() { 5 } else { 3 };
+    header + frame.data().len()
+}
+
+/// A frame in a receive FIFO, stamped with its end-of-frame time.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub struct Received {
+    /// End of frame on the bus.
+    pub at: BusTime,
+    /// The frame.
+    pub frame: Frame,
+}
+
+/// A frame waiting in a transmit queue.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub(crate) struct Pending {
+    pub frame: Frame,
+    pub submitted: BusTime,
+    pub token: u64,
+}
+
+/// Counters a controller keeps for reports.
+#[derive(Clone, Copy, PartialEq, Eq, Debug, Default, Serialize, Deserialize)]
+pub struct ControllerCounters {
+    /// Frames transmitted successfully.
+    pub tx_frames: u64,
+    /// Frames stored in the receive FIFO.
+    pub rx_frames: u64,
+    /// Frames received correctly but rejected by the acceptance filter.
+    pub rx_filtered: u64,
+    /// Frames lost because the receive FIFO was full (data overrun).
+    pub rx_overruns: u64,
+    /// Submissions refused because the transmit queue was full.
+    pub tx_refused: u64,
+    /// Frames dropped from the transmit queue when the controller went bus off.
+    pub tx_aborted: u64,
+    /// Arbitration rounds lost.
+    pub arbitration_lost: u64,
+    /// Error frames this controller took part in as transmitter.
+    pub tx_errors: u64,
+    /// Error frames this controller took part in as receiver.
+    pub rx_errors: u64,
+}
+
+/// One controller on the bus.
+#[derive(Clone, Debug)]
+pub struct Controller {
+    pub(crate) config: ControllerConfig,
+    pub(crate) fault: FaultConfinement,
+    pub(crate) rx: VecDeque<Received>,
+    pub(crate) rx_bytes: usize,
+    /// SJA1000 DOS: set on overrun, cleared when the node clears it.
+    pub(crate) overrun_flag: bool,
+    pub(crate) tx: VecDeque<Pending>,
+    pub(crate) connected: bool,
+    pub(crate) acks: bool,
+    /// An error-passive transmitter waits 8 more bits before it may start again.
+    pub(crate) suspended_until: BusTime,
+    /// Start of the recessive run this (bus-off) controller is counting towards recovery.
+    pub(crate) recessive_since: BusTime,
+    pub(crate) counters: ControllerCounters,
+}
+
+impl Controller {
+    pub(crate) fn new(config: ControllerConfig) -> Controller {
+        let fault = FaultConfinement::with_warning_limit(config.warning_limit);
+        Controller {
+            rx: VecDeque::with_capacity(8),
+            tx: VecDeque::with_capacity(config.tx_queue_len.min(64)),
+            config,
+            fault,
+            rx_bytes: 0,
+            overrun_flag: false,
+            connected: true,
+            acks: true,
+            suspended_until: BusTime::ZERO,
+            recessive_since: BusTime::ZERO,
+            counters: ControllerCounters::default(),
+        }
+    }
+
+    /// Its configuration.
+    pub fn config(&self) -> &ControllerConfig {
+        &self.config
+    }
+    /// Its error counters and state.
+    pub fn fault(&self) -> &FaultConfinement {
+        &self.fault
+    }
+    /// Its counters.
+    pub fn counters(&self) -> &ControllerCounters {
+        &self.counters
+    }
+    /// Frames waiting in the receive FIFO.
+    pub fn rx_len(&self) -> usize {
+        self.rx.len()
+    }
+    /// Bytes used in the receive FIFO.
+    pub fn rx_bytes(&self) -> usize {
+        self.rx_bytes
+    }
+    /// The data-overrun flag (SJA1000 DOS).
+    pub fn overrun_flag(&self) -> bool {
+        self.overrun_flag
+    }
+    /// Frames waiting to be sent.
+    pub fn tx_len(&self) -> usize {
+        self.tx.len()
+    }
+    /// True while connected to the bus.
+    pub fn is_connected(&self) -> bool {
+        self.connected
+    }
+    /// True while it acknowledges frames.
+    pub fn acks(&self) -> bool {
+        self.acks
+    }
+
+    /// Takes part in bus traffic: connected and not bus off.
+    pub(crate) fn on_bus(&self) -> bool {
+        self.connected && self.fault.state() != crate::fault::ErrorState::BusOff
+    }
+
+    /// Stores a received frame; false (and the overrun recorded) when it does not fit.
+    pub(crate) fn store(&mut self, at: BusTime, frame: Frame) -> bool {
+        let need = fifo_bytes(&frame);
+        if self.rx_bytes + need > self.config.rx_fifo_bytes {
+            self.overrun_flag = true;
+            self.counters.rx_overruns += 1;
+            return false;
+        }
+        self.rx_bytes += need;
+        self.rx.push_back(Received { at, frame });
+        self.counters.rx_frames += 1;
+        true
+    }
+
+    /// Releases every frame in the receive FIFO (RRB until empty) and clears the overrun flag
+    /// (CDO).
+    pub(crate) fn drain(&mut self) -> (Vec<Received>, bool) {
+        self.rx_bytes = 0;
+        let overrun = std::mem::take(&mut self.overrun_flag);
+        (self.rx.drain(..).collect(), overrun)
+    }
+}

@@ -1,0 +1,493 @@
+use super::*;
+use crate::candump::parse_frame;
+use crate::fault::ErrorState;
+
+const BIT: u64 = 4000; // 250 kbit/s
+
+fn bus() -> Bus {
+    Bus::new(BusConfig::default()).unwrap()
+}
+
+fn f(text: &str) -> Frame {
+    parse_frame(text).unwrap()
+}
+
+fn run(bus: &mut Bus, until_ns: u64) -> Vec<Event> {
+    bus.run_until(BusTime(until_ns));
+    bus.take_events().collect()
+}
+
+fn frames(events: &[Event]) -> Vec<(u64, u64, NodeId, u32)> {
+    events
+        .iter()
+        .filter_map(|e| match e {
+            Event::Frame {
+                start,
+                end,
+                node,
+                frame,
+                ..
+            } => Some((start.0, end.0, *node, frame.raw_id())),
+            _ => None,
+        })
+        .collect()
+}
+
+#[test]
+fn arbitration_under_contention() {
+    let mut b = bus();
+    let n: Vec<NodeId> = (0..3)
+        .map(|i| b.attach(ControllerConfig::named(format!("n{i}"))))
+        .collect();
+    // Frame lengths from CAN_FACTS.md: 151, 142 and 74 bits, intermission included.
+    b.submit(n[0], f("1FFFFFFF#0000000000000000"), BusTime(0))
+        .unwrap();
+    b.submit(n[1], f("0300A0F5#0102030405060708"), BusTime(0))
+        .unwrap();
+    b.submit(n[2], f("00000000#"), BusTime(0)).unwrap();
+    let got = frames(&run(&mut b, 1_000_000_000));
+    let (s1, s2) = (74 * BIT, (74 + 142) * BIT);
+    assert_eq!(
+        got,
+        [
+            (0, (74 - 3) * BIT, n[2], 0x00000000),
+            (s1, s1 + (142 - 3) * BIT, n[1], 0x0300A0F5),
+            (s2, s2 + (151 - 3) * BIT, n[0], 0x1FFFFFFF),
+        ]
+    );
+    let lost: Vec<u64> = b
+        .controllers()
+        .iter()
+        .map(|c| c.counters().arbitration_lost)
+        .collect();
+    assert_eq!(lost, [2, 1, 0]);
+}
+
+#[test]
+fn a_late_starter_waits_for_the_bus() {
+    let mut b = bus();
+    let a = b.attach(ControllerConfig::named("a"));
+    let c = b.attach(ControllerConfig::named("c"));
+    // c has the higher priority but asks one bit after a started: it waits for the next idle.
+    b.submit(a, f("123#DEADBEEF"), BusTime(0)).unwrap();
+    b.submit(c, f("000#"), BusTime(BIT)).unwrap();
+    let got = frames(&run(&mut b, 1_000_000));
+    assert_eq!(
+        got,
+        [(0, 78 * BIT, a, 0x123), (81 * BIT, 81 * BIT + 50 * BIT, c, 0)]
+    );
+    // Within the same bit time, both contend and the lower identifier wins.
+    let mut b = bus();
+    let a = b.attach(ControllerConfig::named("a"));
+    let c = b.attach(ControllerConfig::named("c"));
+    b.submit(a, f("123#DEADBEEF"), BusTime(0)).unwrap();
+    b.submit(c, f("000#"), BusTime(BIT - 1)).unwrap();
+    assert_eq!(frames(&run(&mut b, 1_000_000))[0].2, c);
+}
+
+#[test]
+fn bus_load_is_the_sum_of_exact_lengths() {
+    let mut b = bus();
+    let a = b.attach(ControllerConfig {
+        tx_queue_len: 100,
+        ..ControllerConfig::named("a")
+    });
+    let _rx = b.attach(ControllerConfig::named("rx"));
+    let texts = [
+        "123#DEADBEEF",
+        "000#",
+        "7FF#R",
+        "0300A0F5#0102030405060708",
+        "1FFFFFFF#0000000000000000",
+    ];
+    let lengths = [81u64, 53, 50, 142, 151];
+    let mut expected_bits = 0;
+    for k in 0..100u64 {
+        let i = (k % 5) as usize;
+        b.submit(a, f(texts[i]), BusTime(k * 1_000_000)).unwrap();
+        expected_bits += lengths[i];
+    }
+    run(&mut b, 100_000_000);
+    b.advance_stats(BusTime(100_000_000));
+    assert_eq!(b.stats().busy_bits, expected_bits);
+    let load = expected_bits as f64 * BIT as f64 / 100_000_000.0;
+    assert!((b.stats().total_load() - load).abs() < 1e-12);
+    assert!((b.stats().window_load(100_000_000) - load).abs() < 1e-12);
+    assert_eq!(b.stats().frames, 100);
+    // Nobody drains the receiver: frames go in while they fit 64 bytes at 3 (base) or 5
+    // (extended) bytes plus data each (CAN_FACTS.md), the rest overrun.
+    let sizes = [3 + 4, 3, 3, 5 + 8, 5 + 8];
+    let (mut used, mut fit) = (0, 0);
+    for k in 0..100 {
+        if used + sizes[k % 5] <= 64 {
+            used += sizes[k % 5];
+            fit += 1;
+        }
+    }
+    assert_eq!((b.stats().deliveries, b.stats().overruns), (fit, 100 - fit));
+    let per = b.stats().per_id[&0x123]; // a base identifier: no EFF flag
+    assert_eq!(per.count, 20);
+    assert_eq!(per.mean_period_ns(), Some(5_000_000.0));
+}
+
+#[test]
+fn overrun_when_a_node_stops_draining() {
+    let mut b = bus();
+    let a = b.attach(ControllerConfig::named("a"));
+    let rx = b.attach(ControllerConfig::named("rx"));
+    for k in 0..10u64 {
+        b.submit(a, f("0601F5D0#0101341EEA2BEF2C"), BusTime(k * 1_000_000))
+            .unwrap();
+    }
+    let events = run(&mut b, 20_000_000);
+    // 13 bytes per extended 8-byte frame: four fit in 64 bytes, the rest overrun.
+    let delivered = events
+        .iter()
+        .filter(|e| matches!(e, Event::Delivered { .. }))
+        .count();
+    let overruns = events
+        .iter()
+        .filter(|e| matches!(e, Event::Overrun { .. }))
+        .count();
+    assert_eq!((delivered, overruns), (4, 6));
+    assert_eq!(b.controller(rx).unwrap().counters().rx_overruns, 6);
+    assert!(b.controller(rx).unwrap().overrun_flag());
+    let (got, overrun) = b.drain_rx(rx).unwrap();
+    assert_eq!((got.len(), overrun), (4, true));
+    assert_eq!(got[0].at, BusTime(137 * BIT), "stamped with the end of frame");
+    // Drained: there is room again, and the flag is clear.
+    assert!(!b.controller(rx).unwrap().overrun_flag());
+    b.submit(a, f("0601F5D0#01"), BusTime(30_000_000)).unwrap();
+    run(&mut b, 40_000_000);
+    assert_eq!(b.controller(rx).unwrap().rx_len(), 1);
+}
+
+#[test]
+fn bus_off_and_recovery_after_128_times_11_recessive_bits() {
+    let mut b = bus();
+    let bad = b.attach(ControllerConfig::named("bad"));
+    let good = b.attach(ControllerConfig::named("good"));
+    b.injector_mut().add(Rule {
+        target: Target::Node(bad),
+        schedule: Schedule::Always,
+        bit: BitPosition::At(40),
+    });
+    b.submit(bad, f("0601F5D0#0101341EEA2BEF2C"), BusTime(0)).unwrap();
+    let events = run(&mut b, 1_000_000_000);
+    let errors: Vec<&Event> = events
+        .iter()
+        .filter(|e| matches!(e, Event::ErrorFrame { .. }))
+        .collect();
+    // TEC +8 per error: passive at the 16th (128), bus off at the 32nd (256).
+    assert_eq!(errors.len(), 32);
+    let states: Vec<(ErrorState, ErrorState, u16)> = events
+        .iter()
+        .filter_map(|e| match e {
+            Event::State {
+                node, from, to, tec, ..
+            } if *node == bad => Some((*from, *to, *tec)),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(
+        states,
+        [
+            (ErrorState::Active, ErrorState::Passive, 128),
+            (ErrorState::Passive, ErrorState::BusOff, 256),
+            (ErrorState::BusOff, ErrorState::Active, 0),
+        ]
+    );
+    assert_eq!(b.controller(good).unwrap().fault().rec(), 32);
+    // The last error: the bus-off node's flag is passive, the receiver's active flag is the one
+    // dominant flag (6 bits); from its end the bus is recessive and idle.
+    let Event::ErrorFrame { flag, .. } = errors[31] else {
+        unreachable!()
+    };
+    let recovered = events
+        .iter()
+        .find_map(|e| match e {
+            Event::State {
+                node,
+                to: ErrorState::Active,
+                at,
+                ..
+            } if *node == bad => Some(*at),
+            _ => None,
+        })
+        .unwrap();
+    assert_eq!(recovered.0, flag.0 + 6 * BIT + 128 * 11 * BIT);
+    // The frame it was sending when it went bus off was dropped.
+    assert_eq!(
+        events
+            .iter()
+            .filter(|e| matches!(e, Event::TxAborted { .. }))
+            .count(),
+        1
+    );
+    assert_eq!(b.controller(bad).unwrap().tx_len(), 0);
+}
+
+#[test]
+fn recovery_counts_recessive_runs_between_frames() {
+    // While bad is bus off, good keeps sending: each frame breaks the recessive run, so recovery
+    // takes longer than 1408 bit times of wall-clock bus time but happens all the same.
+    let mut b = bus();
+    let bad = b.attach(ControllerConfig::named("bad"));
+    let good = b.attach(ControllerConfig::named("good"));
+    let _third = b.attach(ControllerConfig::named("third"));
+    b.injector_mut().add(Rule {
+        target: Target::Node(bad),
+        schedule: Schedule::Always,
+        bit: BitPosition::At(40),
+    });
+    b.submit(bad, f("0601F5D0#01"), BusTime(0)).unwrap();
+    for k in 0..200u64 {
+        b.submit(good, f("0601F5D1#01"), BusTime(k * 2_000_000)).unwrap();
+    }
+    let events = run(&mut b, 400_000_000);
+    let off = events.iter().find_map(|e| match e {
+        Event::State {
+            node,
+            to: ErrorState::BusOff,
+            at,
+            ..
+        } if *node == bad => Some(*at),
+        _ => None,
+    });
+    let back = events.iter().find_map(|e| match e {
+        Event::State {
+            node,
+            to: ErrorState::Active,
+            from: ErrorState::BusOff,
+            at,
+            ..
+        } if *node == bad => Some(*at),
+        _ => None,
+    });
+    let (off, back) = (off.unwrap(), back.unwrap());
+    assert!(back - off > 1408 * BIT, "frames in between break the runs");
+    // Each 2 ms gap holds 500 bits, so 45 sequences per gap: three gaps' worth at least.
+    assert!(back - off < 4 * 2_000_000 + 1408 * BIT);
+}
+
+#[test]
+fn a_lone_transmitter_goes_error_passive_and_never_bus_off() {
+    let mut b = bus();
+    let lone = b.attach(ControllerConfig::named("lone"));
+    b.submit(lone, f("0300A0F5#01"), BusTime(0)).unwrap();
+    let events = run(&mut b, 2_000_000_000);
+    let acks = events
+        .iter()
+        .filter(|e| {
+            matches!(
+                e,
+                Event::ErrorFrame {
+                    error: BusError::Ack,
+                    ..
+                }
+            )
+        })
+        .count();
+    assert!(acks > 1000, "it keeps retrying: {acks}");
+    let c = b.controller(lone).unwrap();
+    assert_eq!((c.fault().tec(), c.fault().state()), (128, ErrorState::Passive));
+    assert!(!events.iter().any(|e| matches!(
+        e,
+        Event::State {
+            to: ErrorState::BusOff,
+            ..
+        }
+    )));
+    assert_eq!(c.counters().tx_frames, 0);
+}
+
+#[test]
+fn a_node_that_does_not_ack() {
+    let mut b = bus();
+    let a = b.attach(ControllerConfig::named("a"));
+    let mute = b.attach(ControllerConfig::named("mute"));
+    b.set_ack(mute, false).unwrap();
+    b.submit(a, f("0300A0F5#01"), BusTime(0)).unwrap();
+    let events = run(&mut b, 1_000_000);
+    let Some(Event::ErrorFrame {
+        error,
+        bit,
+        flag,
+        start,
+        ..
+    }) = events.first().copied()
+    else {
+        panic!()
+    };
+    assert_eq!(error, BusError::Ack);
+    // The flag starts at the ACK delimiter: after the stuffed SOF..CRC, the CRC delimiter and
+    // the ACK slot.
+    let stuffed = crate::bits::encode(&f("0300A0F5#01")).stuffed.len() as u64;
+    assert_eq!(u64::from(bit), stuffed + 1);
+    assert_eq!(flag.0 - start.0, (stuffed + 2) * BIT);
+    assert_eq!(
+        b.controller(mute).unwrap().fault().rec(),
+        events
+            .iter()
+            .filter(|e| matches!(e, Event::ErrorFrame { .. }))
+            .count() as u16
+    );
+    // With the ACK back, the retransmission goes through.
+    b.set_ack(mute, true).unwrap();
+    let later = run(&mut b, 10_000_000);
+    assert_eq!(frames(&later).len(), 1);
+}
+
+#[test]
+fn disconnected_nodes_neither_send_nor_receive() {
+    let mut b = bus();
+    let a = b.attach(ControllerConfig::named("a"));
+    let rx = b.attach(ControllerConfig::named("rx"));
+    let gone = b.attach(ControllerConfig::named("gone"));
+    b.set_connected(gone, false, BusTime(0)).unwrap();
+    b.submit(gone, f("001#"), BusTime(0)).unwrap();
+    b.submit(a, f("002#"), BusTime(0)).unwrap();
+    let events = run(&mut b, 10_000_000);
+    assert_eq!(frames(&events).iter().map(|f| f.2).collect::<Vec<_>>(), [a]);
+    assert_eq!(b.controller(gone).unwrap().rx_len(), 0);
+    assert_eq!(b.controller(rx).unwrap().rx_len(), 1);
+    b.set_connected(gone, true, BusTime(10_000_000)).unwrap();
+    let events = run(&mut b, 20_000_000);
+    assert_eq!(
+        frames(&events).iter().map(|f| (f.0, f.2)).collect::<Vec<_>>(),
+        [(10_000_000, gone)]
+    );
+}
+
+#[test]
+fn filters_decide_what_reaches_the_fifo() {
+    let mut b = bus();
+    let a = b.attach(ControllerConfig::named("a"));
+    let monitor_only = crate::filter::SocketCanFilterSet(vec![crate::filter::SocketCanFilter::new(
+        crate::filter::CAN_EFF_FLAG | 0xF500,
+        crate::filter::CAN_EFF_FLAG | 0xFF00,
+    )]);
+    let m = b.attach(ControllerConfig::named("m").with_filter(Filter::SocketCan(monitor_only)));
+    b.submit(a, f("0601F5D0#01"), BusTime(0)).unwrap();
+    b.submit(a, f("0300A0F5#01"), BusTime(0)).unwrap();
+    run(&mut b, 10_000_000);
+    let c = b.controller(m).unwrap();
+    assert_eq!((c.rx_len(), c.counters().rx_filtered), (1, 1));
+    // Filtering does not stop a node from acknowledging and counting the frame as received.
+    assert_eq!(b.stats().frames, 2);
+}
+
+#[test]
+fn identical_frames_go_out_together_different_ones_collide() {
+    let mut b = bus();
+    let x = b.attach(ControllerConfig::named("x"));
+    let y = b.attach(ControllerConfig::named("y"));
+    let _z = b.attach(ControllerConfig::named("z"));
+    b.submit(x, f("100#01"), BusTime(0)).unwrap();
+    b.submit(y, f("100#01"), BusTime(0)).unwrap();
+    let events = run(&mut b, 1_000_000);
+    assert_eq!(frames(&events).len(), 1);
+    assert_eq!(
+        events
+            .iter()
+            .filter(|e| matches!(e, Event::TxDone { .. }))
+            .count(),
+        2
+    );
+    b.submit(x, f("100#01"), BusTime(2_000_000)).unwrap();
+    b.submit(y, f("100#02"), BusTime(2_000_000)).unwrap();
+    assert!(b.step());
+    let events: Vec<Event> = b.take_events().collect();
+    let Some(Event::ErrorFrame {
+        error: BusError::Bit,
+        bit,
+        ..
+    }) = events.first()
+    else {
+        panic!("{events:?}")
+    };
+    // 100#01 and 100#02 first differ in the last data bits.
+    let (one, two) = (
+        crate::bits::encode(&f("100#01")).stuffed,
+        crate::bits::encode(&f("100#02")).stuffed,
+    );
+    let first_difference = (0..one.len()).find(|&i| one.get(i) != two.get(i)).unwrap();
+    assert_eq!(usize::from(*bit), first_difference);
+    assert_eq!(b.controller(x).unwrap().fault().tec(), 8);
+    assert_eq!(b.controller(y).unwrap().fault().tec(), 8);
+}
+
+#[test]
+fn late_submissions_are_moved_to_the_present_and_counted() {
+    let mut b = bus();
+    let a = b.attach(ControllerConfig::named("a"));
+    let _rx = b.attach(ControllerConfig::named("rx"));
+    b.submit(a, f("001#"), BusTime(5_000_000)).unwrap();
+    run(&mut b, 10_000_000);
+    b.submit(a, f("002#"), BusTime(1_000_000)).unwrap();
+    assert_eq!(b.late_submissions(), 1);
+    let got = frames(&run(&mut b, 20_000_000));
+    assert_eq!(
+        got[0].0,
+        5_000_000 + 50 * BIT,
+        "at the present: after the last committed frame"
+    );
+}
+
+#[test]
+fn transmit_queue_is_bounded() {
+    let mut b = bus();
+    let a = b.attach(ControllerConfig {
+        tx_queue_len: 2,
+        ..ControllerConfig::named("a")
+    });
+    assert!(b.submit(a, f("001#"), BusTime(0)).unwrap().is_some());
+    assert!(b.submit(a, f("001#"), BusTime(0)).unwrap().is_some());
+    assert!(b.submit(a, f("001#"), BusTime(0)).unwrap().is_none());
+    assert_eq!(b.controller(a).unwrap().counters().tx_refused, 1);
+}
+
+#[test]
+fn random_injection_is_deterministic_under_a_seed() {
+    let trace = |seed| {
+        let mut b = Bus::new(BusConfig {
+            seed,
+            ..BusConfig::default()
+        })
+        .unwrap();
+        let a = b.attach(ControllerConfig {
+            tx_queue_len: 500,
+            ..ControllerConfig::named("a")
+        });
+        let _r = b.attach(ControllerConfig::named("r"));
+        b.injector_mut().add(Rule {
+            target: Target::Any,
+            schedule: Schedule::BitErrorRate(1e-3),
+            bit: BitPosition::Random,
+        });
+        for k in 0..500u64 {
+            b.submit(a, f("0601F5D0#0101341EEA2BEF2C"), BusTime(k * 1_000_000))
+                .unwrap();
+        }
+        run(&mut b, 600_000_000)
+    };
+    let (one, two, other) = (trace(42), trace(42), trace(43));
+    assert_eq!(one, two);
+    assert_ne!(one, other);
+    let errors = one
+        .iter()
+        .filter(|e| matches!(e, Event::ErrorFrame { .. }))
+        .count();
+    // 500 frames of about 140 bits at 1e-3: about 65 hit.
+    assert!((30..=110).contains(&errors), "{errors}");
+}
+
+#[test]
+fn rejects_inexact_bit_rates() {
+    let err = Bus::new(BusConfig {
+        bitrate: crate::bits::BitRate::new(30_000).unwrap(),
+        seed: 0,
+    })
+    .unwrap_err();
+    assert!(err.to_string().contains("30000"));
+}
