@@ -26,8 +26,11 @@ mod error;
 pub mod fault;
 pub mod filter;
 mod frame;
+pub mod hub;
 pub mod ident;
+pub mod node;
 pub mod time;
+pub mod trace;
 
 pub use embedded_can::{ExtendedId, Id, StandardId};
 pub use error::Error;

@@ -146,6 +146,8 @@ pub enum Event {
         at: BusTime,
         /// The token `submit` returned.
         token: u64,
+        /// The frame.
+        frame: Frame,
     },
     /// A node's frame was dropped from its queue because the node went bus off.
     TxAborted {
@@ -155,6 +157,8 @@ pub enum Event {
         at: BusTime,
         /// The token `submit` returned.
         token: u64,
+        /// The frame.
+        frame: Frame,
     },
     /// A node's error state changed.
     State {
@@ -596,6 +600,7 @@ impl Bus {
                 node: NodeId(t as u16),
                 at: end,
                 token: p.token,
+                frame: p.frame,
             });
             self.note(NodeId(t as u16), end, changes);
         }
@@ -690,6 +695,7 @@ impl Bus {
                         node: NodeId(t as u16),
                         at: flag_start,
                         token: p.token,
+                        frame: p.frame,
                     });
                 }
             }

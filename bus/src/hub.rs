@@ -1,0 +1,520 @@
+//! The virtual CAN hub: an actor that owns a [`Bus`] engine, wakes node actors when they have
+//! input or a deadline, and keeps bus time in step with the runtime's clock.
+//!
+//! # Time
+//!
+//! The bus clock is exact (nanoseconds, whole bit times); tokio's timers resolve milliseconds.
+//! The hub never sleeps per frame. It commits bus events in time order up to the next moment a
+//! node could change the outcome — the earliest node deadline, or a delivery plus that node's
+//! reaction time — then wakes the nodes due at that moment, waits for their answers (which may
+//! submit frames), and goes on. Before committing anything at bus time `t` it waits until the
+//! runtime's clock has reached `t` less a slack of one millisecond (one timer tick).
+//!
+//! The same code runs in both clocks: on a runtime with paused time (virtual time), waiting costs
+//! nothing and the run is deterministic; on a normal runtime it paces the bus in real time.
+//!
+//! # Wakes
+//!
+//! A node is woken at its deadline (`poll_timeout`), and a reaction time after a frame reaches its
+//! receive FIFO, after a receive overrun or after an error-state change. Transmit confirmations
+//! (sent, aborted, refused) do not wake a node by themselves: they ride along with its next wake.
+//! A hung node (fault injection) is never woken, so its FIFO fills and overruns as a real one
+//! would.
+
+use crate::engine::{
+    Bus, BusConfig, ControllerConfig, ControllerCounters, Event, NodeId, Rule, RuleId, Stats,
+};
+use crate::fault::ErrorState;
+use crate::node::{ControllerEvent, Report, Wake};
+use crate::time::BusTime;
+use crate::{Error, Frame, trace};
+use actix::prelude::*;
+use futures_util::future::join_all;
+use std::io::Write;
+use std::time::Duration;
+use tokio::sync::oneshot;
+
+/// How a hub is set up.
+#[derive(Clone, Debug)]
+pub struct HubConfig {
+    /// The bus.
+    pub bus: BusConfig,
+    /// Interface name in traces.
+    pub iface: String,
+    /// How far bus time may run ahead of the runtime's clock.
+    pub slack: Duration,
+}
+
+impl Default for HubConfig {
+    fn default() -> Self {
+        HubConfig {
+            bus: BusConfig::default(),
+            iface: "harv0".to_string(),
+            slack: Duration::from_millis(1),
+        }
+    }
+}
+
+struct Slot {
+    name: String,
+    node: Option<Recipient<Wake>>,
+    reaction_ns: u64,
+    next_timeout: Option<BusTime>,
+    pending_since: Option<BusTime>,
+    events: Vec<(BusTime, ControllerEvent)>,
+    hung: bool,
+    crashed: Option<String>,
+}
+
+impl Slot {
+    fn due(&self) -> Option<BusTime> {
+        if self.hung || self.crashed.is_some() || self.node.is_none() {
+            return None;
+        }
+        let reaction = self.pending_since.map(|t| t + self.reaction_ns);
+        match (self.next_timeout, reaction) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        }
+    }
+    fn input(&mut self, at: BusTime, event: Option<ControllerEvent>, wakes: bool) {
+        if let Some(e) = event {
+            self.events.push((at, e));
+        }
+        if wakes && self.pending_since.is_none() {
+            self.pending_since = Some(at);
+        }
+    }
+}
+
+/// The hub actor.
+pub struct Hub {
+    bus: Bus,
+    iface: String,
+    slack_ns: u64,
+    slots: Vec<Slot>,
+    start: Option<tokio::time::Instant>,
+    now: BusTime,
+    waiting: bool,
+    paused: bool,
+    timer: Option<SpawnHandle>,
+    stop_at: Option<BusTime>,
+    on_stop: Vec<oneshot::Sender<BusTime>>,
+    trace: Option<Box<dyn Write>>,
+    trace_error: Option<String>,
+    line: String,
+    scratch: Vec<Event>,
+    wakes: u64,
+}
+
+impl Hub {
+    /// A hub with no nodes; `trace` receives the candump log when given.
+    pub fn new(config: HubConfig, trace: Option<Box<dyn Write>>) -> Result<Hub, Error> {
+        Ok(Hub {
+            bus: Bus::new(config.bus)?,
+            iface: config.iface,
+            slack_ns: u64::try_from(config.slack.as_nanos()).unwrap_or(u64::MAX),
+            slots: Vec::new(),
+            start: None,
+            now: BusTime::ZERO,
+            waiting: false,
+            paused: true,
+            timer: None,
+            stop_at: None,
+            on_stop: Vec::new(),
+            trace,
+            trace_error: None,
+            line: String::with_capacity(256),
+            scratch: Vec::with_capacity(64),
+            wakes: 0,
+        })
+    }
+
+    fn clock(&self) -> u64 {
+        self.start
+            .map_or(0, |s| u64::try_from(s.elapsed().as_nanos()).unwrap_or(u64::MAX))
+    }
+
+    /// True when the runtime's clock allows committing at `t`.
+    fn reached(&self, t: BusTime) -> bool {
+        t.as_nanos() <= self.clock().saturating_add(self.slack_ns)
+    }
+
+    fn arm(&mut self, t: BusTime, ctx: &mut Context<Self>) {
+        let wait = t
+            .as_nanos()
+            .saturating_sub(self.slack_ns)
+            .saturating_sub(self.clock());
+        self.timer = Some(ctx.run_later(Duration::from_nanos(wait.max(1)), |hub, ctx| {
+            hub.timer = None;
+            hub.pump(ctx);
+        }));
+    }
+
+    fn next_due(&self) -> Option<BusTime> {
+        self.slots.iter().filter_map(Slot::due).min()
+    }
+
+    /// Runs the bus as far as it can without hearing from a node.
+    fn pump(&mut self, ctx: &mut Context<Self>) {
+        if self.waiting || self.paused {
+            return;
+        }
+        if let Some(h) = self.timer.take() {
+            ctx.cancel_future(h);
+        }
+        loop {
+            let due = self.next_due();
+            let stop = self.stop_at.unwrap_or(BusTime::NEVER);
+            let bus_next = self.bus.next_event_time().filter(|&t| due.is_none_or(|d| t < d));
+            match (bus_next, due) {
+                (Some(t), _) if t < stop => {
+                    if !self.reached(t) {
+                        return self.arm(t, ctx);
+                    }
+                    self.bus.step();
+                    self.dispatch();
+                }
+                (None, Some(d)) if d < stop => {
+                    if !self.reached(d) {
+                        return self.arm(d, ctx);
+                    }
+                    return self.wake(d, ctx);
+                }
+                _ if stop < BusTime::NEVER => {
+                    if !self.reached(stop) {
+                        return self.arm(stop, ctx);
+                    }
+                    return self.finish(stop);
+                }
+                _ => return,
+            }
+        }
+    }
+
+    /// Routes the engine's events to traces and to the nodes' pending inputs.
+    fn dispatch(&mut self) {
+        self.scratch.extend(self.bus.take_events());
+        for event in self.scratch.drain(..) {
+            if let Some(out) = self.trace.as_mut() {
+                self.line.clear();
+                trace::event_line(&mut self.line, &self.iface, &event);
+                if !self.line.is_empty()
+                    && let Err(e) = out.write_all(self.line.as_bytes())
+                {
+                    self.trace_error = Some(e.to_string());
+                    self.trace = None;
+                }
+            }
+            let (node, at, input, wakes) = match event {
+                Event::Delivered { node, at } => (node, at, None, true),
+                Event::Overrun { node, at } => (node, at, Some(ControllerEvent::Overrun), true),
+                Event::State { node, at, to, .. } => (node, at, Some(ControllerEvent::State(to)), true),
+                Event::TxDone { node, at, frame, .. } => {
+                    (node, at, Some(ControllerEvent::Sent(frame)), false)
+                }
+                Event::TxAborted { node, at, frame, .. } => {
+                    (node, at, Some(ControllerEvent::Aborted(frame)), false)
+                }
+                _ => continue,
+            };
+            if let Some(slot) = self.slots.get_mut(node.index()) {
+                slot.input(at, input, wakes);
+            }
+        }
+    }
+
+    /// Wakes every node due at `at` and waits for all of them.
+    fn wake(&mut self, at: BusTime, ctx: &mut Context<Self>) {
+        self.now = at;
+        let mut calls = Vec::new();
+        for i in 0..self.slots.len() {
+            if self.slots[i].due() != Some(at) {
+                continue;
+            }
+            let frames = match self.bus.drain_rx(NodeId(i as u16)) {
+                Ok((frames, _overrun)) => frames,
+                Err(_) => Vec::new(),
+            };
+            let slot = &mut self.slots[i];
+            slot.pending_since = None;
+            slot.next_timeout = None;
+            let events = std::mem::take(&mut slot.events);
+            if let Some(node) = &slot.node {
+                calls.push((
+                    i,
+                    node.send(Wake {
+                        now: at,
+                        frames,
+                        events,
+                    }),
+                ));
+            }
+        }
+        self.wakes += calls.len() as u64;
+        self.waiting = true;
+        let all = join_all(calls.into_iter().map(|(i, call)| async move { (i, call.await) }));
+        ctx.spawn(all.into_actor(self).map(|answers, hub, ctx| {
+            hub.waiting = false;
+            for (i, answer) in answers {
+                hub.answer(i, answer);
+            }
+            hub.pump(ctx);
+        }));
+    }
+
+    fn answer(&mut self, i: usize, answer: Result<Report, MailboxError>) {
+        let now = self.now;
+        let report = match answer {
+            Ok(r) => r,
+            Err(e) => Report {
+                crashed: Some(format!("node actor gone: {e}")),
+                ..Report::default()
+            },
+        };
+        if let Some(message) = report.crashed {
+            tracing::warn!(node = %self.slots[i].name, %message, "node crashed");
+            self.slots[i].crashed = Some(message);
+            return;
+        }
+        for frame in report.transmit {
+            match self.bus.submit(NodeId(i as u16), frame, now) {
+                Ok(Some(_)) => {}
+                Ok(None) => self.slots[i].input(now, Some(ControllerEvent::Refused(frame)), false),
+                Err(e) => tracing::error!(error = %e, "submit failed"),
+            }
+        }
+        // A deadline the logic left in the past would wake it at the same instant for ever.
+        self.slots[i].next_timeout = report
+            .next_timeout
+            .map(|t| if t <= now { now + 1_000_000 } else { t });
+    }
+
+    fn finish(&mut self, at: BusTime) {
+        self.now = self.now.max(at);
+        self.bus.advance_stats(at);
+        if let Some(out) = self.trace.as_mut()
+            && let Err(e) = out.flush()
+        {
+            self.trace_error = Some(e.to_string());
+        }
+        self.paused = true;
+        self.stop_at = None;
+        for tx in self.on_stop.drain(..) {
+            let _ = tx.send(at);
+        }
+    }
+}
+
+impl Actor for Hub {
+    type Context = Context<Self>;
+
+    fn started(&mut self, _ctx: &mut Context<Self>) {
+        self.start = Some(tokio::time::Instant::now());
+    }
+
+    fn stopped(&mut self, _ctx: &mut Context<Self>) {
+        if let Some(out) = self.trace.as_mut() {
+            let _ = out.flush();
+        }
+    }
+}
+
+/// Attaches a node: a controller on the bus, and the actor that runs its logic (none for a
+/// node driven from outside, e.g. a gateway that only submits).
+#[derive(Message)]
+#[rtype(result = "NodeId")]
+pub struct Attach {
+    /// The controller.
+    pub controller: ControllerConfig,
+    /// The node's actor.
+    pub node: Option<Recipient<Wake>>,
+    /// How long after an input the node acts on it.
+    pub reaction: Duration,
+}
+
+impl Handler<Attach> for Hub {
+    type Result = MessageResult<Attach>;
+    fn handle(&mut self, msg: Attach, ctx: &mut Context<Self>) -> Self::Result {
+        let id = self.bus.attach(msg.controller.clone());
+        let now = self.now.max(self.bus.committed());
+        self.slots.push(Slot {
+            name: msg.controller.name,
+            node: msg.node,
+            reaction_ns: u64::try_from(msg.reaction.as_nanos()).unwrap_or(u64::MAX),
+            // A first wake tells the node the time and collects its first deadline.
+            next_timeout: Some(now),
+            pending_since: None,
+            events: Vec::new(),
+            hung: false,
+            crashed: None,
+        });
+        self.pump(ctx);
+        MessageResult(id)
+    }
+}
+
+/// Runs the bus until bus time `0` and answers with the time reached.
+#[derive(Message)]
+#[rtype(result = "Result<BusTime, Error>")]
+pub struct RunUntil(pub BusTime);
+
+impl Handler<RunUntil> for Hub {
+    type Result = ResponseFuture<Result<BusTime, Error>>;
+    fn handle(&mut self, msg: RunUntil, ctx: &mut Context<Self>) -> Self::Result {
+        let (tx, rx) = oneshot::channel();
+        self.on_stop.push(tx);
+        self.stop_at = Some(self.stop_at.map_or(msg.0, |s| s.min(msg.0)));
+        self.paused = false;
+        self.pump(ctx);
+        Box::pin(async move { rx.await.map_err(|_| Error::Syntax("the hub stopped".to_string())) })
+    }
+}
+
+/// Fault-injection and test hooks.
+#[derive(Message, Clone, Debug)]
+#[rtype(result = "Result<Option<RuleId>, Error>")]
+pub enum Control {
+    /// Make a node acknowledge frames or not.
+    SetAck(NodeId, bool),
+    /// Disconnect or reconnect a node.
+    SetConnected(NodeId, bool),
+    /// Stop waking a node (it hangs: alive, silent, not draining its FIFO), or wake it again.
+    SetHung(NodeId, bool),
+    /// Reset a node's controller.
+    Reset(NodeId),
+    /// Install a corruption rule.
+    AddRule(Rule),
+    /// Remove one.
+    RemoveRule(RuleId),
+}
+
+impl Handler<Control> for Hub {
+    type Result = Result<Option<RuleId>, Error>;
+    fn handle(&mut self, msg: Control, ctx: &mut Context<Self>) -> Self::Result {
+        let now = self.now.max(self.bus.committed());
+        let result = match msg {
+            Control::SetAck(n, on) => self.bus.set_ack(n, on).map(|_| None),
+            Control::SetConnected(n, on) => self.bus.set_connected(n, on, now).map(|_| None),
+            Control::SetHung(n, on) => match self.slots.get_mut(n.index()) {
+                Some(slot) => {
+                    slot.hung = on;
+                    if !on {
+                        slot.next_timeout = Some(now);
+                    }
+                    Ok(None)
+                }
+                None => Err(Error::Syntax(format!("no node {}", n.0))),
+            },
+            Control::Reset(n) => self.bus.reset_node(n, now).map(|_| None),
+            Control::AddRule(rule) => Ok(Some(self.bus.injector_mut().add(rule))),
+            Control::RemoveRule(id) => {
+                self.bus.injector_mut().remove(id);
+                Ok(None)
+            }
+        };
+        self.pump(ctx);
+        result
+    }
+}
+
+/// Hands a frame to a node's controller from outside (a gateway, a replay), at the present.
+#[derive(Message)]
+#[rtype(result = "Result<bool, Error>")]
+pub struct Submit {
+    /// The node whose controller sends it.
+    pub node: NodeId,
+    /// The frame.
+    pub frame: Frame,
+}
+
+impl Handler<Submit> for Hub {
+    type Result = Result<bool, Error>;
+    fn handle(&mut self, msg: Submit, ctx: &mut Context<Self>) -> Self::Result {
+        let at = BusTime(self.clock()).max(self.bus.committed());
+        let queued = self.bus.submit(msg.node, msg.frame, at)?.is_some();
+        self.pump(ctx);
+        Ok(queued)
+    }
+}
+
+/// One node as the hub sees it.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct NodeSnapshot {
+    /// Name.
+    pub name: String,
+    /// Transmit error counter.
+    pub tec: u16,
+    /// Receive error counter.
+    pub rec: u16,
+    /// Error state.
+    pub state: ErrorState,
+    /// Controller counters.
+    pub counters: ControllerCounters,
+    /// Hung by fault injection.
+    pub hung: bool,
+    /// Why it crashed, if it did.
+    pub crashed: Option<String>,
+}
+
+/// The hub's state for reports and tests.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Snapshot {
+    /// Bus time of the last committed event or wake.
+    pub now: BusTime,
+    /// Statistics.
+    pub stats: Stats,
+    /// Nodes in `NodeId` order.
+    pub nodes: Vec<NodeSnapshot>,
+    /// Node wakes so far.
+    pub wakes: u64,
+    /// Submissions that arrived after bus time had moved past them.
+    pub late_submissions: u64,
+    /// Why the trace stopped, if writing it failed.
+    pub trace_error: Option<String>,
+}
+
+/// Asks for a [`Snapshot`].
+#[derive(Message)]
+#[rtype(result = "Snapshot")]
+pub struct GetSnapshot;
+
+impl Handler<GetSnapshot> for Hub {
+    type Result = MessageResult<GetSnapshot>;
+    fn handle(&mut self, _: GetSnapshot, _: &mut Context<Self>) -> Self::Result {
+        let nodes = self
+            .slots
+            .iter()
+            .zip(self.bus.controllers())
+            .map(|(s, c)| NodeSnapshot {
+                name: s.name.clone(),
+                tec: c.fault().tec(),
+                rec: c.fault().rec(),
+                state: c.fault().state(),
+                counters: *c.counters(),
+                hung: s.hung,
+                crashed: s.crashed.clone(),
+            })
+            .collect();
+        MessageResult(Snapshot {
+            now: self.now.max(self.bus.committed()),
+            stats: self.bus.stats().clone(),
+            nodes,
+            wakes: self.wakes,
+            late_submissions: self.bus.late_submissions(),
+            trace_error: self.trace_error.clone(),
+        })
+    }
+}
+
+/// A tokio runtime for the hub: with paused time (`virtual_time`: deterministic, as fast as the
+/// CPU allows) or the normal clock (real time). Wrap it with
+/// `actix::System::with_tokio_rt(|| runtime(true).expect(...))`.
+pub fn runtime(virtual_time: bool) -> std::io::Result<tokio::runtime::Runtime> {
+    let mut builder = tokio::runtime::Builder::new_current_thread();
+    builder.enable_all();
+    if virtual_time {
+        builder.start_paused(true);
+    }
+    builder.build()
+}

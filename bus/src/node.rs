@@ -1,0 +1,260 @@
+//! The node runtime: the sans-IO [`NodeLogic`] every emulated node implements, and the thin
+//! [`NodeActor`] that drives one on behalf of the hub.
+//!
+//! Calling contract (quinn-proto style): the driver feeds inputs in time order —
+//! [`NodeLogic::handle_frame`] for each received frame, [`NodeLogic::handle_event`] for
+//! controller notifications, [`NodeLogic::handle_timeout`] when the time from
+//! [`NodeLogic::poll_timeout`] has come — then drains [`NodeLogic::poll_transmit`] until it returns
+//! `None`, and asks `poll_timeout` for the next deadline. Logic never reads a clock: `now` is bus
+//! time, passed in.
+
+use crate::Frame;
+use crate::engine::Received;
+use crate::fault::ErrorState;
+use crate::time::BusTime;
+use actix::prelude::*;
+use std::panic::{AssertUnwindSafe, catch_unwind};
+
+/// What a node's controller tells it besides received frames.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub enum ControllerEvent {
+    /// A frame it submitted went out.
+    Sent(Frame),
+    /// A frame it submitted was dropped when the controller went bus off.
+    Aborted(Frame),
+    /// Its transmit queue was full: this frame was not queued.
+    Refused(Frame),
+    /// Frames were lost because its receive FIFO was full.
+    Overrun,
+    /// Its error state changed.
+    State(ErrorState),
+}
+
+/// The behaviour of one node, without I/O.
+pub trait NodeLogic {
+    /// A frame passed this node's acceptance filter; `now` is its end-of-frame time.
+    fn handle_frame(&mut self, now: BusTime, frame: &Frame);
+    /// The deadline from `poll_timeout` has come.
+    fn handle_timeout(&mut self, now: BusTime);
+    /// A controller notification.
+    fn handle_event(&mut self, now: BusTime, event: ControllerEvent) {
+        let _ = (now, event);
+    }
+    /// The next frame to hand to the controller, if any.
+    fn poll_transmit(&mut self) -> Option<Frame>;
+    /// When `handle_timeout` is next due.
+    fn poll_timeout(&self) -> Option<BusTime>;
+}
+
+/// The hub wakes a node: inputs since the last wake, all at or before `now`.
+#[derive(Message, Debug)]
+#[rtype(result = "Report")]
+pub struct Wake {
+    /// Bus time of the wake.
+    pub now: BusTime,
+    /// Frames from the receive FIFO, oldest first.
+    pub frames: Vec<Received>,
+    /// Controller notifications, oldest first.
+    pub events: Vec<(BusTime, ControllerEvent)>,
+}
+
+/// A node's answer to a wake.
+#[derive(MessageResponse, Debug, Default, PartialEq)]
+pub struct Report {
+    /// Frames to submit, at the wake's time.
+    pub transmit: Vec<Frame>,
+    /// Next deadline.
+    pub next_timeout: Option<BusTime>,
+    /// Set when the logic panicked: the message, and the node takes no further part.
+    pub crashed: Option<String>,
+}
+
+/// Most timeouts handled in one wake, so a logic whose deadline never moves cannot hang the bus.
+const MAX_TIMEOUTS_PER_WAKE: usize = 100_000;
+/// Most frames taken from one wake's `poll_transmit`.
+const MAX_TRANSMIT_PER_WAKE: usize = 1024;
+
+/// Feeds one wake to a logic and collects its answer. This is all a driver does; it is a free
+/// function so that tests and other drivers can use it without actix.
+pub fn drive(logic: &mut dyn NodeLogic, wake: Wake) -> Report {
+    let Wake { now, frames, events } = wake;
+    let mut frames = frames.into_iter().peekable();
+    let mut events = events.into_iter().peekable();
+    let mut timeouts = 0;
+    loop {
+        // The earliest of: next frame, next event, next due timeout.
+        let tf = frames.peek().map(|r| r.at);
+        let te = events.peek().map(|(t, _)| *t);
+        let tt = logic
+            .poll_timeout()
+            .filter(|&t| t <= now && timeouts < MAX_TIMEOUTS_PER_WAKE);
+        let Some(next) = [tf, te, tt].into_iter().flatten().min() else {
+            break;
+        };
+        if tt == Some(next) {
+            timeouts += 1;
+            logic.handle_timeout(next);
+        } else if tf == Some(next) {
+            if let Some(r) = frames.next() {
+                logic.handle_frame(r.at, &r.frame);
+            }
+        } else if let Some((t, e)) = events.next() {
+            logic.handle_event(t, e);
+        }
+    }
+    let mut transmit = Vec::new();
+    while transmit.len() < MAX_TRANSMIT_PER_WAKE {
+        match logic.poll_transmit() {
+            Some(f) => transmit.push(f),
+            None => break,
+        }
+    }
+    Report {
+        transmit,
+        next_timeout: logic.poll_timeout(),
+        crashed: None,
+    }
+}
+
+/// A node as an actor: owns its logic, answers wakes. A panic in the logic is caught and
+/// reported; the actor then stops.
+pub struct NodeActor {
+    name: String,
+    logic: Box<dyn NodeLogic>,
+}
+
+impl NodeActor {
+    /// An actor around `logic`.
+    pub fn new(name: impl Into<String>, logic: Box<dyn NodeLogic>) -> NodeActor {
+        NodeActor {
+            name: name.into(),
+            logic,
+        }
+    }
+}
+
+impl Actor for NodeActor {
+    type Context = Context<Self>;
+}
+
+impl Handler<Wake> for NodeActor {
+    type Result = Report;
+
+    fn handle(&mut self, wake: Wake, ctx: &mut Context<Self>) -> Report {
+        let _span = tracing::trace_span!("node", node = %self.name).entered();
+        match catch_unwind(AssertUnwindSafe(|| drive(self.logic.as_mut(), wake))) {
+            Ok(report) => report,
+            Err(panic) => {
+                let message = panic
+                    .downcast_ref::<&str>()
+                    .map(|s| s.to_string())
+                    .or_else(|| panic.downcast_ref::<String>().cloned())
+                    .unwrap_or_else(|| "panic".to_string());
+                tracing::error!(node = %self.name, %message, "node logic panicked");
+                ctx.stop();
+                Report {
+                    crashed: Some(message),
+                    ..Report::default()
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::candump::parse_frame;
+
+    /// Records what it is fed, in order; sends one frame per received frame; ticks every 10 ms.
+    #[derive(Default)]
+    struct Echo {
+        log: Vec<String>,
+        out: Vec<Frame>,
+        next: Option<BusTime>,
+    }
+
+    impl NodeLogic for Echo {
+        fn handle_frame(&mut self, now: BusTime, frame: &Frame) {
+            self.log.push(format!("frame {now:?}"));
+            self.out.push(*frame);
+        }
+        fn handle_timeout(&mut self, now: BusTime) {
+            self.log.push(format!("timeout {now:?}"));
+            self.next = Some(now + 10_000_000);
+        }
+        fn handle_event(&mut self, now: BusTime, _: ControllerEvent) {
+            self.log.push(format!("event {now:?}"));
+        }
+        fn poll_transmit(&mut self) -> Option<Frame> {
+            self.out.pop()
+        }
+        fn poll_timeout(&self) -> Option<BusTime> {
+            self.next
+        }
+    }
+
+    #[test]
+    fn inputs_are_fed_in_time_order() {
+        let f = parse_frame("123#01").unwrap();
+        let mut logic = Echo {
+            next: Some(BusTime::from_millis(5)),
+            ..Echo::default()
+        };
+        let wake = Wake {
+            now: BusTime::from_millis(25),
+            frames: vec![
+                Received {
+                    at: BusTime::from_millis(1),
+                    frame: f,
+                },
+                Received {
+                    at: BusTime::from_millis(17),
+                    frame: f,
+                },
+            ],
+            events: vec![(BusTime::from_millis(6), ControllerEvent::Overrun)],
+        };
+        let report = drive(&mut logic, wake);
+        let expected: Vec<String> = [
+            ("frame", 1),
+            ("timeout", 5),
+            ("event", 6),
+            ("timeout", 15),
+            ("frame", 17),
+            ("timeout", 25),
+        ]
+        .iter()
+        .map(|(k, ms)| format!("{k} {:?}", BusTime::from_millis(*ms)))
+        .collect();
+        assert_eq!(logic.log, expected);
+        assert_eq!(report.transmit.len(), 2);
+        // A deadline at exactly `now` is due: the hub wakes a node at its deadline.
+        assert_eq!(report.next_timeout, Some(BusTime::from_millis(35)));
+    }
+
+    struct Stuck;
+    impl NodeLogic for Stuck {
+        fn handle_frame(&mut self, _: BusTime, _: &Frame) {}
+        fn handle_timeout(&mut self, _: BusTime) {}
+        fn poll_transmit(&mut self) -> Option<Frame> {
+            None
+        }
+        fn poll_timeout(&self) -> Option<BusTime> {
+            Some(BusTime::ZERO)
+        }
+    }
+
+    #[test]
+    fn a_deadline_that_never_moves_cannot_hang_the_driver() {
+        let report = drive(
+            &mut Stuck,
+            Wake {
+                now: BusTime::from_millis(1),
+                frames: vec![],
+                events: vec![],
+            },
+        );
+        assert_eq!(report.next_timeout, Some(BusTime::ZERO));
+    }
+}

@@ -1,0 +1,243 @@
+//! The bus as a candump log: `(secs.usecs) harv0 0601F5D0#200D0002FFBFFF00`.
+//!
+//! Error frames are written in SocketCAN's error-frame encoding (`include/uapi/linux/can/error.h`):
+//! the identifier is `CAN_ERR_FLAG` with class bits, the 8 data bytes carry the details. A bus
+//! error is written from its transmitter's point of view (protocol error, bus error, counters);
+//! node state changes (warning, passive, bus off, restarted) and receive overruns are written as
+//! the controller-class frames a SocketCAN driver would raise.
+
+use crate::Frame;
+use crate::candump::write_frame;
+use crate::engine::{BusError, Event};
+use crate::fault::ErrorState;
+use crate::filter::CAN_ERR_FLAG;
+use crate::time::BusTime;
+use core::fmt::Write;
+
+/// Error classes (can_id bits) and data bytes of linux/can/error.h.
+pub mod err {
+    /// Lost arbitration.
+    pub const LOSTARB: u32 = 0x0000_0002;
+    /// Controller problems: data[1].
+    pub const CRTL: u32 = 0x0000_0004;
+    /// Protocol violations: data[2], data[3].
+    pub const PROT: u32 = 0x0000_0008;
+    /// Received no ACK on transmission.
+    pub const ACK: u32 = 0x0000_0020;
+    /// Bus off.
+    pub const BUSOFF: u32 = 0x0000_0040;
+    /// Bus error.
+    pub const BUSERROR: u32 = 0x0000_0080;
+    /// Controller restarted.
+    pub const RESTARTED: u32 = 0x0000_0100;
+    /// TEC in data[6], REC in data[7].
+    pub const CNT: u32 = 0x0000_0200;
+    /// data[1]: receive overflow.
+    pub const CRTL_RX_OVERFLOW: u8 = 0x01;
+    /// data[1]: receive warning level.
+    pub const CRTL_RX_WARNING: u8 = 0x04;
+    /// data[1]: transmit warning level.
+    pub const CRTL_TX_WARNING: u8 = 0x08;
+    /// data[1]: receive error passive.
+    pub const CRTL_RX_PASSIVE: u8 = 0x10;
+    /// data[1]: transmit error passive.
+    pub const CRTL_TX_PASSIVE: u8 = 0x20;
+    /// data[1]: back to error active.
+    pub const CRTL_ACTIVE: u8 = 0x40;
+    /// data[2]: single bit error.
+    pub const PROT_BIT: u8 = 0x01;
+    /// data[2]: error occurred on transmission.
+    pub const PROT_TX: u8 = 0x80;
+    /// data[3]: ACK slot.
+    pub const PROT_LOC_ACK: u8 = 0x19;
+}
+
+/// A SocketCAN error frame: `can_id` with `CAN_ERR_FLAG`, 8 data bytes.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub struct ErrorFrame {
+    /// Identifier including `CAN_ERR_FLAG` and class bits.
+    pub can_id: u32,
+    /// Details.
+    pub data: [u8; 8],
+}
+
+fn counters(data: &mut [u8; 8], tec: u16, rec: u16) {
+    data[6] = tec.min(255) as u8;
+    data[7] = rec.min(255) as u8;
+}
+
+/// The error frame an event would raise, if it raises one.
+pub fn error_frame(event: &Event) -> Option<ErrorFrame> {
+    let mut data = [0u8; 8];
+    let class = match *event {
+        Event::ErrorFrame { error, tec, rec, .. } => {
+            counters(&mut data, tec, rec);
+            data[2] = err::PROT_TX;
+            match error {
+                BusError::Bit => {
+                    data[2] |= err::PROT_BIT;
+                    err::PROT | err::BUSERROR | err::CNT
+                }
+                BusError::Ack => {
+                    data[3] = err::PROT_LOC_ACK;
+                    err::PROT | err::ACK | err::BUSERROR | err::CNT
+                }
+            }
+        }
+        Event::State {
+            to, tec, rec, from, ..
+        } => {
+            counters(&mut data, tec, rec);
+            match to {
+                ErrorState::BusOff => err::BUSOFF | err::CNT,
+                ErrorState::Active if from == ErrorState::BusOff => {
+                    data[1] = err::CRTL_ACTIVE;
+                    err::RESTARTED | err::CRTL | err::CNT
+                }
+                ErrorState::Active => {
+                    data[1] = err::CRTL_ACTIVE;
+                    err::CRTL | err::CNT
+                }
+                ErrorState::Passive => {
+                    data[1] = if tec >= 128 { err::CRTL_TX_PASSIVE } else { 0 }
+                        | if rec >= 128 { err::CRTL_RX_PASSIVE } else { 0 };
+                    err::CRTL | err::CNT
+                }
+            }
+        }
+        Event::Warning {
+            entered: true,
+            tec,
+            rec,
+            ..
+        } => {
+            counters(&mut data, tec, rec);
+            data[1] = if tec >= 96 { err::CRTL_TX_WARNING } else { 0 }
+                | if rec >= 96 { err::CRTL_RX_WARNING } else { 0 };
+            err::CRTL | err::CNT
+        }
+        Event::Overrun { .. } => {
+            data[1] = err::CRTL_RX_OVERFLOW;
+            err::CRTL
+        }
+        _ => return None,
+    };
+    Some(ErrorFrame {
+        can_id: CAN_ERR_FLAG | class,
+        data,
+    })
+}
+
+/// Appends the timestamp and interface of a log line.
+fn prefix(out: &mut String, at: BusTime, iface: &str) {
+    let _ = write!(out, "({at}) {iface} ");
+}
+
+/// Appends one candump log line for a frame.
+pub fn frame_line(out: &mut String, at: BusTime, iface: &str, frame: &Frame) {
+    prefix(out, at, iface);
+    write_frame(out, frame);
+    out.push('\n');
+}
+
+/// Appends one candump log line for an error frame.
+pub fn error_line(out: &mut String, at: BusTime, iface: &str, e: &ErrorFrame) {
+    prefix(out, at, iface);
+    let _ = write!(out, "{:08X}#", e.can_id);
+    for b in e.data {
+        let _ = write!(out, "{b:02X}");
+    }
+    out.push('\n');
+}
+
+/// Appends the log line an engine event gives, if any: frames at their end-of-frame time, error
+/// frames at their flag, state changes when they happen.
+pub fn event_line(out: &mut String, iface: &str, event: &Event) {
+    match event {
+        Event::Frame { end, frame, .. } => frame_line(out, *end, iface, frame),
+        Event::ErrorFrame { flag: at, .. }
+        | Event::State { at, .. }
+        | Event::Warning { at, .. }
+        | Event::Overrun { at, .. } => {
+            if let Some(e) = error_frame(event) {
+                error_line(out, *at, iface, &e);
+            }
+        }
+        _ => {}
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::candump::parse_frame;
+    use crate::engine::NodeId;
+
+    #[test]
+    fn frame_lines_look_like_candump() {
+        let mut out = String::new();
+        let f = parse_frame("0601F5D0#200D0002FFBFFF00").unwrap();
+        frame_line(&mut out, BusTime(1_708_620_903_978_650_123), "harv0", &f);
+        assert_eq!(out, "(1708620903.978650) harv0 0601F5D0#200D0002FFBFFF00\n");
+        out.clear();
+        frame_line(&mut out, BusTime(5_000), "harv0", &parse_frame("123#R").unwrap());
+        assert_eq!(out, "(0.000005) harv0 123#R\n");
+    }
+
+    #[test]
+    fn error_frames_use_socketcan_encoding() {
+        let f = parse_frame("0300A0F5#01").unwrap();
+        let ack = Event::ErrorFrame {
+            start: BusTime(0),
+            flag: BusTime(1_000_000),
+            end: BusTime(0),
+            node: NodeId(0),
+            frame: f,
+            error: BusError::Ack,
+            bit: 70,
+            tec: 8,
+            rec: 0,
+        };
+        let mut out = String::new();
+        event_line(&mut out, "harv0", &ack);
+        // CAN_ERR_FLAG | PROT 0x8 | ACK 0x20 | BUSERROR 0x80 | CNT 0x200; data[2] TX, data[3] ACK
+        // slot, data[6] TEC.
+        assert_eq!(out, "(0.001000) harv0 200002A8#0000801900000800\n");
+        let off = Event::State {
+            node: NodeId(1),
+            at: BusTime(2_000_000),
+            from: ErrorState::Passive,
+            to: ErrorState::BusOff,
+            tec: 256,
+            rec: 3,
+        };
+        let e = error_frame(&off).unwrap();
+        assert_eq!(e.can_id, CAN_ERR_FLAG | 0x40 | 0x200);
+        assert_eq!((e.data[6], e.data[7]), (255, 3), "TEC saturates in its byte");
+        let back = Event::State {
+            node: NodeId(1),
+            at: BusTime(0),
+            from: ErrorState::BusOff,
+            to: ErrorState::Active,
+            tec: 0,
+            rec: 0,
+        };
+        assert_eq!(error_frame(&back).unwrap().can_id & 0x100, 0x100, "restarted");
+        let passive = Event::State {
+            node: NodeId(1),
+            at: BusTime(0),
+            from: ErrorState::Active,
+            to: ErrorState::Passive,
+            tec: 128,
+            rec: 5,
+        };
+        assert_eq!(error_frame(&passive).unwrap().data[1], 0x20);
+        assert!(
+            error_frame(&Event::Delivered {
+                node: NodeId(0),
+                at: BusTime(0)
+            })
+            .is_none()
+        );
+    }
+}

@@ -1,0 +1,317 @@
+//! The hub actor with node actors, in virtual time (and once in real time).
+
+use actix::prelude::*;
+use bus::candump::parse_frame;
+use bus::engine::{BitPosition, BusConfig, ControllerConfig, Rule, Schedule, Target};
+use bus::hub::{Attach, Control, GetSnapshot, Hub, HubConfig, RunUntil, runtime};
+use bus::node::{NodeActor, NodeLogic};
+use bus::time::BusTime;
+use bus::{Frame, bits};
+use std::cell::RefCell;
+use std::io::Write;
+use std::rc::Rc;
+use std::time::Duration;
+
+/// Sends `frame` every `period`, starting at `phase`.
+struct Periodic {
+    frame: Frame,
+    period: u64,
+    next: BusTime,
+    due: bool,
+}
+
+impl Periodic {
+    fn new(text: &str, period_ms: u64, phase_us: u64) -> Periodic {
+        Periodic {
+            frame: parse_frame(text).unwrap(),
+            period: period_ms * 1_000_000,
+            next: BusTime::from_micros(phase_us),
+            due: false,
+        }
+    }
+}
+
+impl NodeLogic for Periodic {
+    fn handle_frame(&mut self, _: BusTime, _: &Frame) {}
+    fn handle_timeout(&mut self, now: BusTime) {
+        self.due = true;
+        self.next = now + self.period;
+    }
+    fn poll_transmit(&mut self) -> Option<Frame> {
+        std::mem::take(&mut self.due).then_some(self.frame)
+    }
+    fn poll_timeout(&self) -> Option<BusTime> {
+        Some(self.next)
+    }
+}
+
+/// Answers every frame it receives with `reply`.
+struct Echo {
+    reply: Frame,
+    owed: usize,
+}
+
+impl NodeLogic for Echo {
+    fn handle_frame(&mut self, _: BusTime, _: &Frame) {
+        self.owed += 1;
+    }
+    fn handle_timeout(&mut self, _: BusTime) {}
+    fn poll_transmit(&mut self) -> Option<Frame> {
+        (self.owed > 0).then(|| {
+            self.owed -= 1;
+            self.reply
+        })
+    }
+    fn poll_timeout(&self) -> Option<BusTime> {
+        None
+    }
+}
+
+/// A Write that tests can read back.
+#[derive(Clone, Default)]
+struct Shared(Rc<RefCell<Vec<u8>>>);
+
+impl Write for Shared {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.0.borrow_mut().extend_from_slice(buf);
+        Ok(buf.len())
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+fn in_virtual_time<F: Future>(f: F) -> F::Output {
+    System::with_tokio_rt(|| runtime(true).unwrap()).block_on(f)
+}
+
+async fn attach(
+    hub: &Addr<Hub>,
+    name: &str,
+    logic: Box<dyn NodeLogic>,
+    reaction_us: u64,
+) -> bus::engine::NodeId {
+    let node = NodeActor::new(name, logic).start();
+    hub.send(Attach {
+        controller: ControllerConfig::named(name),
+        node: Some(node.recipient()),
+        reaction: Duration::from_micros(reaction_us),
+    })
+    .await
+    .unwrap()
+}
+
+fn lines(trace: &Shared) -> Vec<String> {
+    String::from_utf8(trace.0.borrow().clone())
+        .unwrap()
+        .lines()
+        .map(str::to_string)
+        .collect()
+}
+
+#[test]
+fn periodic_frames_start_exactly_on_their_deadlines() {
+    let trace = Shared::default();
+    let t = trace.clone();
+    in_virtual_time(async move {
+        let hub = Hub::new(HubConfig::default(), Some(Box::new(t))).unwrap().start();
+        attach(
+            &hub,
+            "a",
+            Box::new(Periodic::new("0601F5D0#200D0002FFBFFF00", 100, 250)),
+            0,
+        )
+        .await;
+        attach(
+            &hub,
+            "monitor",
+            Box::new(Echo {
+                reply: parse_frame("0601D0F5#210D01").unwrap(),
+                owed: 0,
+            }),
+            0,
+        )
+        .await;
+        hub.send(RunUntil(BusTime::from_millis(1000)))
+            .await
+            .unwrap()
+            .unwrap();
+    });
+    let marker = bits::frame_bits(&parse_frame("0601F5D0#200D0002FFBFFF00").unwrap()) as u64;
+    let ack = bits::frame_bits(&parse_frame("0601D0F5#210D01").unwrap()) as u64;
+    let mut expected = Vec::new();
+    for k in 0..10u64 {
+        // SOF at 250 us + k x 100 ms; the candump time is the end of frame.
+        let sof = 250_000 + k * 100_000_000;
+        let end = sof + (marker - 3) * 4000;
+        expected.push(format!("({}) harv0 0601F5D0#200D0002FFBFFF00", BusTime(end)));
+        // The monitor answers at once (reaction 0): its reply starts when the bus is idle.
+        let reply_end = sof + marker * 4000 + (ack - 3) * 4000;
+        expected.push(format!("({}) harv0 0601D0F5#210D01", BusTime(reply_end)));
+    }
+    assert_eq!(lines(&trace), expected);
+}
+
+#[test]
+fn reaction_time_delays_the_reply() {
+    let trace = Shared::default();
+    let t = trace.clone();
+    in_virtual_time(async move {
+        let hub = Hub::new(HubConfig::default(), Some(Box::new(t))).unwrap().start();
+        attach(&hub, "a", Box::new(Periodic::new("123#01", 10, 0)), 0).await;
+        attach(
+            &hub,
+            "b",
+            Box::new(Echo {
+                reply: parse_frame("456#02").unwrap(),
+                owed: 0,
+            }),
+            700,
+        )
+        .await;
+        hub.send(RunUntil(BusTime::from_millis(10)))
+            .await
+            .unwrap()
+            .unwrap();
+    });
+    let first = bits::frame_bits(&parse_frame("123#01").unwrap()) as u64;
+    let reply = bits::frame_bits(&parse_frame("456#02").unwrap()) as u64;
+    let eof = (first - 3) * 4000;
+    let reply_end = eof + 700_000 + (reply - 3) * 4000;
+    assert_eq!(
+        lines(&trace),
+        [
+            format!("({}) harv0 123#01", BusTime(eof)),
+            format!("({}) harv0 456#02", BusTime(reply_end))
+        ]
+    );
+}
+
+#[test]
+fn a_hung_node_overruns_and_resumes() {
+    let snap = in_virtual_time(async move {
+        let hub = Hub::new(HubConfig::default(), None).unwrap().start();
+        attach(
+            &hub,
+            "a",
+            Box::new(Periodic::new("0601F5D0#0101341EEA2BEF2C", 1, 0)),
+            0,
+        )
+        .await;
+        let b = attach(
+            &hub,
+            "b",
+            Box::new(Echo {
+                reply: parse_frame("0601D0F5#21").unwrap(),
+                owed: 0,
+            }),
+            50,
+        )
+        .await;
+        hub.send(RunUntil(BusTime::from_millis(5)))
+            .await
+            .unwrap()
+            .unwrap();
+        hub.send(Control::SetHung(b, true)).await.unwrap().unwrap();
+        hub.send(RunUntil(BusTime::from_millis(20)))
+            .await
+            .unwrap()
+            .unwrap();
+        hub.send(Control::SetHung(b, false)).await.unwrap().unwrap();
+        hub.send(RunUntil(BusTime::from_millis(30)))
+            .await
+            .unwrap()
+            .unwrap();
+        hub.send(GetSnapshot).await.unwrap()
+    });
+    let b = &snap.nodes[1];
+    // 15 frames arrive while hung; four fit the 64-byte FIFO (13 bytes each), the rest overrun.
+    assert_eq!(b.counters.rx_overruns, 11);
+    assert!(snap.stats.overruns == 11);
+    // b answered every frame it got: 5 before, 4 from the FIFO, 10 after.
+    assert_eq!(b.counters.tx_frames, 5 + 4 + 10);
+}
+
+fn run_with_faults(seed: u64) -> Vec<u8> {
+    let trace = Shared::default();
+    let t = trace.clone();
+    in_virtual_time(async move {
+        let config = HubConfig {
+            bus: BusConfig {
+                seed,
+                ..BusConfig::default()
+            },
+            ..HubConfig::default()
+        };
+        let hub = Hub::new(config, Some(Box::new(t))).unwrap().start();
+        for (i, period) in [(0u8, 10u64), (1, 20), (2, 50), (3, 7)] {
+            let text = format!("06{:02X}F5D{i}#0102030405060708", i);
+            attach(
+                &hub,
+                &format!("n{i}"),
+                Box::new(Periodic::new(&text, period, 100 * u64::from(i))),
+                0,
+            )
+            .await;
+        }
+        attach(
+            &hub,
+            "m",
+            Box::new(Echo {
+                reply: parse_frame("0601D0F5#21").unwrap(),
+                owed: 0,
+            }),
+            200,
+        )
+        .await;
+        let rule = Rule {
+            target: Target::Any,
+            schedule: Schedule::BitErrorRate(2e-4),
+            bit: BitPosition::Random,
+        };
+        hub.send(Control::AddRule(rule)).await.unwrap().unwrap();
+        hub.send(RunUntil(BusTime::from_millis(3000)))
+            .await
+            .unwrap()
+            .unwrap();
+    });
+    trace.0.take()
+}
+
+#[test]
+fn same_seed_same_trace_byte_for_byte() {
+    let (a, b, c) = (run_with_faults(9), run_with_faults(9), run_with_faults(10));
+    assert_eq!(a, b);
+    assert_ne!(a, c);
+    let text = String::from_utf8(a).unwrap();
+    assert!(text.lines().count() > 1000);
+    // SocketCAN error frames: CAN_ERR_FLAG | PROT | BUSERROR | CNT.
+    assert!(text.contains("harv0 20000288#"), "bit errors are in the trace");
+}
+
+#[test]
+fn real_time_paces_the_bus() {
+    let started = std::time::Instant::now();
+    let snap = System::with_tokio_rt(|| runtime(false).unwrap()).block_on(async {
+        let hub = Hub::new(HubConfig::default(), None).unwrap().start();
+        attach(&hub, "a", Box::new(Periodic::new("123#01", 20, 0)), 0).await;
+        attach(
+            &hub,
+            "b",
+            Box::new(Echo {
+                reply: parse_frame("456#02").unwrap(),
+                owed: 0,
+            }),
+            0,
+        )
+        .await;
+        hub.send(RunUntil(BusTime::from_millis(200)))
+            .await
+            .unwrap()
+            .unwrap();
+        hub.send(GetSnapshot).await.unwrap()
+    });
+    // Bus time never runs ahead of the wall clock by more than the slack.
+    assert!(started.elapsed() >= Duration::from_millis(199));
+    assert_eq!(snap.stats.frames, 20, "10 periodic frames and 10 replies");
+}
