@@ -3,6 +3,7 @@
 //! Contract: every command reports bad input as a [`BadInput`] error (one line, exit code 2) and
 //! never panics on it.
 
+pub mod bench;
 pub mod inspect;
 
 /// An error that the user caused: reported on one line, exit code 2.

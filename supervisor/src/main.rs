@@ -4,7 +4,7 @@
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
-use supervisor::{BadInput, inspect};
+use supervisor::{BadInput, bench, inspect};
 
 #[derive(Parser)]
 #[command(
@@ -21,6 +21,8 @@ struct Cli {
 enum Command {
     /// Decode one frame: identifier fields, catalogue message, CRC, bit lengths, filters.
     Inspect(inspect::Args),
+    /// Measure how fast the emulator runs (saturated bus; many buses in one process).
+    Bench(bench::Args),
     /// Print the message catalogue (`--markdown`: the generated part of docs/PROTOCOL.md).
     Protocol {
         /// Print the Markdown tables of docs/PROTOCOL.md.
@@ -40,6 +42,7 @@ fn main() -> ExitCode {
     };
     let result = match cli.command {
         Command::Inspect(args) => inspect::run(&args),
+        Command::Bench(args) => bench::run(&args),
         Command::Protocol { markdown } => {
             if markdown {
                 println!("{}", bus::catalogue::doc::markdown());

@@ -184,6 +184,8 @@ pub struct Stats {
     pub elapsed: BusTime,
     /// Bits the bus was busy (frames, error frames, intermission).
     pub busy_bits: u64,
+    /// End of the last busy stretch (a frame committed before a stop may end after it).
+    pub busy_until: BusTime,
     bit_ns: u64,
     /// Successful frames.
     pub frames: u64,
@@ -217,6 +219,7 @@ impl Stats {
         Stats {
             elapsed: BusTime::ZERO,
             busy_bits: 0,
+            busy_until: BusTime::ZERO,
             bit_ns,
             frames: 0,
             deliveries: 0,
@@ -259,6 +262,7 @@ impl Stats {
     /// Adds busy time [start, end) to the load buckets.
     pub(crate) fn busy(&mut self, start: BusTime, end: BusTime, bits: u32) {
         self.busy_bits += u64::from(bits);
+        self.busy_until = self.busy_until.max(end);
         let mut t = start.as_nanos();
         let end = end.as_nanos();
         while t < end {
@@ -296,7 +300,7 @@ impl Stats {
 
     /// Load over the whole run, 0..=1.
     pub fn total_load(&self) -> f64 {
-        let elapsed_bits = self.elapsed.as_nanos() as f64 / self.bit_ns as f64;
+        let elapsed_bits = self.elapsed.max(self.busy_until).as_nanos() as f64 / self.bit_ns as f64;
         if elapsed_bits > 0.0 {
             self.busy_bits as f64 / elapsed_bits
         } else {
