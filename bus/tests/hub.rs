@@ -315,3 +315,41 @@ fn real_time_paces_the_bus() {
     assert!(started.elapsed() >= Duration::from_millis(199));
     assert_eq!(snap.stats.frames, 20, "10 periodic frames and 10 replies");
 }
+
+#[test]
+fn three_nodes_contend_and_win_in_identifier_order() {
+    let trace = Shared::default();
+    let t = trace.clone();
+    in_virtual_time(async move {
+        let hub = Hub::new(HubConfig::default(), Some(Box::new(t))).unwrap().start();
+        // All three deadlines at 1 ms: frame lengths 151, 142 and 74 bits (CAN_FACTS.md).
+        attach(
+            &hub,
+            "x",
+            Box::new(Periodic::new("1FFFFFFF#0000000000000000", 1000, 1000)),
+            0,
+        )
+        .await;
+        attach(
+            &hub,
+            "y",
+            Box::new(Periodic::new("0300A0F5#0102030405060708", 1000, 1000)),
+            0,
+        )
+        .await;
+        attach(&hub, "z", Box::new(Periodic::new("00000000#", 1000, 1000)), 0).await;
+        hub.send(RunUntil(BusTime::from_millis(10)))
+            .await
+            .unwrap()
+            .unwrap();
+    });
+    let at = |bits_before: u64, bits: u64| BusTime(1_000_000 + (bits_before + bits - 3) * 4000);
+    assert_eq!(
+        lines(&trace),
+        [
+            format!("({}) harv0 00000000#", at(0, 74)),
+            format!("({}) harv0 0300A0F5#0102030405060708", at(74, 142)),
+            format!("({}) harv0 1FFFFFFF#0000000000000000", at(74 + 142, 151)),
+        ]
+    );
+}
