@@ -1,7 +1,14 @@
-//! Node logic of the emulated harvester: the behaviour of each field node, the plant model they
-//! sample and the reference monitor, all as sans-IO state machines driven by `now` and frames.
+//! Node logic of the emulated harvester: the behaviour-script interpreter that runs every field
+//! node, the plant model the nodes sample, and the monitor, all as sans-IO state machines driven
+//! by bus time and frames.
 //!
-//! Contract: nothing here reads a clock, does I/O or draws randomness except from a seeded
-//! generator handed in. (The node logic arrives with the harvester issue; the crate exists now so
-//! that the workspace has its final shape.)
+//! Contract: nothing here reads a clock, does I/O (except [`script::load`], which reads script
+//! files) or draws randomness except from generators seeded by the run's seed and the node.
+//! Bad scripts give [`Error`] listing every problem with file, node and field.
 #![warn(missing_docs)]
+
+mod error;
+pub mod monitor;
+pub mod script;
+
+pub use error::{Error, Problem};

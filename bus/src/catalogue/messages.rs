@@ -508,7 +508,7 @@ pub static MESSAGES: &[MessageDef] = &[
             Field::u8("firmware", 2, "firmware version"),
             Field::u8("missed_acks", 3, "groups sent since the last acknowledgement"),
         ],
-        doc: "Sensor state. Sent every 250 ms until the monitor has calibrated the sensor, then on change.",
+        doc: "Sensor state: sent when it changes and at least every 250 ms, so that the monitor sees a sensor waiting for calibration or one that gave up for lack of acknowledgements.",
     },
     MessageDef {
         name: "flow.calibrate",

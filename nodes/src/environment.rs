@@ -1,0 +1,34 @@
+//! The plant as the environment of the scripted nodes.
+
+use crate::plant::{Plant, PlantConfig};
+use crate::script::{Environment, Signals};
+use bus::time::BusTime;
+
+impl Environment for Plant {
+    fn advance_to(&mut self, t: BusTime) {
+        Plant::advance_to(self, t);
+    }
+    fn read(&self, name: &str) -> Option<f64> {
+        self.signal(name)
+    }
+    fn write(&mut self, name: &str, value: f64) -> bool {
+        self.set_input(name, value).is_ok()
+    }
+}
+
+/// The plant's signal names, for validating scripts.
+pub struct PlantSignals;
+
+impl Signals for PlantSignals {
+    fn is_signal(&self, name: &str) -> bool {
+        Plant::signal_names().iter().any(|n| n == name)
+    }
+    fn is_input(&self, name: &str) -> bool {
+        Plant::is_input(name)
+    }
+}
+
+/// Problems with a plant config, as (field, message).
+pub fn validate_plant(config: &PlantConfig) -> Vec<(String, String)> {
+    crate::plant::validate(config)
+}

@@ -1,0 +1,58 @@
+use std::fmt;
+use thiserror::Error;
+
+/// One problem in a script or config: where it is and what is wrong.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Problem {
+    /// The file.
+    pub file: String,
+    /// Line and column, where the parser knows them.
+    pub position: Option<(usize, usize)>,
+    /// The node the problem belongs to, if any.
+    pub node: Option<String>,
+    /// The field, as a path (`messages[2].frames[0].fields.unit3`).
+    pub field: Option<String>,
+    /// What is wrong.
+    pub message: String,
+}
+
+impl fmt::Display for Problem {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.file)?;
+        if let Some((line, col)) = self.position {
+            write!(f, ":{line}:{col}")?;
+        }
+        if let Some(node) = &self.node {
+            write!(f, ": node {node}")?;
+        }
+        if let Some(field) = &self.field {
+            write!(f, ": {field}")?;
+        }
+        write!(f, ": {}", self.message)
+    }
+}
+
+/// Every way the nodes crate can fail.
+#[derive(Debug, Error)]
+pub enum Error {
+    /// Scripts or configs with problems; all of them are listed.
+    #[error("{}", list(.0))]
+    Invalid(Vec<Problem>),
+    /// A file could not be read.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: String,
+        /// Why.
+        source: std::io::Error,
+    },
+}
+
+fn list(problems: &[Problem]) -> String {
+    let mut s = format!("{} problem(s):", problems.len());
+    for p in problems {
+        s.push_str("\n  ");
+        s.push_str(&p.to_string());
+    }
+    s
+}

@@ -1,0 +1,339 @@
+//! Reading scripts and checking them against the catalogue and the plant, reporting every
+//! problem at once.
+
+use super::model::*;
+use crate::{Error, Problem};
+use bus::catalogue::{self, Direction, MessageDef};
+use bus::ident::Address;
+use std::collections::BTreeSet;
+use std::path::Path;
+
+/// What a script may read and write in its environment (the plant).
+pub trait Signals {
+    /// True for a signal a script may read.
+    fn is_signal(&self, name: &str) -> bool;
+    /// True for a plant input a script may write.
+    fn is_input(&self, name: &str) -> bool;
+}
+
+/// Parses a script; a syntax error or unknown field comes back with its line and column.
+pub fn parse(file: &str, text: &str) -> Result<NodeScript, Error> {
+    ron::from_str::<NodeScript>(text).map_err(|e| {
+        Error::Invalid(vec![Problem {
+            file: file.to_string(),
+            position: Some((e.span.start.line, e.span.start.col)),
+            node: None,
+            field: None,
+            message: e.code.to_string(),
+        }])
+    })
+}
+
+/// Reads, parses and validates a script file.
+pub fn load(path: &Path, signals: &dyn Signals) -> Result<NodeScript, Error> {
+    let file = path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
+        path: file.clone(),
+        source,
+    })?;
+    let script = parse(&file, &text)?;
+    let problems = validate(&file, &script, signals);
+    if problems.is_empty() {
+        Ok(script)
+    } else {
+        Err(Error::Invalid(problems))
+    }
+}
+
+struct Checker<'a> {
+    file: &'a str,
+    node: String,
+    problems: Vec<Problem>,
+}
+
+impl Checker<'_> {
+    fn problem(&mut self, field: impl Into<String>, message: impl Into<String>) {
+        self.problems.push(Problem {
+            file: self.file.to_string(),
+            position: None,
+            node: Some(self.node.clone()),
+            field: Some(field.into()),
+            message: message.into(),
+        });
+    }
+}
+
+/// Checks a parsed script; returns every problem found (empty when it is good).
+pub fn validate(file: &str, s: &NodeScript, signals: &dyn Signals) -> Vec<Problem> {
+    let mut c = Checker {
+        file,
+        node: s.name.clone(),
+        problems: Vec::new(),
+    };
+    let address = Address(s.address);
+    match address.kind() {
+        None => c.problem(
+            "address",
+            format!("0x{:02X} is not a harvester address", s.address),
+        ),
+        Some(k) if k != s.kind => c.problem(
+            "kind",
+            format!(
+                "address {address} belongs to the kind '{}', not '{}'",
+                k.name(),
+                s.kind.name()
+            ),
+        ),
+        _ => {}
+    }
+    if s.name.trim().is_empty() {
+        c.problem("name", "is empty");
+    }
+    let states: Vec<&str> = s.states.iter().map(|d| d.name.as_str()).collect();
+    if states.is_empty() {
+        c.problem("states", "a node needs at least one state");
+    }
+    duplicates(&mut c, "states", states.iter().copied());
+    let state_ok = |c: &mut Checker, field: String, name: &str| {
+        if !states.contains(&name) {
+            c.problem(
+                field,
+                format!("unknown state '{name}' (states: {})", states.join(", ")),
+            );
+        }
+    };
+    state_ok(&mut c, "initial".into(), &s.initial);
+    let sends: Vec<&str> = s.messages.iter().map(|m| m.name.as_str()).collect();
+    duplicates(&mut c, "messages", sends.iter().copied());
+    let timers: Vec<&str> = s.timers.iter().map(|t| t.name.as_str()).collect();
+    duplicates(&mut c, "timers", timers.iter().copied());
+    let vars: BTreeSet<&str> = s.vars.keys().map(String::as_str).collect();
+
+    for (i, m) in s.messages.iter().enumerate() {
+        let at = format!("messages[{i}] ({})", m.name);
+        match m.when {
+            When::Periodic { period_ms: 0, .. } => c.problem(format!("{at}.when"), "period 0"),
+            When::OnChange { heartbeat_ms: 0, .. } => c.problem(format!("{at}.when"), "heartbeat 0"),
+            When::OnChange { check_ms: 0, .. } => c.problem(format!("{at}.when"), "check period 0"),
+            _ => {}
+        }
+        if m.frames.is_empty() {
+            c.problem(format!("{at}.frames"), "no frames");
+        }
+        for st in &m.states {
+            state_ok(&mut c, format!("{at}.states"), st);
+        }
+        if let Some(ack) = &m.ack {
+            state_ok(&mut c, format!("{at}.ack.state"), &ack.state);
+            if let Some(v) = &ack.count_var
+                && !vars.contains(v.as_str())
+            {
+                c.problem(format!("{at}.ack.count_var"), format!("unknown variable '{v}'"));
+            }
+        }
+        for (j, f) in m.frames.iter().enumerate() {
+            let fat = format!("{at}.frames[{j}]");
+            let Some(def) = message(&mut c, &fat, &f.message, address, Direction::ToMonitor) else {
+                continue;
+            };
+            for field in def.fields.iter().filter(|fd| fd.constant.is_none()) {
+                if !f.fields.contains_key(field.name) {
+                    c.problem(
+                        format!("{fat}.fields"),
+                        format!("no value for field '{}' of {}", field.name, def.name),
+                    );
+                }
+            }
+            for (name, e) in &f.fields {
+                match def.field(name) {
+                    None => c.problem(
+                        format!("{fat}.fields.{name}"),
+                        format!("{} has no field '{name}'", def.name),
+                    ),
+                    Some(fd) if fd.constant.is_some() => c.problem(
+                        format!("{fat}.fields.{name}"),
+                        "is fixed by the protocol: leave it out",
+                    ),
+                    Some(_) => expr(&mut c, &format!("{fat}.fields.{name}"), e, signals, &vars, None),
+                }
+            }
+        }
+    }
+    // The same message sent periodically by two entries in overlapping states would put two
+    // streams of one identifier and number on the bus.
+    for (i, a) in s.messages.iter().enumerate() {
+        for b in &s.messages[i + 1..] {
+            let periodic = |m: &SendDef| !matches!(m.when, When::OnRequest);
+            let overlap =
+                a.states.is_empty() || b.states.is_empty() || a.states.iter().any(|st| b.states.contains(st));
+            let shared = a
+                .frames
+                .iter()
+                .find(|fa| b.frames.iter().any(|fb| fb.message == fa.message));
+            if let Some(f) = shared
+                && periodic(a)
+                && periodic(b)
+                && overlap
+                && a.enabled
+                && b.enabled
+            {
+                c.problem(
+                    format!("messages ({} and {})", a.name, b.name),
+                    format!("duplicate message {}: both send it in the same states", f.message),
+                );
+            }
+        }
+    }
+    for (i, r) in s.reactions.iter().enumerate() {
+        let at = format!("reactions[{i}] ({})", r.message);
+        let def = message(&mut c, &at, &r.message, address, Direction::FromMonitor);
+        for st in &r.states {
+            state_ok(&mut c, format!("{at}.states"), st);
+        }
+        if let Some(def) = def {
+            for name in r.when.keys() {
+                if def.field(name).is_none() {
+                    c.problem(
+                        format!("{at}.when.{name}"),
+                        format!("{} has no field '{name}'", def.name),
+                    );
+                }
+            }
+        }
+        actions(
+            &mut c, &at, &r.actions, &states, &sends, &timers, &vars, signals, def,
+        );
+    }
+    for (i, t) in s.timers.iter().enumerate() {
+        let at = format!("timers[{i}] ({})", t.name);
+        if t.after_ms == 0 {
+            c.problem(format!("{at}.after_ms"), "delay 0");
+        }
+        for st in &t.states {
+            state_ok(&mut c, format!("{at}.states"), st);
+        }
+        actions(
+            &mut c, &at, &t.actions, &states, &sends, &timers, &vars, signals, None,
+        );
+    }
+    for (i, f) in s.faults.iter().enumerate() {
+        if !signals.is_signal(&f.signal) {
+            c.problem(
+                format!("faults[{i}].signal"),
+                format!("unknown plant signal '{}'", f.signal),
+            );
+        }
+    }
+    c.problems
+}
+
+fn duplicates<'a>(c: &mut Checker, field: &str, names: impl Iterator<Item = &'a str>) {
+    let mut seen = BTreeSet::new();
+    for n in names {
+        if !seen.insert(n) {
+            c.problem(field, format!("'{n}' is defined twice"));
+        }
+    }
+}
+
+fn message(
+    c: &mut Checker,
+    at: &str,
+    name: &str,
+    node: Address,
+    way: Direction,
+) -> Option<&'static MessageDef> {
+    let Some(def) = catalogue::by_name(name) else {
+        c.problem(
+            format!("{at}.message"),
+            format!("'{name}' is not in the message catalogue"),
+        );
+        return None;
+    };
+    if !def.nodes.contains(node) {
+        c.problem(
+            format!("{at}.message"),
+            format!("{name} is not a message of node {node}"),
+        );
+        return None;
+    }
+    if def.direction != way {
+        let what = if way == Direction::ToMonitor {
+            "sends"
+        } else {
+            "receives"
+        };
+        c.problem(
+            format!("{at}.message"),
+            format!("{name} goes the other way: this node never {what} it"),
+        );
+        return None;
+    }
+    Some(def)
+}
+
+fn expr(
+    c: &mut Checker,
+    at: &str,
+    e: &Expr,
+    signals: &dyn Signals,
+    vars: &BTreeSet<&str>,
+    frame: Option<&MessageDef>,
+) {
+    match e {
+        Expr::Const(v) if !v.is_finite() => c.problem(at, "not a finite number"),
+        Expr::Signal(s) if !signals.is_signal(s) => c.problem(at, format!("unknown plant signal '{s}'")),
+        Expr::Var(v) if !vars.contains(v.as_str()) => c.problem(at, format!("unknown variable '{v}'")),
+        Expr::Field(f) => match frame {
+            None => c.problem(at, format!("Field(\"{f}\") only has a meaning in a reaction")),
+            Some(def) if def.field(f).is_none() => c.problem(at, format!("{} has no field '{f}'", def.name)),
+            _ => {}
+        },
+        Expr::Quantize(_, step) if !(*step > 0.0) => c.problem(at, "Quantize step must be positive"),
+        Expr::Scaled(inner, _, _) | Expr::Clamp(inner, _, _) | Expr::Quantize(inner, _) => {
+            expr(c, at, inner, signals, vars, frame)
+        }
+        _ => {}
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn actions(
+    c: &mut Checker,
+    at: &str,
+    list: &[Action],
+    states: &[&str],
+    sends: &[&str],
+    timers: &[&str],
+    vars: &BTreeSet<&str>,
+    signals: &dyn Signals,
+    frame: Option<&MessageDef>,
+) {
+    for (k, a) in list.iter().enumerate() {
+        let here = format!("{at}.actions[{k}]");
+        match a {
+            Action::SetState(s) if !states.contains(&s.as_str()) => {
+                c.problem(here, format!("unknown state '{s}'"))
+            }
+            Action::Start(m) | Action::Stop(m) | Action::Send(m) if !sends.contains(&m.as_str()) => {
+                c.problem(here, format!("unknown message '{m}'"))
+            }
+            Action::Restart(t) if !timers.contains(&t.as_str()) => {
+                c.problem(here, format!("unknown timer '{t}'"))
+            }
+            Action::Write(s, e) => {
+                if !signals.is_input(s) {
+                    c.problem(here.clone(), format!("'{s}' is not a plant input"));
+                }
+                expr(c, &here, e, signals, vars, frame);
+            }
+            Action::Set(v, e) => {
+                if !vars.contains(v.as_str()) {
+                    c.problem(here.clone(), format!("unknown variable '{v}'"));
+                }
+                expr(c, &here, e, signals, vars, frame);
+            }
+            _ => {}
+        }
+    }
+}

@@ -1,0 +1,22 @@
+//! Behaviour scripts: each field node's behaviour as data (RON), and the interpreter that runs
+//! one as a [`NodeLogic`](bus::node::NodeLogic).
+//!
+//! A script names the node (address, name, kind), its states, the messages it sends and when
+//! (periodic with period and phase, on change with a heartbeat, or on request), what each field
+//! of each message is bound to (a plant signal, a constant, a variable, the state code, a field of
+//! the frame being answered), its reactions to received frames (match on message and field
+//! values; reply, set state, start or stop messages, write a plant input, set a variable), timers
+//! (watchdogs), a boot delay, acknowledgement tracking, and per-signal fault hooks (stuck, drift,
+//! noise, offset, dropout). Scaling, byte order and ranges come from the message catalogue, never
+//! from the script. The format is documented in `docs/BEHAVIOUR.md`.
+
+mod load;
+mod model;
+mod run;
+
+pub use load::{Signals, load, parse, validate};
+pub use model::*;
+pub use run::{Environment, ScriptedNode, SharedEnv};
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,228 @@
+//! The script format (deserialized with serde from RON; unknown fields are errors).
+
+use bus::ident::NodeKind;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+/// One node's behaviour.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NodeScript {
+    /// Bus address (e.g. `0xD0`).
+    pub address: u8,
+    /// Name in traces and reports ("D0").
+    pub name: String,
+    /// Node kind; must agree with the address.
+    pub kind: NodeKind,
+    /// Time from power-on to the end of boot, ms.
+    #[serde(default)]
+    pub boot_delay_ms: u64,
+    /// States with the codes that `StateCode` sends. The node is in the first state while it
+    /// boots.
+    pub states: Vec<StateDef>,
+    /// The state entered when boot is over.
+    pub initial: String,
+    /// Variables and their initial values.
+    #[serde(default)]
+    pub vars: BTreeMap<String, f64>,
+    /// What it sends.
+    #[serde(default)]
+    pub messages: Vec<SendDef>,
+    /// How it reacts to frames addressed to it.
+    #[serde(default)]
+    pub reactions: Vec<Reaction>,
+    /// Timers that fire when nothing restarts them in time (watchdogs).
+    #[serde(default)]
+    pub timers: Vec<TimerDef>,
+    /// Sensor faults active from the start (scenarios add more at run time).
+    #[serde(default)]
+    pub faults: Vec<SignalFault>,
+}
+
+/// A state and its code.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StateDef {
+    /// Name.
+    pub name: String,
+    /// The value `StateCode` evaluates to in this state.
+    pub code: u8,
+}
+
+/// A message, or a group of messages sent back to back.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SendDef {
+    /// Name that actions use to start, stop or send it.
+    pub name: String,
+    /// The frames, in order.
+    pub frames: Vec<FrameSpec>,
+    /// When it is sent.
+    pub when: When,
+    /// States in which it is sent; empty means every state after boot.
+    #[serde(default)]
+    pub states: Vec<String>,
+    /// Whether it starts enabled (`Start`/`Stop` actions change it).
+    #[serde(default = "yes")]
+    pub enabled: bool,
+    /// Acknowledgement tracking for connection-oriented traffic.
+    #[serde(default)]
+    pub ack: Option<AckDef>,
+}
+
+fn yes() -> bool {
+    true
+}
+
+/// One frame of a message: the catalogue message and what each field is bound to.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FrameSpec {
+    /// Catalogue name (`flow.part1`).
+    pub message: String,
+    /// Field name -> value. Constant fields of the catalogue need none.
+    #[serde(default)]
+    pub fields: BTreeMap<String, Expr>,
+}
+
+/// When a message is sent.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub enum When {
+    /// Every `period_ms`, the first time `phase_ms` after boot.
+    Periodic {
+        /// Period, ms.
+        period_ms: u64,
+        /// Offset from the end of boot, ms.
+        #[serde(default)]
+        phase_ms: u64,
+    },
+    /// When the encoded payload changes (checked every `check_ms`), and at least every
+    /// `heartbeat_ms`.
+    OnChange {
+        /// Longest silence, ms.
+        heartbeat_ms: u64,
+        /// How often the value is looked at, ms.
+        #[serde(default = "default_check")]
+        check_ms: u64,
+    },
+    /// Only when an action sends it.
+    OnRequest,
+}
+
+fn default_check() -> u64 {
+    20
+}
+
+/// Acknowledgement tracking: every send counts as unacknowledged until an `Acknowledged`
+/// action; after `limit` in a row the node enters `state`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AckDef {
+    /// Unacknowledged sends in a row that are tolerated.
+    pub limit: u32,
+    /// State entered when the limit is passed.
+    pub state: String,
+    /// Variable that holds the count (for status messages).
+    #[serde(default)]
+    pub count_var: Option<String>,
+}
+
+/// A value for a field, a plant input or a variable.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum Expr {
+    /// A number.
+    Const(f64),
+    /// A plant signal, through this node's fault hooks.
+    Signal(String),
+    /// A variable of the node.
+    Var(String),
+    /// A field of the frame being reacted to (only in reactions).
+    Field(String),
+    /// The current state's code.
+    StateCode,
+    /// `value × gain + offset`.
+    Scaled(Box<Expr>, f64, f64),
+    /// `value` limited to `min..=max`.
+    Clamp(Box<Expr>, f64, f64),
+    /// `value` rounded to a multiple of `step`, so that an analog input sent on change does not
+    /// change with every bit of noise.
+    Quantize(Box<Expr>, f64),
+}
+
+/// What a node does when a frame for it arrives.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Reaction {
+    /// Catalogue name of the message.
+    pub message: String,
+    /// Field values that must match (raw values, as the catalogue's value tables name them).
+    #[serde(default)]
+    pub when: BTreeMap<String, f64>,
+    /// States in which it applies; empty means every state after boot.
+    #[serde(default)]
+    pub states: Vec<String>,
+    /// What to do.
+    pub actions: Vec<Action>,
+}
+
+/// One step of a reaction or timer.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum Action {
+    /// Enter a state.
+    SetState(String),
+    /// Enable a message.
+    Start(String),
+    /// Disable a message.
+    Stop(String),
+    /// Send a message now (a reply).
+    Send(String),
+    /// Write a plant input.
+    Write(String, Expr),
+    /// Set a variable.
+    Set(String, Expr),
+    /// Reset acknowledgement tracking of every message (an acknowledgement arrived).
+    Acknowledged,
+    /// Restart a timer.
+    Restart(String),
+}
+
+/// A timer: fires `after_ms` after it was last (re)started, while the node is in one of its
+/// states; it restarts on entering them, on `Restart` actions and when it fires.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TimerDef {
+    /// Name for `Restart`.
+    pub name: String,
+    /// Delay, ms.
+    pub after_ms: u64,
+    /// States in which it runs; empty means every state after boot.
+    #[serde(default)]
+    pub states: Vec<String>,
+    /// What to do when it fires.
+    pub actions: Vec<Action>,
+}
+
+/// A sensor fault on one plant signal as this node reads it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SignalFault {
+    /// The plant signal.
+    pub signal: String,
+    /// What goes wrong.
+    pub fault: FaultKind,
+}
+
+/// Sensor fault kinds.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub enum FaultKind {
+    /// Reads this value whatever the plant does.
+    Stuck(f64),
+    /// Reads the true value plus this.
+    Offset(f64),
+    /// Reads the true value plus `rate` per second since the fault began.
+    Drift(f64),
+    /// Reads the true value plus Gaussian noise of this standard deviation.
+    Noise(f64),
+    /// The sensor is gone: messages that read this signal are not sent.
+    Dropout,
+}

@@ -1,0 +1,386 @@
+//! The interpreter: a [`NodeScript`] run as a sans-IO [`NodeLogic`].
+
+use super::model::*;
+use bus::Frame;
+use bus::catalogue::{self, Decoded, Direction};
+use bus::ident::Address;
+use bus::node::NodeLogic;
+use bus::time::BusTime;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use std::cell::RefCell;
+use std::collections::{BTreeMap, VecDeque};
+use std::rc::Rc;
+
+/// What a node samples and drives: the plant. Shared by every node of one harvester on one
+/// thread; it moves only forward in time.
+pub trait Environment {
+    /// Brings the environment to bus time `t` (no-op for a time already passed).
+    fn advance_to(&mut self, t: BusTime);
+    /// The value of a signal.
+    fn read(&self, name: &str) -> Option<f64>;
+    /// Sets an input; false when the name is not an input.
+    fn write(&mut self, name: &str, value: f64) -> bool;
+}
+
+/// The environment shared by the nodes of one harvester.
+pub type SharedEnv = Rc<RefCell<dyn Environment>>;
+
+const MS: u64 = 1_000_000;
+
+#[derive(Clone, Debug)]
+struct SendState {
+    enabled: bool,
+    next: BusTime,
+    last: Vec<Frame>,
+    last_sent: Option<BusTime>,
+    unacked: u32,
+}
+
+/// A sensor was read through a dropout fault: the message is not sent.
+struct Dropout;
+
+/// A behaviour script running as a node.
+pub struct ScriptedNode {
+    s: NodeScript,
+    address: Address,
+    env: SharedEnv,
+    boot_at: BusTime,
+    booted: bool,
+    state: usize,
+    vars: BTreeMap<String, f64>,
+    sends: Vec<SendState>,
+    timers: Vec<Option<BusTime>>,
+    faults: Vec<(SignalFault, BusTime)>,
+    out: VecDeque<Frame>,
+    rng: ChaCha8Rng,
+    now: BusTime,
+    sent: u64,
+    skipped: u64,
+}
+
+impl ScriptedNode {
+    /// A node that powers on at `power_on`; `seed` drives its noise faults.
+    pub fn new(script: NodeScript, env: SharedEnv, power_on: BusTime, seed: u64) -> ScriptedNode {
+        let boot_at = power_on + script.boot_delay_ms * MS;
+        let faults = script.faults.iter().map(|f| (f.clone(), power_on)).collect();
+        ScriptedNode {
+            address: Address(script.address),
+            vars: script.vars.clone(),
+            sends: script
+                .messages
+                .iter()
+                .map(|m| SendState {
+                    enabled: m.enabled,
+                    next: BusTime::NEVER,
+                    last: Vec::new(),
+                    last_sent: None,
+                    unacked: 0,
+                })
+                .collect(),
+            timers: vec![None; script.timers.len()],
+            s: script,
+            env,
+            boot_at,
+            booted: false,
+            state: 0,
+            faults,
+            out: VecDeque::new(),
+            rng: ChaCha8Rng::seed_from_u64(
+                seed ^ 0x5eed_0000_0000_0000 ^ u64::from(power_on.as_nanos() as u32),
+            ),
+            now: power_on,
+            sent: 0,
+            skipped: 0,
+        }
+    }
+
+    /// The node's name.
+    pub fn name(&self) -> &str {
+        &self.s.name
+    }
+    /// The current state's name.
+    pub fn state(&self) -> &str {
+        self.s.states.get(self.state).map_or("", |d| d.name.as_str())
+    }
+    /// True once boot is over.
+    pub fn booted(&self) -> bool {
+        self.booted
+    }
+    /// A variable's value.
+    pub fn var(&self, name: &str) -> Option<f64> {
+        self.vars.get(name).copied()
+    }
+    /// Frames produced so far, and sends skipped (dropout, or a value the catalogue refused).
+    pub fn counts(&self) -> (u64, u64) {
+        (self.sent, self.skipped)
+    }
+    /// Installs (Some) or removes (None) a sensor fault on a signal, from `now`.
+    pub fn set_fault(&mut self, signal: &str, fault: Option<FaultKind>, now: BusTime) {
+        self.faults.retain(|(f, _)| f.signal != signal);
+        if let Some(fault) = fault {
+            self.faults.push((
+                SignalFault {
+                    signal: signal.to_string(),
+                    fault,
+                },
+                now,
+            ));
+        }
+    }
+
+    fn active(&self, states: &[String]) -> bool {
+        self.booted && (states.is_empty() || states.iter().any(|s| s == self.state()))
+    }
+
+    fn state_index(&self, name: &str) -> Option<usize> {
+        self.s.states.iter().position(|d| d.name == name)
+    }
+
+    fn set_state(&mut self, name: &str) {
+        let Some(i) = self.state_index(name) else { return };
+        if i == self.state && self.booted {
+            return;
+        }
+        self.state = i;
+        tracing::debug!(node = %self.s.name, state = name, "state");
+        // Timers restart on entering a state they run in, and stop outside their states.
+        for (k, t) in self.s.timers.iter().enumerate() {
+            let on = self.booted && (t.states.is_empty() || t.states.iter().any(|s| s == name));
+            self.timers[k] = on.then(|| self.now + t.after_ms * MS);
+        }
+    }
+
+    fn boot(&mut self) {
+        self.booted = true;
+        let b = self.boot_at;
+        for (k, m) in self.s.messages.iter().enumerate() {
+            self.sends[k].next = match m.when {
+                When::Periodic { phase_ms, .. } => b + phase_ms * MS,
+                When::OnChange { .. } => b,
+                When::OnRequest => BusTime::NEVER,
+            };
+        }
+        let initial = self.s.initial.clone();
+        self.state = usize::MAX;
+        self.set_state(&initial);
+    }
+
+    fn read_signal(&mut self, name: &str) -> Result<f64, Dropout> {
+        let truth = self.env.borrow().read(name).unwrap_or(0.0);
+        let mut value = truth;
+        for (f, since) in &self.faults {
+            if f.signal != name {
+                continue;
+            }
+            value = match f.fault {
+                FaultKind::Stuck(v) => v,
+                FaultKind::Offset(o) => value + o,
+                FaultKind::Drift(rate) => value + rate * self.now.since(*since).as_secs_f64(),
+                FaultKind::Noise(sigma) => value + sigma * gaussian(&mut self.rng),
+                FaultKind::Dropout => return Err(Dropout),
+            };
+        }
+        Ok(value)
+    }
+
+    fn eval(&mut self, e: &Expr, frame: Option<&Decoded>) -> Result<f64, Dropout> {
+        Ok(match e {
+            Expr::Const(v) => *v,
+            Expr::Signal(s) => self.read_signal(s)?,
+            Expr::Var(v) => self.vars.get(v).copied().unwrap_or(0.0),
+            Expr::Field(f) => frame.and_then(|d| d.get(f)).map_or(0.0, |v| v.physical),
+            Expr::StateCode => f64::from(self.s.states.get(self.state).map_or(0, |d| d.code)),
+            Expr::Scaled(inner, gain, offset) => self.eval(inner, frame)? * gain + offset,
+            Expr::Clamp(inner, lo, hi) => self.eval(inner, frame)?.clamp(*lo, *hi),
+            Expr::Quantize(inner, step) => {
+                let v = self.eval(inner, frame)?;
+                if *step > 0.0 { (v / step).round() * step } else { v }
+            }
+        })
+    }
+
+    /// The frames of send `k` as they would go out now.
+    fn build(&mut self, k: usize, frame: Option<&Decoded>) -> Option<Vec<Frame>> {
+        let specs = self.s.messages[k].frames.clone();
+        let mut frames = Vec::with_capacity(specs.len());
+        for spec in &specs {
+            let def = catalogue::by_name(&spec.message)?;
+            let mut values = BTreeMap::new();
+            for (name, e) in &spec.fields {
+                let v = self.eval(e, frame).ok()?;
+                // A sensor saturates at the ends of what its message can carry.
+                let v = def.field(name).map_or(v, |f| v.clamp(f.min, f.max));
+                values.insert(name.as_str(), v);
+            }
+            frames.push(def.encode(self.address, |n| values.get(n).copied()).ok()?);
+        }
+        Some(frames)
+    }
+
+    fn emit(&mut self, k: usize, frame: Option<&Decoded>) {
+        let Some(frames) = self.build(k, frame) else {
+            self.skipped += 1;
+            return;
+        };
+        self.sent += frames.len() as u64;
+        self.out.extend(frames.iter().copied());
+        self.sends[k].last = frames;
+        self.sends[k].last_sent = Some(self.now);
+        if let Some(ack) = self.s.messages[k].ack.clone() {
+            self.sends[k].unacked += 1;
+            let count = self.sends[k].unacked;
+            if let Some(v) = &ack.count_var {
+                self.vars.insert(v.clone(), f64::from(count));
+            }
+            if count >= ack.limit {
+                self.set_state(&ack.state);
+            }
+        }
+    }
+
+    fn run_actions(&mut self, actions: &[Action], frame: Option<&Decoded>) {
+        for a in actions {
+            match a {
+                Action::SetState(s) => self.set_state(s),
+                Action::Start(m) | Action::Stop(m) => {
+                    if let Some(k) = self.s.messages.iter().position(|d| &d.name == m) {
+                        self.sends[k].enabled = matches!(a, Action::Start(_));
+                    }
+                }
+                Action::Send(m) => {
+                    if let Some(k) = self.s.messages.iter().position(|d| &d.name == m) {
+                        self.emit(k, frame);
+                    }
+                }
+                Action::Write(signal, e) => {
+                    if let Ok(v) = self.eval(e, frame) {
+                        self.env.borrow_mut().write(signal, v);
+                    }
+                }
+                Action::Set(var, e) => {
+                    if let Ok(v) = self.eval(e, frame) {
+                        self.vars.insert(var.clone(), v);
+                    }
+                }
+                Action::Acknowledged => {
+                    for (k, m) in self.s.messages.iter().enumerate() {
+                        self.sends[k].unacked = 0;
+                        if let Some(v) = m.ack.as_ref().and_then(|a| a.count_var.clone()) {
+                            self.vars.insert(v, 0.0);
+                        }
+                    }
+                }
+                Action::Restart(t) => {
+                    if let Some(k) = self.s.timers.iter().position(|d| &d.name == t)
+                        && self.timers[k].is_some()
+                    {
+                        self.timers[k] = Some(self.now + self.s.timers[k].after_ms * MS);
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// A standard normal deviate (Box–Muller) from a seeded generator.
+fn gaussian(rng: &mut ChaCha8Rng) -> f64 {
+    use rand::Rng;
+    let u1: f64 = rng.random_range(f64::MIN_POSITIVE..1.0);
+    let u2: f64 = rng.random();
+    (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
+}
+
+impl NodeLogic for ScriptedNode {
+    fn handle_frame(&mut self, now: BusTime, frame: &Frame) {
+        self.now = now;
+        if !self.booted {
+            return;
+        }
+        let Ok(Some(d)) = catalogue::decode(frame) else {
+            return;
+        };
+        if d.node != self.address || d.message.direction != Direction::FromMonitor {
+            return;
+        }
+        self.env.borrow_mut().advance_to(now);
+        let reactions: Vec<Vec<Action>> = self
+            .s
+            .reactions
+            .iter()
+            .filter(|r| r.message == d.message.name && self.active(&r.states))
+            .filter(|r| {
+                r.when
+                    .iter()
+                    .all(|(f, v)| d.get(f).is_some_and(|x| x.raw as f64 == *v))
+            })
+            .map(|r| r.actions.clone())
+            .collect();
+        for actions in reactions {
+            self.run_actions(&actions, Some(&d));
+        }
+    }
+
+    fn handle_timeout(&mut self, now: BusTime) {
+        self.now = now;
+        self.env.borrow_mut().advance_to(now);
+        if !self.booted {
+            if now >= self.boot_at {
+                self.boot();
+            } else {
+                return;
+            }
+        }
+        for k in 0..self.sends.len() {
+            if self.sends[k].next > now {
+                continue;
+            }
+            let m = &self.s.messages[k];
+            let go = self.sends[k].enabled && self.active(&m.states);
+            match m.when {
+                When::Periodic { period_ms, .. } => {
+                    self.sends[k].next = self.sends[k].next + period_ms * MS;
+                    if go {
+                        self.emit(k, None);
+                    }
+                }
+                When::OnChange {
+                    heartbeat_ms,
+                    check_ms,
+                } => {
+                    self.sends[k].next = self.sends[k].next + check_ms * MS;
+                    if go {
+                        let stale = self.sends[k]
+                            .last_sent
+                            .is_none_or(|t| now - t >= heartbeat_ms * MS);
+                        let changed = self.build(k, None).is_some_and(|f| f != self.sends[k].last);
+                        if stale || changed {
+                            self.emit(k, None);
+                        }
+                    }
+                }
+                When::OnRequest => self.sends[k].next = BusTime::NEVER,
+            }
+        }
+        for k in 0..self.timers.len() {
+            if self.timers[k].is_some_and(|t| t <= now) {
+                self.timers[k] = Some(now + self.s.timers[k].after_ms * MS);
+                let actions = self.s.timers[k].actions.clone();
+                self.run_actions(&actions, None);
+            }
+        }
+    }
+
+    fn poll_transmit(&mut self) -> Option<Frame> {
+        self.out.pop_front()
+    }
+
+    fn poll_timeout(&self) -> Option<BusTime> {
+        if !self.booted {
+            return Some(self.boot_at);
+        }
+        let sends = self.sends.iter().map(|s| s.next);
+        let timers = self.timers.iter().flatten().copied();
+        sends.chain(timers).filter(|&t| t < BusTime::NEVER).min()
+    }
+}

@@ -1,0 +1,306 @@
+use super::*;
+use bus::Frame;
+use bus::candump::parse_frame;
+use bus::catalogue;
+use bus::node::NodeLogic;
+use bus::time::BusTime;
+use std::cell::RefCell;
+use std::collections::BTreeMap;
+use std::rc::Rc;
+
+/// A plant stand-in: named values, some of them inputs, a log of writes.
+#[derive(Default)]
+struct Fake {
+    values: BTreeMap<String, f64>,
+    writes: Vec<(String, f64)>,
+    now: BusTime,
+}
+
+impl Environment for Fake {
+    fn advance_to(&mut self, t: BusTime) {
+        self.now = self.now.max(t);
+    }
+    fn read(&self, name: &str) -> Option<f64> {
+        self.values.get(name).copied()
+    }
+    fn write(&mut self, name: &str, value: f64) -> bool {
+        self.writes.push((name.to_string(), value));
+        self.values.insert(name.to_string(), value);
+        true
+    }
+}
+
+struct FakeSignals;
+impl Signals for FakeSignals {
+    fn is_signal(&self, name: &str) -> bool {
+        [
+            "row3.unit1",
+            "engine.rpm",
+            "speed.actual",
+            "speed.mode_request",
+            "speed.setpoint",
+        ]
+        .contains(&name)
+    }
+    fn is_input(&self, name: &str) -> bool {
+        name.starts_with("speed.")
+    }
+}
+
+const B1: &str = r#"
+NodeScript(
+    address: 0xB1, name: "B1", kind: Parameter, boot_delay_ms: 10,
+    states: [(name: "boot", code: 0), (name: "running", code: 1)],
+    initial: "running",
+    messages: [(name: "p", frames: [(message: "param.engine", fields: {"engine_rpm": Signal("engine.rpm")})],
+                when: Periodic(period_ms: 100, phase_ms: 5))],
+)"#;
+
+fn node(text: &str, values: &[(&str, f64)]) -> (ScriptedNode, Rc<RefCell<Fake>>) {
+    let script = parse("test.ron", text).unwrap();
+    let problems = validate("test.ron", &script, &FakeSignals);
+    assert!(problems.is_empty(), "{problems:?}");
+    let fake = Rc::new(RefCell::new(Fake::default()));
+    for (k, v) in values {
+        fake.borrow_mut().values.insert(k.to_string(), *v);
+    }
+    let env: SharedEnv = fake.clone();
+    (ScriptedNode::new(script, env, BusTime::from_millis(500), 1), fake)
+}
+
+/// Drives a logic alone until `until`, feeding it `inbox` frames at their times; returns what it
+/// sent with the time it was polled.
+fn drive(n: &mut ScriptedNode, until: BusTime, inbox: &[(BusTime, Frame)]) -> Vec<(BusTime, Frame)> {
+    let mut out = Vec::new();
+    let mut inbox = inbox.iter().peekable();
+    loop {
+        let t = n.poll_timeout().unwrap_or(BusTime::NEVER);
+        let f = inbox.peek().map_or(BusTime::NEVER, |(t, _)| *t);
+        let now = t.min(f);
+        if now > until {
+            break;
+        }
+        if f <= t {
+            let (at, frame) = inbox.next().unwrap();
+            n.handle_frame(*at, frame);
+        } else {
+            n.handle_timeout(now);
+        }
+        while let Some(frame) = n.poll_transmit() {
+            out.push((now, frame));
+        }
+    }
+    out
+}
+
+#[test]
+fn periodic_messages_follow_boot_phase_and_period() {
+    let (mut n, _) = node(B1, &[("engine.rpm", 2150.0)]);
+    let sent = drive(&mut n, BusTime::from_millis(800), &[]);
+    // Power on at 500 ms, boot 10 ms, phase 5 ms: 515, 615, 715 ms.
+    let times: Vec<u64> = sent.iter().map(|(t, _)| t.as_nanos() / 1_000_000).collect();
+    assert_eq!(times, [515, 615, 715]);
+    let d = catalogue::decode(&sent[0].1).unwrap().unwrap();
+    assert_eq!((d.message.name, d.node.0), ("param.engine", 0xB1));
+    assert_eq!(d.get("engine_rpm").unwrap().physical, 2150.0);
+}
+
+#[test]
+fn values_out_of_range_saturate() {
+    let (mut n, _) = node(B1, &[("engine.rpm", 99_999.0)]);
+    let sent = drive(&mut n, BusTime::from_millis(520), &[]);
+    let d = catalogue::decode(&sent[0].1).unwrap().unwrap();
+    assert_eq!(
+        d.get("engine_rpm").unwrap().physical,
+        3000.0,
+        "the catalogue's maximum"
+    );
+}
+
+#[test]
+fn fault_hooks_change_what_the_node_reads() {
+    let (mut n, _) = node(B1, &[("engine.rpm", 2000.0)]);
+    n.set_fault("engine.rpm", Some(FaultKind::Offset(150.0)), BusTime::ZERO);
+    let sent = drive(&mut n, BusTime::from_millis(520), &[]);
+    let rpm = |f: &Frame| {
+        catalogue::decode(f)
+            .unwrap()
+            .unwrap()
+            .get("engine_rpm")
+            .unwrap()
+            .physical
+    };
+    assert_eq!(rpm(&sent[0].1), 2150.0);
+    n.set_fault(
+        "engine.rpm",
+        Some(FaultKind::Stuck(1234.0)),
+        BusTime::from_millis(520),
+    );
+    let sent = drive(&mut n, BusTime::from_millis(620), &[]);
+    assert_eq!(rpm(&sent[0].1), 1234.0);
+    n.set_fault(
+        "engine.rpm",
+        Some(FaultKind::Drift(10.0)),
+        BusTime::from_millis(615),
+    );
+    let sent = drive(&mut n, BusTime::from_millis(2615), &[]);
+    // 2 s after the fault began (615 -> 2615 ms): +20 rpm.
+    assert_eq!(rpm(&sent.last().unwrap().1), 2020.0);
+    n.set_fault("engine.rpm", Some(FaultKind::Dropout), BusTime::from_millis(2615));
+    assert!(drive(&mut n, BusTime::from_millis(3000), &[]).is_empty());
+    assert!(n.counts().1 >= 3, "dropped sends are counted");
+    n.set_fault("engine.rpm", None, BusTime::from_millis(3000));
+    assert_eq!(rpm(&drive(&mut n, BusTime::from_millis(3100), &[])[0].1), 2000.0);
+}
+
+const E0: &str = r#"
+NodeScript(
+    address: 0xE0, name: "E0", kind: SpeedControl,
+    states: [(name: "boot", code: 0), (name: "manual", code: 0), (name: "cruise", code: 1)],
+    initial: "manual",
+    vars: {"timeout": 0},
+    messages: [(name: "status", frames: [(message: "speed.status", fields: {
+        "actual": Signal("speed.actual"), "setpoint": Var("timeout"), "mode": StateCode,
+        "operator_override": Const(0), "setpoint_timeout": Var("timeout")})],
+        when: Periodic(period_ms: 50))],
+    reactions: [
+        (message: "speed.mode", when: {"mode": 1}, actions: [SetState("cruise"), Write("speed.mode_request", Const(1))]),
+        (message: "speed.setpoint", actions: [Write("speed.setpoint", Field("setpoint")), Restart("watchdog")]),
+    ],
+    timers: [(name: "watchdog", after_ms: 1000, states: ["cruise"], actions: [Set("timeout", Const(1)), SetState("manual")])],
+)"#;
+
+#[test]
+fn reactions_write_inputs_and_watchdogs_fire() {
+    let (mut n, fake) = node(E0, &[("speed.actual", 5.0)]);
+    let at = |ms| BusTime::from_millis(ms);
+    let inbox = [
+        (at(600), parse_frame("0200E0F5#0101").unwrap()), // speed.mode cruise
+        (at(700), parse_frame("0200E0F5#02F401").unwrap()), // speed.setpoint 5.00 km/h
+        (at(1200), parse_frame("0200E0F5#025802").unwrap()), // 6.00 km/h
+    ];
+    let sent = drive(&mut n, at(3000), &inbox);
+    assert_eq!(
+        fake.borrow().writes,
+        [
+            ("speed.mode_request".to_string(), 1.0),
+            ("speed.setpoint".to_string(), 5.0),
+            ("speed.setpoint".to_string(), 6.0)
+        ]
+    );
+    let mode_at = |ms: u64| {
+        let f = sent
+            .iter()
+            .rev()
+            .find(|(t, _)| t.as_nanos() <= ms * 1_000_000)
+            .unwrap()
+            .1;
+        catalogue::decode(&f).unwrap().unwrap().get("mode").unwrap().raw
+    };
+    assert_eq!(
+        (mode_at(650), mode_at(2150)),
+        (1, 1),
+        "cruise while set-points keep coming"
+    );
+    // The last set-point came at 1200 ms: the watchdog fires at 2200 ms.
+    assert_eq!(mode_at(2250), 0);
+    assert_eq!(n.var("timeout"), Some(1.0));
+    assert_eq!(n.state(), "manual");
+}
+
+const FLOW: &str = r#"
+NodeScript(
+    address: 0xD2, name: "D2", kind: FlowSensor, boot_delay_ms: 0,
+    states: [(name: "boot", code: 0), (name: "running", code: 3), (name: "no acknowledgement", code: 4)],
+    initial: "running",
+    vars: {"missed": 0},
+    messages: [(name: "flow", frames: [
+        (message: "flow.marker_flow"),
+        (message: "flow.part1", fields: {"status": Const(1), "unit1": Signal("row3.unit1"), "unit2": Const(2), "unit3": Const(3)}),
+        (message: "flow.part2", fields: {"unit4": Const(4), "unit5": Const(5), "aux": Const(0)})],
+        when: Periodic(period_ms: 100), states: ["running"],
+        ack: Some((limit: 3, state: "no acknowledgement", count_var: Some("missed"))))],
+    reactions: [
+        (message: "flow.ack", actions: [Acknowledged]),
+        (message: "flow.calibrate", when: {"command": 2}, actions: [Acknowledged, SetState("running")]),
+    ],
+)"#;
+
+#[test]
+fn unacknowledged_groups_stop_the_stream() {
+    let (mut n, _) = node(FLOW, &[("row3.unit1", 77.0)]);
+    let at = |ms| BusTime::from_millis(ms);
+    let ack = parse_frame("0601D2F5#210D01").unwrap();
+    // Acks for the first two groups only.
+    let sent = drive(&mut n, at(1500), &[(at(501), ack), (at(601), ack)]);
+    let groups: Vec<u64> = sent.chunks(3).map(|c| c[0].0.as_nanos() / 1_000_000).collect();
+    // Groups at 500, 600 (acked), then 700, 800, 900 unacknowledged: the third stops it.
+    assert_eq!(groups, [500, 600, 700, 800, 900]);
+    assert_eq!(n.state(), "no acknowledgement");
+    assert_eq!(n.var("missed"), Some(3.0));
+    let d = catalogue::decode(&sent[1].1).unwrap().unwrap();
+    assert_eq!(d.get("unit1").unwrap().raw, 77);
+    // Accepting again resumes it.
+    let resume = parse_frame("0601D2F5#1002102705").unwrap();
+    let sent = drive(&mut n, at(1750), &[(at(1550), resume)]);
+    assert_eq!(sent.len(), 6, "groups at 1600 and 1700");
+}
+
+#[test]
+fn every_problem_is_reported_at_once() {
+    let bad = r#"
+NodeScript(
+    address: 0xB1, name: "B1", kind: Alarm,
+    states: [(name: "boot", code: 0), (name: "boot", code: 1)],
+    initial: "runing",
+    messages: [
+        (name: "p", frames: [(message: "param.engine", fields: {"engine_rpm": Signal("engine.rmp"), "torque": Const(1)})],
+         when: Periodic(period_ms: 0)),
+        (name: "q", frames: [(message: "param.engine", fields: {})], when: OnChange(heartbeat_ms: 0)),
+        (name: "r", frames: [(message: "no.such")], when: OnRequest),
+        (name: "s", frames: [(message: "flow.ack")], when: OnRequest),
+    ],
+    reactions: [(message: "row.command", actions: [SetState("nowhere"), Write("engine.rpm", Field("x")), Start("zz")])],
+    timers: [(name: "t", after_ms: 0, actions: [Restart("u")])],
+)"#;
+    let script = parse("bad.ron", bad).unwrap();
+    let problems = validate("bad.ron", &script, &FakeSignals);
+    let text: Vec<String> = problems.iter().map(|p| p.to_string()).collect();
+    let expect = [
+        "kind: address B1 belongs to the kind 'parameter module', not 'alarm module'",
+        "states: 'boot' is defined twice",
+        "initial: unknown state 'runing'",
+        "fields.engine_rpm: unknown plant signal 'engine.rmp'",
+        "fields.torque: param.engine has no field 'torque'",
+        "(p).when: period 0",
+        "(q).when: heartbeat 0",
+        "no value for field 'engine_rpm' of param.engine",
+        "duplicate message param.engine: both send it in the same states",
+        "'no.such' is not in the message catalogue",
+        "flow.ack is not a message of node B1",
+        "row.command is not a message of node B1",
+        "actions[0]: unknown state 'nowhere'",
+        "'engine.rpm' is not a plant input",
+        "unknown message 'zz'",
+        "(t).after_ms: delay 0",
+        "unknown timer 'u'",
+    ];
+    for e in expect {
+        assert!(
+            text.iter().any(|t| t.contains(e)),
+            "missing '{e}' in:\n{}",
+            text.join("\n")
+        );
+    }
+    assert!(
+        text.iter().all(|t| t.starts_with("bad.ron: node B1: ")),
+        "{text:?}"
+    );
+}
+
+#[test]
+fn syntax_errors_have_a_position() {
+    let err = parse("x.ron", "NodeScript(\n  address: 0xB1,\n  nmae: \"B1\",\n)").unwrap_err();
+    let text = err.to_string();
+    assert!(text.contains("x.ron:3:"), "{text}");
+}
