@@ -289,7 +289,9 @@ fn expr(
             Some(def) if def.field(f).is_none() => c.problem(at, format!("{} has no field '{f}'", def.name)),
             _ => {}
         },
-        Expr::Quantize(_, step) if !(*step > 0.0) => c.problem(at, "Quantize step must be positive"),
+        Expr::Quantize(_, step) if step.is_nan() || *step <= 0.0 => {
+            c.problem(at, "Quantize step must be positive")
+        }
         Expr::Scaled(inner, _, _) | Expr::Clamp(inner, _, _) | Expr::Quantize(inner, _) => {
             expr(c, at, inner, signals, vars, frame)
         }
