@@ -1,1 +1,89 @@
-//! End-to-end tests of harvemu; the tests live in `tests/tests/`, one file per concern.
+//! End-to-end tests of harvemu; the tests live in `tests/tests/`, one file per concern. This
+//! library holds what they share: running the default harvester in virtual time and reading its
+//! trace back.
+
+use actix::prelude::*;
+use bus::Frame;
+use bus::hub::{GetSnapshot, RunUntil, Snapshot, runtime};
+use bus::time::BusTime;
+use std::cell::RefCell;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::rc::Rc;
+use supervisor::harvester::{self, Harvester, Running};
+
+/// A `Write` the test can read back.
+#[derive(Clone, Default)]
+pub struct Shared(pub Rc<RefCell<Vec<u8>>>);
+
+impl Write for Shared {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.0.borrow_mut().extend_from_slice(buf);
+        Ok(buf.len())
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+/// The repository's root.
+pub fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// The default harvester config.
+pub fn default_harvester() -> Harvester {
+    Harvester::load(&root().join("configs/harvester.ron")).expect("the default config loads")
+}
+
+/// One frame of a trace.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Line {
+    /// Candump timestamp (end of frame).
+    pub at: BusTime,
+    /// The frame.
+    pub frame: Frame,
+}
+
+/// Reads a candump log back (error frames are skipped).
+pub fn parse_trace(text: &str) -> Vec<Line> {
+    text.lines()
+        .filter_map(|l| {
+            let (time, rest) = l.strip_prefix('(')?.split_once(") ")?;
+            let (_iface, frame) = rest.split_once(' ')?;
+            let (secs, micros) = time.split_once('.')?;
+            let at = BusTime(secs.parse::<u64>().ok()? * 1_000_000_000 + micros.parse::<u64>().ok()? * 1000);
+            // Error frames (CAN_ERR_FLAG in the identifier) are not frames: they fail to parse.
+            let frame = bus::candump::parse_frame(frame).ok()?;
+            Some(Line { at, frame })
+        })
+        .collect()
+}
+
+/// Runs `h` in virtual time until `until`, calling `setup` once the nodes are attached and
+/// `check` at the end; returns the trace and what `check` returned.
+pub fn run_virtual<T: 'static>(
+    h: Harvester,
+    until: BusTime,
+    setup: impl FnOnce(&Running) + 'static,
+    check: impl FnOnce(&Running, &Snapshot) -> T + 'static,
+) -> (Vec<Line>, T) {
+    let trace = Shared::default();
+    let t = trace.clone();
+    let result = System::with_tokio_rt(|| runtime(true).expect("runtime")).block_on(async move {
+        let running = harvester::start(&h, Some(Box::new(t)))
+            .await
+            .expect("the harvester starts");
+        setup(&running);
+        running
+            .hub
+            .send(RunUntil(until))
+            .await
+            .expect("hub")
+            .expect("run");
+        let snap = running.hub.send(GetSnapshot).await.expect("snapshot");
+        check(&running, &snap)
+    });
+    let text = String::from_utf8(trace.0.take()).expect("utf-8 trace");
+    (parse_trace(&text), result)
+}

@@ -20,6 +20,10 @@ impl BusTime {
     /// Later than anything.
     pub const NEVER: BusTime = BusTime(u64::MAX);
 
+    /// From whole seconds.
+    pub const fn from_secs(s: u64) -> BusTime {
+        BusTime(s * 1_000_000_000)
+    }
     /// From whole milliseconds.
     pub const fn from_millis(ms: u64) -> BusTime {
         BusTime(ms * 1_000_000)

@@ -7,8 +7,10 @@
 //! Bad scripts give [`Error`] listing every problem with file, node and field.
 #![warn(missing_docs)]
 
+pub mod environment;
 mod error;
 pub mod monitor;
+pub mod plant;
 pub mod script;
 
 pub use error::{Error, Problem};

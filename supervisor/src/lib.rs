@@ -4,7 +4,9 @@
 //! never panics on it.
 
 pub mod bench;
+pub mod harvester;
 pub mod inspect;
+pub mod run;
 
 /// An error that the user caused: reported on one line, exit code 2.
 #[derive(Debug)]

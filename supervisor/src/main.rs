@@ -4,7 +4,7 @@
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
-use supervisor::{BadInput, bench, inspect};
+use supervisor::{BadInput, bench, inspect, run};
 
 #[derive(Parser)]
 #[command(
@@ -19,6 +19,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Run the emulated harvester on the virtual hub.
+    Run(run::Args),
     /// Decode one frame: identifier fields, catalogue message, CRC, bit lengths, filters.
     Inspect(inspect::Args),
     /// Measure how fast the emulator runs (saturated bus; many buses in one process).
@@ -40,7 +42,15 @@ fn main() -> ExitCode {
             return ExitCode::from(if e.use_stderr() { 2 } else { 0 });
         }
     };
+    // RUST_LOG controls diagnostics (default: warnings); they go to stderr, never into traces.
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()),
+        )
+        .with_writer(std::io::stderr)
+        .init();
     let result = match cli.command {
+        Command::Run(args) => run::run(&args),
         Command::Inspect(args) => inspect::run(&args),
         Command::Bench(args) => bench::run(&args),
         Command::Protocol { markdown } => {

@@ -159,27 +159,26 @@ pub fn validate(file: &str, s: &NodeScript, signals: &dyn Signals) -> Vec<Proble
             }
         }
     }
-    // The same message sent periodically by two entries in overlapping states would put two
-    // streams of one identifier and number on the bus.
+    // Two entries that send the same frames in overlapping states would put two streams of one
+    // identifier and number on the bus. (Groups may share their data frames: the flow sensor's
+    // two groups differ in their markers.)
     for (i, a) in s.messages.iter().enumerate() {
         for b in &s.messages[i + 1..] {
-            let periodic = |m: &SendDef| !matches!(m.when, When::OnRequest);
+            let scheduled = |m: &SendDef| m.enabled && !matches!(m.when, When::OnRequest);
             let overlap =
                 a.states.is_empty() || b.states.is_empty() || a.states.iter().any(|st| b.states.contains(st));
-            let shared = a
-                .frames
-                .iter()
-                .find(|fa| b.frames.iter().any(|fb| fb.message == fa.message));
-            if let Some(f) = shared
-                && periodic(a)
-                && periodic(b)
-                && overlap
-                && a.enabled
-                && b.enabled
-            {
+            let same = a.frames.len() == b.frames.len()
+                && a.frames
+                    .iter()
+                    .zip(&b.frames)
+                    .all(|(x, y)| x.message == y.message);
+            if same && scheduled(a) && scheduled(b) && overlap {
                 c.problem(
                     format!("messages ({} and {})", a.name, b.name),
-                    format!("duplicate message {}: both send it in the same states", f.message),
+                    format!(
+                        "duplicate message {}: both send it in the same states",
+                        a.frames[0].message
+                    ),
                 );
             }
         }

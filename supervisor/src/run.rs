@@ -1,0 +1,153 @@
+//! `harvemu run`: the emulated harvester on the virtual hub, in real time or as fast as possible.
+
+use crate::BadInput;
+use crate::harvester::{self, Harvester};
+use actix::prelude::*;
+use bus::hub::{GetSnapshot, RunUntil, Snapshot, runtime};
+use bus::time::BusTime;
+use indicatif::{ProgressBar, ProgressStyle};
+use std::io::{BufWriter, Write};
+use std::path::PathBuf;
+use std::time::Duration;
+
+/// Arguments of `harvemu run`.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Harvester config.
+    #[arg(default_value = "configs/harvester.ron")]
+    config: PathBuf,
+    /// Run in virtual time, as fast as the machine allows (needs --for).
+    #[arg(long)]
+    fast: bool,
+    /// Stop after this much emulated time (e.g. 120s, 10m, 1h, 500ms).
+    #[arg(long = "for", value_parser = parse_duration)]
+    duration: Option<Duration>,
+    /// Write every frame on the bus to this candump log.
+    #[arg(long)]
+    record: Option<PathBuf>,
+}
+
+/// Parses `120s`, `10m`, `1h`, `500ms` or a plain number of seconds.
+pub fn parse_duration(text: &str) -> Result<Duration, String> {
+    let t = text.trim();
+    let (number, scale) = if let Some(n) = t.strip_suffix("ms") {
+        (n, 1e-3)
+    } else if let Some(n) = t.strip_suffix('s') {
+        (n, 1.0)
+    } else if let Some(n) = t.strip_suffix('m') {
+        (n, 60.0)
+    } else if let Some(n) = t.strip_suffix('h') {
+        (n, 3600.0)
+    } else {
+        (t, 1.0)
+    };
+    match number.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v >= 0.0 && v * scale < 1e9 => Ok(Duration::from_secs_f64(v * scale)),
+        _ => Err(format!(
+            "'{text}' is not a duration (use e.g. 120s, 10m, 1h, 500ms)"
+        )),
+    }
+}
+
+/// One line about the running harvester.
+pub fn summary(s: &Snapshot, plant: &nodes::plant::PlantHandle) -> String {
+    let p = plant.borrow();
+    let get = |n: &str| p.signal(n).unwrap_or(f64::NAN);
+    let errors = s.stats.error_frames;
+    let passive = s
+        .nodes
+        .iter()
+        .filter(|n| n.state != bus::fault::ErrorState::Active)
+        .count();
+    format!(
+        "t={:8.1} s  frames {:>9}  load {:5.1}% (1 s {:5.1}%)  errors {errors}  not active {passive}  speed {:4.1} km/h  harvested {:8.1} kg  basket {:4.1}%",
+        s.now.as_secs_f64(),
+        s.stats.frames,
+        s.stats.total_load() * 100.0,
+        s.stats.window_load(1_000_000_000) * 100.0,
+        get("speed.actual"),
+        get("harvested.total"),
+        get("basket.fill"),
+    )
+}
+
+/// Runs `harvemu run`.
+pub fn run(args: &Args) -> anyhow::Result<()> {
+    let h = Harvester::load(&args.config).map_err(harvester::bad)?;
+    if args.fast && args.duration.is_none() {
+        return Err(BadInput("--fast needs --for: virtual time would otherwise run for ever".into()).into());
+    }
+    let trace: Option<Box<dyn Write>> = match &args.record {
+        Some(path) => {
+            let file = std::fs::File::create(path)
+                .map_err(|e| BadInput(format!("cannot create {}: {e}", path.display())))?;
+            Some(Box::new(BufWriter::new(file)))
+        }
+        None => None,
+    };
+    let end = args.duration.map(BusTime::from_duration);
+    eprintln!(
+        "harvemu: {} ({} nodes) from {}, seed {}, {}",
+        h.config.name,
+        h.scripts.len() + usize::from(h.config.monitor.enabled),
+        h.path.display(),
+        h.config.seed,
+        if args.fast {
+            "virtual time"
+        } else {
+            "real time (Ctrl-C stops)"
+        }
+    );
+    let fast = args.fast;
+    let system = System::with_tokio_rt(move || runtime(fast).expect("a tokio runtime"));
+    system.block_on(async move {
+        let running = harvester::start(&h, trace).await?;
+        // Progress, the live summary and Ctrl-C are looked at once a second of bus time.
+        let step = BusTime::from_millis(1000);
+        let bar = match (fast, end) {
+            (true, Some(end)) => {
+                let bar = ProgressBar::new(end.as_nanos() / 1_000_000_000);
+                bar.set_style(
+                    ProgressStyle::with_template("{bar:40} {pos}/{len} s virtual time, {elapsed} wall {msg}")
+                        .unwrap_or_else(|_| ProgressStyle::default_bar()),
+                );
+                Some(bar)
+            }
+            _ => None,
+        };
+        let mut t = h.relay();
+        let ctrl_c = tokio::signal::ctrl_c();
+        tokio::pin!(ctrl_c);
+        loop {
+            let next = BusTime((t.as_nanos() / step.as_nanos() + 1) * step.as_nanos());
+            let next = end.map_or(next, |e| next.min(e));
+            tokio::select! {
+                r = running.hub.send(RunUntil(next)) => { t = r??; }
+                _ = &mut ctrl_c => {
+                    eprintln!("\nharvemu: interrupted");
+                    break;
+                }
+            }
+            let snap = running.hub.send(GetSnapshot).await?;
+            match &bar {
+                Some(bar) => bar.set_position(t.as_nanos() / 1_000_000_000),
+                None => eprint!("\r{}", summary(&snap, &running.plant)),
+            }
+            if end.is_some_and(|e| t >= e) {
+                break;
+            }
+        }
+        if let Some(bar) = bar {
+            bar.finish_and_clear();
+        }
+        // Pausing the hub at the present flushes the trace.
+        let now = running.hub.send(GetSnapshot).await?.now;
+        let _ = running.hub.send(RunUntil(now)).await;
+        let snap = running.hub.send(GetSnapshot).await?;
+        eprintln!("\n{}", summary(&snap, &running.plant));
+        if let Some(e) = &snap.trace_error {
+            return Err(anyhow::anyhow!("the trace could not be written: {e}"));
+        }
+        anyhow::Ok(())
+    })
+}
