@@ -113,8 +113,8 @@ fn default_check() -> u64 {
     20
 }
 
-/// Acknowledgement tracking: every send counts as unacknowledged until an `Acknowledged`
-/// action; after `limit` in a row the node enters `state`.
+/// Acknowledgement tracking: every send of every entry with an `ack` counts as unacknowledged
+/// until an `Acknowledged` action; after `limit` in a row the node enters `state`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct AckDef {

@@ -34,7 +34,9 @@ struct SendState {
     next: BusTime,
     last: Vec<Frame>,
     last_sent: Option<BusTime>,
-    unacked: u32,
+    /// On-change entries look at their value on a grid of their own; `next` is the earlier of
+    /// that and the heartbeat.
+    check_next: BusTime,
 }
 
 /// A sensor was read through a dropout fault: the message is not sent.
@@ -52,6 +54,9 @@ pub struct ScriptedNode {
     sends: Vec<SendState>,
     timers: Vec<Option<BusTime>>,
     faults: Vec<(SignalFault, BusTime)>,
+    /// Acknowledged sends of any entry since the last acknowledgement: a connection is one
+    /// stream, however many groups it is made of.
+    unacked: u32,
     out: VecDeque<Frame>,
     rng: ChaCha8Rng,
     now: BusTime,
@@ -75,7 +80,7 @@ impl ScriptedNode {
                     next: BusTime::NEVER,
                     last: Vec::new(),
                     last_sent: None,
-                    unacked: 0,
+                    check_next: BusTime::NEVER,
                 })
                 .collect(),
             timers: vec![None; script.timers.len()],
@@ -85,6 +90,7 @@ impl ScriptedNode {
             booted: false,
             state: 0,
             faults,
+            unacked: 0,
             out: VecDeque::new(),
             rng: ChaCha8Rng::seed_from_u64(
                 seed ^ 0x5eed_0000_0000_0000 ^ u64::from(power_on.as_nanos() as u32),
@@ -157,7 +163,10 @@ impl ScriptedNode {
         for (k, m) in self.s.messages.iter().enumerate() {
             self.sends[k].next = match m.when {
                 When::Periodic { phase_ms, .. } => b + phase_ms * MS,
-                When::OnChange { .. } => b,
+                When::OnChange { .. } => {
+                    self.sends[k].check_next = b;
+                    b
+                }
                 When::OnRequest => BusTime::NEVER,
             };
         }
@@ -228,8 +237,8 @@ impl ScriptedNode {
         self.sends[k].last = frames;
         self.sends[k].last_sent = Some(self.now);
         if let Some(ack) = self.s.messages[k].ack.clone() {
-            self.sends[k].unacked += 1;
-            let count = self.sends[k].unacked;
+            self.unacked += 1;
+            let count = self.unacked;
             if let Some(v) = &ack.count_var {
                 self.vars.insert(v.clone(), f64::from(count));
             }
@@ -264,8 +273,8 @@ impl ScriptedNode {
                     }
                 }
                 Action::Acknowledged => {
-                    for (k, m) in self.s.messages.iter().enumerate() {
-                        self.sends[k].unacked = 0;
+                    self.unacked = 0;
+                    for m in &self.s.messages {
                         if let Some(v) = m.ack.as_ref().and_then(|a| a.count_var.clone()) {
                             self.vars.insert(v, 0.0);
                         }
@@ -348,16 +357,25 @@ impl NodeLogic for ScriptedNode {
                     heartbeat_ms,
                     check_ms,
                 } => {
-                    self.sends[k].next = self.sends[k].next + check_ms * MS;
+                    let checking = self.sends[k].check_next <= now;
+                    if checking {
+                        self.sends[k].check_next = self.sends[k].check_next + check_ms * MS;
+                    }
                     if go {
                         let stale = self.sends[k]
                             .last_sent
                             .is_none_or(|t| now - t >= heartbeat_ms * MS);
-                        let changed = self.build(k, None).is_some_and(|f| f != self.sends[k].last);
+                        let changed =
+                            checking && self.build(k, None).is_some_and(|f| f != self.sends[k].last);
                         if stale || changed {
                             self.emit(k, None);
                         }
                     }
+                    // The heartbeat is kept exactly, not rounded up to the next check.
+                    let heartbeat = self.sends[k]
+                        .last_sent
+                        .map_or(BusTime::NEVER, |t| t + heartbeat_ms * MS);
+                    self.sends[k].next = self.sends[k].check_next.min(heartbeat);
                 }
                 When::OnRequest => self.sends[k].next = BusTime::NEVER,
             }

@@ -304,3 +304,38 @@ fn syntax_errors_have_a_position() {
     let text = err.to_string();
     assert!(text.contains("x.ron:3:"), "{text}");
 }
+
+const C1: &str = r#"
+NodeScript(
+    address: 0xC1, name: "C1", kind: Alarm,
+    states: [(name: "boot", code: 0), (name: "running", code: 1)],
+    initial: "running",
+    messages: [(name: "a", frames: [(message: "alarm.clutches", fields: {
+        "row1_clutch_slip": Signal("row3.unit1"), "row2_clutch_slip": Const(0), "row3_clutch_slip": Const(0),
+        "row4_clutch_slip": Const(0), "row5_clutch_slip": Const(0), "row6_clutch_slip": Const(0),
+        "main_clutch_open": Const(0), "clutch_pressure": Quantize(Signal("engine.rpm"), 100.0)})],
+        when: OnChange(heartbeat_ms: 1000, check_ms: 10))],
+)"#;
+
+#[test]
+fn on_change_sends_changes_within_a_check_and_keeps_an_exact_heartbeat() {
+    let (mut n, fake) = node(C1, &[("row3.unit1", 0.0), ("engine.rpm", 3500.0)]);
+    let at = BusTime::from_millis;
+    let mut sent = drive(&mut n, at(2600), &[]);
+    // Boot at 500 ms: first send then, heartbeats at exactly 1500 and 2500 ms.
+    let times = |s: &[(BusTime, Frame)]| {
+        s.iter()
+            .map(|(t, _)| t.as_nanos() / 1_000_000)
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(times(&sent), [500, 1500, 2500]);
+    // A switch closes at 2603 ms: seen at the 2610 check. Noise below the quantum is not a change.
+    fake.borrow_mut().values.insert("engine.rpm".into(), 3520.0);
+    drive(&mut n, at(2603), &[]);
+    fake.borrow_mut().values.insert("row3.unit1".into(), 1.0);
+    sent = drive(&mut n, at(4000), &[]);
+    assert_eq!(times(&sent), [2610, 3610]);
+    let d = catalogue::decode(&sent[0].1).unwrap().unwrap();
+    assert_eq!(d.get("row1_clutch_slip").unwrap().raw, 1);
+    assert_eq!(d.get("clutch_pressure").unwrap().physical, 3500.0);
+}

@@ -1,0 +1,108 @@
+//! Connection-oriented flow sensor traffic when the monitor stops acknowledging, and when it
+//! comes back.
+
+use actix::prelude::*;
+use bus::catalogue;
+use bus::hub::{Control, RunUntil, runtime};
+use bus::ident::Address;
+use bus::time::BusTime;
+use harvemu_e2e::{Shared, default_harvester, parse_trace};
+use supervisor::harvester;
+
+#[test]
+fn sensors_give_up_without_acknowledgements_and_resume() {
+    let trace = Shared::default();
+    let t = trace.clone();
+    System::with_tokio_rt(|| runtime(true).unwrap()).block_on(async move {
+        let running = harvester::start(&default_harvester(), Some(Box::new(t)))
+            .await
+            .unwrap();
+        let monitor = running.nodes[0].1;
+        running
+            .hub
+            .send(RunUntil(BusTime::from_secs(5)))
+            .await
+            .unwrap()
+            .unwrap();
+        // The monitor hangs: alive on the bus (it still acknowledges at the CAN level), silent.
+        running
+            .hub
+            .send(Control::SetHung(monitor, true))
+            .await
+            .unwrap()
+            .unwrap();
+        running
+            .hub
+            .send(RunUntil(BusTime::from_secs(8)))
+            .await
+            .unwrap()
+            .unwrap();
+        running
+            .hub
+            .send(Control::SetHung(monitor, false))
+            .await
+            .unwrap()
+            .unwrap();
+        running
+            .hub
+            .send(RunUntil(BusTime::from_secs(12)))
+            .await
+            .unwrap()
+            .unwrap();
+    });
+    let lines = parse_trace(&String::from_utf8(trace.0.take()).unwrap());
+    let d0 = Address::flow_sensor(0);
+    let decoded: Vec<(BusTime, catalogue::Decoded)> = lines
+        .iter()
+        .filter_map(|l| catalogue::decode(&l.frame).ok().flatten().map(|d| (l.at, d)))
+        .filter(|(_, d)| d.node == d0)
+        .collect();
+    let markers = |from: u64, to: u64| {
+        decoded
+            .iter()
+            .filter(|(t, d)| {
+                d.message.name == "flow.marker_flow" && (from..to).contains(&(t.as_nanos() / 1_000_000))
+            })
+            .count()
+    };
+    // Streaming (10 groups a second) before; a sensor gives up after three unacknowledged groups
+    // (the flow and reference groups of one cycle, then the next cycle's first); silence after.
+    assert_eq!(markers(4000, 5000), 10);
+    let around: Vec<(u64, &str)> = decoded
+        .iter()
+        .filter(|(t, _)| (4900..5600).contains(&(t.as_nanos() / 1_000_000)))
+        .map(|(t, d)| (t.as_nanos() / 1_000_000, d.message.name))
+        .collect();
+    assert!(markers(5000, 5300) <= 2, "{around:?}");
+    assert_eq!(markers(5300, 8000), 0);
+    let states: Vec<(u64, &str)> = decoded
+        .iter()
+        .filter(|(_, d)| d.message.name == "flow.status")
+        .map(|(t, d)| {
+            (
+                t.as_nanos() / 1_000_000,
+                d.get("state").unwrap().label().unwrap_or("?"),
+            )
+        })
+        .collect();
+    let no_ack: Vec<u64> = states
+        .iter()
+        .filter(|(_, s)| *s == "no acknowledgement")
+        .map(|(t, _)| *t)
+        .collect();
+    assert!(
+        !no_ack.is_empty() && no_ack[0] > 5000 && no_ack[0] < 5400,
+        "{no_ack:?}"
+    );
+    // While it waits it says so at least every 250 ms.
+    assert!(
+        no_ack
+            .windows(2)
+            .filter(|w| w[1] < 8000)
+            .all(|w| w[1] - w[0] <= 250),
+        "{no_ack:?}"
+    );
+    // The monitor back: it sees the status, accepts the sensor again, and the stream resumes.
+    assert_eq!(markers(9000, 12000), 30);
+    assert_eq!(states.last().unwrap().1, "running");
+}
