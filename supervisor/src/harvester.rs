@@ -10,7 +10,7 @@ use bus::hub::{Attach, Hub, HubConfig, RunUntil};
 use bus::ident::Address;
 use bus::node::NodeActor;
 use bus::time::BusTime;
-use nodes::monitor::{Monitor, flow::Calibration};
+use nodes::monitor::{DisplayHandle, Monitor, MonitorConfig};
 use nodes::plant::{Plant, PlantConfig, PlantHandle};
 use nodes::script::{NodeScript, ScriptedNode, SharedEnv};
 use nodes::{Error, Problem};
@@ -36,26 +36,13 @@ pub struct HarvesterConfig {
     /// Reaction time of the field nodes, µs.
     pub reaction_us: u64,
     /// The monitor.
+    #[serde(default)]
     pub monitor: MonitorConfig,
     /// Node script files, relative to the config file.
     pub nodes: Vec<String>,
     /// The plant.
     #[serde(default)]
     pub plant: PlantConfig,
-}
-
-/// The monitor's settings.
-#[derive(Clone, Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct MonitorConfig {
-    /// False when an external monitor takes its place.
-    pub enabled: bool,
-    /// Reaction time, µs.
-    pub reaction_us: u64,
-    /// Reference level the flow sensors are calibrated to.
-    pub target_reference: f64,
-    /// Reference groups averaged during calibration.
-    pub calibration_samples: u8,
 }
 
 /// A loaded, validated harvester.
@@ -193,6 +180,8 @@ pub struct Running {
     pub plant: PlantHandle,
     /// Node ids by name, monitor first.
     pub nodes: Vec<(String, NodeId)>,
+    /// The monitor's display, when the monitor is emulated.
+    pub display: Option<DisplayHandle>,
 }
 
 /// Builds the harvester on a new hub and runs it through start-up: the monitor from time 0, the
@@ -210,12 +199,11 @@ pub async fn start(h: &Harvester, trace: Option<Box<dyn Write>>) -> anyhow::Resu
     let hub = Hub::new(hub_config, trace)?.start();
     let plant: PlantHandle = Rc::new(RefCell::new(Plant::new(c.plant.clone(), c.seed)));
     let mut nodes = Vec::new();
+    let mut display = None;
     if c.monitor.enabled {
-        let cal = Calibration {
-            target_reference: c.monitor.target_reference,
-            samples: c.monitor.calibration_samples,
-        };
-        let actor = NodeActor::new("F5", Box::new(Monitor::new(cal))).start();
+        let monitor = Monitor::new(c.monitor.clone());
+        display = Some(monitor.display());
+        let actor = NodeActor::new("F5", Box::new(monitor)).start();
         let id = hub
             .send(Attach {
                 controller: controller("F5", Address::MONITOR),
@@ -243,5 +231,10 @@ pub async fn start(h: &Harvester, trace: Option<Box<dyn Write>>) -> anyhow::Resu
             .await?;
         nodes.push((name, id));
     }
-    Ok(Running { hub, plant, nodes })
+    Ok(Running {
+        hub,
+        plant,
+        nodes,
+        display,
+    })
 }

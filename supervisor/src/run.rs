@@ -49,10 +49,19 @@ pub fn parse_duration(text: &str) -> Result<Duration, String> {
     }
 }
 
-/// One line about the running harvester.
-pub fn summary(s: &Snapshot, plant: &nodes::plant::PlantHandle) -> String {
-    let p = plant.borrow();
+/// One line about the running harvester: the bus, the plant's truth and, when there is one, what
+/// the monitor shows.
+pub fn summary(s: &Snapshot, running: &harvester::Running) -> String {
+    let p = running.plant.borrow();
     let get = |n: &str| p.signal(n).unwrap_or(f64::NAN);
+    let monitor = running.display.as_ref().map_or(String::new(), |d| {
+        let d = d.borrow();
+        format!(
+            "  monitor {:8.1} kg, {} alarm(s)",
+            d.total_kg,
+            d.active_alarms().count()
+        )
+    });
     let errors = s.stats.error_frames;
     let passive = s
         .nodes
@@ -60,7 +69,7 @@ pub fn summary(s: &Snapshot, plant: &nodes::plant::PlantHandle) -> String {
         .filter(|n| n.state != bus::fault::ErrorState::Active)
         .count();
     format!(
-        "t={:8.1} s  frames {:>9}  load {:5.1}% (1 s {:5.1}%)  errors {errors}  not active {passive}  speed {:4.1} km/h  harvested {:8.1} kg  basket {:4.1}%",
+        "t={:8.1} s  frames {:>9}  load {:5.1}% (1 s {:5.1}%)  errors {errors}  not active {passive}  speed {:4.1} km/h  harvested {:8.1} kg  basket {:4.1}%{monitor}",
         s.now.as_secs_f64(),
         s.stats.frames,
         s.stats.total_load() * 100.0,
@@ -131,7 +140,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             let snap = running.hub.send(GetSnapshot).await?;
             match &bar {
                 Some(bar) => bar.set_position(t.as_nanos() / 1_000_000_000),
-                None => eprint!("\r{}", summary(&snap, &running.plant)),
+                None => eprint!("\r{}", summary(&snap, &running)),
             }
             if end.is_some_and(|e| t >= e) {
                 break;
@@ -144,7 +153,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         let now = running.hub.send(GetSnapshot).await?.now;
         let _ = running.hub.send(RunUntil(now)).await;
         let snap = running.hub.send(GetSnapshot).await?;
-        eprintln!("\n{}", summary(&snap, &running.plant));
+        eprintln!("\n{}", summary(&snap, &running));
         if let Some(e) = &snap.trace_error {
             return Err(anyhow::anyhow!("the trace could not be written: {e}"));
         }

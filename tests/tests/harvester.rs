@@ -224,3 +224,34 @@ fn seed_frames_of_d0_byte_for_byte() {
         .expect("D0 streams flow groups");
     assert_eq!(&d0[start..start + 6], seed);
 }
+
+#[test]
+fn with_the_monitor_switched_off_the_field_waits_for_an_external_one() {
+    let mut h = default_harvester();
+    h.config.monitor.enabled = false;
+    let (lines, display) = run_virtual(
+        h,
+        BusTime::from_secs(5),
+        |_| {},
+        |running, _| running.display.is_some(),
+    );
+    assert!(!display, "no emulated monitor");
+    let all = decoded(&lines);
+    assert!(
+        all.iter()
+            .all(|(_, d)| d.message.direction == catalogue::Direction::ToMonitor),
+        "nothing from F5"
+    );
+    // The sensors keep asking to be calibrated, and nothing streams.
+    let d0: Vec<&catalogue::Decoded> = all
+        .iter()
+        .map(|(_, d)| d)
+        .filter(|d| d.node == Address::flow_sensor(0))
+        .collect();
+    assert!(d0.iter().all(|d| d.message.name == "flow.status"));
+    assert!(d0.len() >= 17, "every 250 ms for 4.4 s: {}", d0.len());
+    assert!(
+        d0.iter()
+            .all(|d| d.get("state").unwrap().label() == Some("awaiting calibration"))
+    );
+}
