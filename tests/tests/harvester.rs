@@ -94,15 +94,15 @@ fn flow_sensors_are_calibrated_then_stream_acknowledged_groups() {
             .map(|(_, x)| x.get("command").unwrap().raw)
             .collect();
         assert_eq!(cal, [1, 2], "{d}");
-        // Every group acknowledged: markers = acks.
         let groups = of("flow.marker_flow") + of("flow.marker_reference");
         assert!(
             of("flow.marker_flow") > 80,
             "{d} streams: {}",
             of("flow.marker_flow")
         );
+        // Every group is acknowledged, but the last cycle's two may still be in flight.
         assert!(
-            groups.abs_diff(of("flow.ack")) <= 1,
+            groups.abs_diff(of("flow.ack")) <= 2,
             "{d}: {groups} groups, {} acks",
             of("flow.ack")
         );
