@@ -182,6 +182,8 @@ fn cruise_holds_the_feed_rate_across_a_density_step() {
     let target = h.config.monitor.cruise.target_feed_kg_s;
     let samples = Rc::new(RefCell::new(Vec::new()));
     let s = samples.clone();
+    let row = Rc::new(RefCell::new(None::<String>));
+    let r = row.clone();
     watch(h, 400, 100, move |t, plant, display| {
         let feed: f64 = (1..=6)
             .map(|r| plant.signal(&format!("row{r}.flow")).unwrap())
