@@ -196,8 +196,11 @@ fn cruise_holds_the_feed_rate_across_a_density_step() {
             plant.signal("speed.actual").unwrap(),
             display.cruise,
         ));
+        *r.borrow_mut() = display.row_alignment.clone();
         true
     });
+    // Cruise started automatic row alignment too.
+    assert_eq!(row.take().as_deref(), Some("locked"));
     let samples = samples.take();
     for s in samples.iter().step_by(100) {
         println!(
