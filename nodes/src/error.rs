@@ -56,3 +56,17 @@ fn list(problems: &[Problem]) -> String {
     }
     s
 }
+
+/// Parses RON text as `T`; a syntax error or an unknown field comes back as one [`Problem`]
+/// with its line and column.
+pub fn parse_ron<T: serde::de::DeserializeOwned>(file: &str, text: &str) -> Result<T, Error> {
+    ron::from_str::<T>(text).map_err(|e| {
+        Error::Invalid(vec![Problem {
+            file: file.to_string(),
+            position: Some((e.span.start.line, e.span.start.col)),
+            node: None,
+            field: None,
+            message: e.code.to_string(),
+        }])
+    })
+}

@@ -13,4 +13,4 @@ pub mod monitor;
 pub mod plant;
 pub mod script;
 
-pub use error::{Error, Problem};
+pub use error::{Error, Problem, parse_ron};

@@ -75,15 +75,7 @@ impl Harvester {
             path: file.clone(),
             source,
         })?;
-        let config: HarvesterConfig = ron::from_str(&text).map_err(|e| {
-            Error::Invalid(vec![Problem {
-                file: file.clone(),
-                position: Some((e.span.start.line, e.span.start.col)),
-                node: None,
-                field: None,
-                message: e.code.to_string(),
-            }])
-        })?;
+        let config: HarvesterConfig = nodes::parse_ron(&file, &text)?;
         let mut problems = Vec::new();
         if BitRate::new(config.bitrate)
             .and_then(|r| r.exact_bit_time_ns())

@@ -18,15 +18,7 @@ pub trait Signals {
 
 /// Parses a script; a syntax error or unknown field comes back with its line and column.
 pub fn parse(file: &str, text: &str) -> Result<NodeScript, Error> {
-    ron::from_str::<NodeScript>(text).map_err(|e| {
-        Error::Invalid(vec![Problem {
-            file: file.to_string(),
-            position: Some((e.span.start.line, e.span.start.col)),
-            node: None,
-            field: None,
-            message: e.code.to_string(),
-        }])
-    })
+    crate::parse_ron(file, text)
 }
 
 /// Reads, parses and validates a script file.
