@@ -423,8 +423,15 @@ impl Bus {
         self.note(node, at, changes);
     }
 
-    /// Records fault-confinement changes as events and history.
+    /// Records fault-confinement changes as events and, when there are any, in the history.
     fn note(&mut self, node: NodeId, at: BusTime, changes: Changes) {
+        self.note_events(node, at, changes);
+        if !changes.is_empty() {
+            self.sample(node, at);
+        }
+    }
+
+    fn note_events(&mut self, node: NodeId, at: BusTime, changes: Changes) {
         let c = &self.controllers[node.index()];
         let (tec, rec) = (c.fault.tec(), c.fault.rec());
         if let Some(t) = changes.transition {
@@ -447,13 +454,10 @@ impl Bus {
                 rec,
             });
         }
-        if !changes.is_empty() {
-            self.stats.node_counters(node, at, tec, rec, c.fault.state());
-        }
     }
 
-    /// Counter changes that cross no boundary still go into the history, but only as samples
-    /// when an error happened (not on every successful frame).
+    /// Puts a node's counters in the history. Every error is recorded; successful frames only
+    /// when they change the state, so a long quiet run does not fill the history.
     fn sample(&mut self, node: NodeId, at: BusTime) {
         let c = &self.controllers[node.index()];
         let (tec, rec, state) = (c.fault.tec(), c.fault.rec(), c.fault.state());
@@ -699,14 +703,14 @@ impl Bus {
                     });
                 }
             }
-            self.note(NodeId(t as u16), flag_start, changes);
+            self.note_events(NodeId(t as u16), flag_start, changes);
             self.sample(NodeId(t as u16), flag_start);
         }
         for &r in &receivers {
             let c = &mut self.controllers[r];
             c.counters.rx_errors += 1;
             let changes = c.fault.receive_error();
-            self.note(NodeId(r as u16), flag_start, changes);
+            self.note_events(NodeId(r as u16), flag_start, changes);
             self.sample(NodeId(r as u16), flag_start);
         }
         let tx = &self.controllers[w].fault;
