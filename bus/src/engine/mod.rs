@@ -599,6 +599,7 @@ impl Bus {
             let c = &mut self.controllers[t];
             let Some(p) = c.tx.pop_front() else { continue };
             c.counters.tx_frames += 1;
+            let recovering = c.fault.tec() > 0;
             let changes = c.fault.transmit_success();
             self.events.push(Event::TxDone {
                 node: NodeId(t as u16),
@@ -606,7 +607,11 @@ impl Bus {
                 token: p.token,
                 frame: p.frame,
             });
-            self.note(NodeId(t as u16), end, changes);
+            self.note_events(NodeId(t as u16), end, changes);
+            if recovering {
+                // Counters coming down after errors are part of the history too.
+                self.sample(NodeId(t as u16), end);
+            }
         }
         for i in 0..self.controllers.len() {
             if transmitters.contains(&i) {
@@ -616,6 +621,7 @@ impl Bus {
             if !c.on_bus() {
                 continue;
             }
+            let recovering = c.fault.rec() > 0;
             let changes = c.fault.receive_success();
             if c.config.filter.accepts(&frame) {
                 if c.store(end, frame) {
@@ -634,8 +640,9 @@ impl Bus {
             } else {
                 c.counters.rx_filtered += 1;
             }
-            if !changes.is_empty() {
-                self.note(NodeId(i as u16), end, changes);
+            self.note_events(NodeId(i as u16), end, changes);
+            if recovering {
+                self.sample(NodeId(i as u16), end);
             }
         }
         self.idle_at = idle;

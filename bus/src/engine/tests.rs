@@ -491,3 +491,40 @@ fn rejects_inexact_bit_rates() {
     .unwrap_err();
     assert!(err.to_string().contains("30000"));
 }
+
+#[test]
+fn error_counters_are_kept_over_time() {
+    let mut b = bus();
+    let a = b.attach(ControllerConfig::named("a"));
+    let _rx = b.attach(ControllerConfig::named("rx"));
+    let rule = b.injector_mut().add(Rule {
+        target: Target::Node(a),
+        schedule: Schedule::Always,
+        bit: BitPosition::At(40),
+    });
+    b.submit(a, f("123#01"), BusTime(0)).unwrap();
+    // Four errors, then the rule goes and the frame and four more go through.
+    for _ in 0..4 {
+        b.step();
+    }
+    b.injector_mut().remove(rule);
+    for k in 0..5u64 {
+        b.submit(a, f("123#01"), BusTime(1_000_000 * (k + 1))).unwrap();
+    }
+    run(&mut b, 100_000_000);
+    let tec: Vec<u16> = b.stats().nodes[0]
+        .counters
+        .points
+        .iter()
+        .map(|(_, (tec, _, _))| *tec)
+        .collect();
+    // +8 per error, then -1 per successful frame, every change recorded once.
+    assert_eq!(tec, [8, 16, 24, 32, 31, 30, 29, 28, 27, 26]);
+    let rec: Vec<u16> = b.stats().nodes[1]
+        .counters
+        .points
+        .iter()
+        .map(|(_, (_, rec, _))| *rec)
+        .collect();
+    assert_eq!(rec, [1, 2, 3, 4, 3, 2, 1, 0]);
+}
