@@ -406,7 +406,11 @@ impl Handler<Control> for Hub {
                 }
                 None => Err(Error::Syntax(format!("no node {}", n.0))),
             },
-            Control::Reset(n) => self.bus.reset_node(n, now).map(|_| None),
+            Control::Reset(n) => {
+                let r = self.bus.reset_node(n, now).map(|_| None);
+                self.dispatch();
+                r
+            }
             Control::AddRule(rule) => Ok(Some(self.bus.injector_mut().add(rule))),
             Control::RemoveRule(id) => {
                 self.bus.injector_mut().remove(id);
@@ -415,6 +419,38 @@ impl Handler<Control> for Hub {
         };
         self.pump(ctx);
         result
+    }
+}
+
+/// Puts a new actor behind a node whose logic crashed (or is being restarted): its controller is
+/// reset, and the new logic is woken at once.
+#[derive(Message)]
+#[rtype(result = "Result<(), Error>")]
+pub struct Replace {
+    /// The node.
+    pub node: NodeId,
+    /// Its new actor.
+    pub actor: Recipient<Wake>,
+}
+
+impl Handler<Replace> for Hub {
+    type Result = Result<(), Error>;
+    fn handle(&mut self, msg: Replace, ctx: &mut Context<Self>) -> Self::Result {
+        let now = self.now.max(self.bus.committed());
+        self.bus.reset_node(msg.node, now)?;
+        let slot = self
+            .slots
+            .get_mut(msg.node.index())
+            .ok_or_else(|| Error::Syntax(format!("no node {}", msg.node.0)))?;
+        slot.node = Some(msg.actor);
+        slot.crashed = None;
+        slot.hung = false;
+        slot.events.clear();
+        slot.pending_since = None;
+        slot.next_timeout = Some(now);
+        self.dispatch();
+        self.pump(ctx);
+        Ok(())
     }
 }
 

@@ -44,6 +44,11 @@ pub trait NodeLogic {
     fn poll_transmit(&mut self) -> Option<Frame>;
     /// When `handle_timeout` is next due.
     fn poll_timeout(&self) -> Option<BusTime>;
+    /// The concrete logic, for fault injection that is specific to it (a script's sensor
+    /// faults); `None` for logics that offer none.
+    fn as_any_mut(&mut self) -> Option<&mut dyn std::any::Any> {
+        None
+    }
 }
 
 /// The hub wakes a node: inputs since the last wake, all at or before `now`.
@@ -121,6 +126,7 @@ pub fn drive(logic: &mut dyn NodeLogic, wake: Wake) -> Report {
 pub struct NodeActor {
     name: String,
     logic: Box<dyn NodeLogic>,
+    crash_next: bool,
 }
 
 impl NodeActor {
@@ -129,6 +135,7 @@ impl NodeActor {
         NodeActor {
             name: name.into(),
             logic,
+            crash_next: false,
         }
     }
 }
@@ -142,7 +149,14 @@ impl Handler<Wake> for NodeActor {
 
     fn handle(&mut self, wake: Wake, ctx: &mut Context<Self>) -> Report {
         let _span = tracing::trace_span!("node", node = %self.name).entered();
-        match catch_unwind(AssertUnwindSafe(|| drive(self.logic.as_mut(), wake))) {
+        let crash = std::mem::take(&mut self.crash_next);
+        let result = catch_unwind(AssertUnwindSafe(|| {
+            if crash {
+                panic!("injected crash");
+            }
+            drive(self.logic.as_mut(), wake)
+        }));
+        match result {
             Ok(report) => report,
             Err(panic) => {
                 let message = panic
@@ -158,6 +172,30 @@ impl Handler<Wake> for NodeActor {
                 }
             }
         }
+    }
+}
+
+/// Makes the node's logic crash at its next wake (fault injection).
+#[derive(Message)]
+#[rtype(result = "()")]
+pub struct Crash;
+
+impl Handler<Crash> for NodeActor {
+    type Result = ();
+    fn handle(&mut self, _: Crash, _: &mut Context<Self>) {
+        self.crash_next = true;
+    }
+}
+
+/// Runs a function on the node's logic (fault injection specific to a kind of logic).
+#[derive(Message)]
+#[rtype(result = "()")]
+pub struct Apply(pub Box<dyn FnOnce(&mut dyn NodeLogic) + Send>);
+
+impl Handler<Apply> for NodeActor {
+    type Result = ();
+    fn handle(&mut self, Apply(f): Apply, _: &mut Context<Self>) {
+        f(self.logic.as_mut());
     }
 }
 

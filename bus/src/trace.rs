@@ -120,6 +120,10 @@ pub fn error_frame(event: &Event) -> Option<ErrorFrame> {
             data[1] = err::CRTL_RX_OVERFLOW;
             err::CRTL
         }
+        Event::Restarted { .. } => {
+            data[1] = err::CRTL_ACTIVE;
+            err::RESTARTED | err::CRTL | err::CNT
+        }
         _ => return None,
     };
     Some(ErrorFrame {
@@ -158,6 +162,7 @@ pub fn event_line(out: &mut String, iface: &str, event: &Event) {
         Event::ErrorFrame { flag: at, .. }
         | Event::State { at, .. }
         | Event::Warning { at, .. }
+        | Event::Restarted { at, .. }
         | Event::Overrun { at, .. } => {
             if let Some(e) = error_frame(event) {
                 error_line(out, *at, iface, &e);

@@ -6,9 +6,9 @@ use actix::prelude::*;
 use bus::bits::BitRate;
 use bus::engine::{BusConfig, ControllerConfig, Filter, NodeId};
 use bus::filter::{CAN_EFF_FLAG, SocketCanFilter, SocketCanFilterSet};
-use bus::hub::{Attach, Hub, HubConfig, RunUntil};
+use bus::hub::{Attach, GetSnapshot, Hub, HubConfig, Replace, RunUntil};
 use bus::ident::Address;
-use bus::node::NodeActor;
+use bus::node::{Crash, NodeActor};
 use bus::time::BusTime;
 use nodes::monitor::{DisplayHandle, Monitor, MonitorConfig};
 use nodes::plant::{Plant, PlantConfig, PlantHandle};
@@ -43,6 +43,9 @@ pub struct HarvesterConfig {
     /// The plant.
     #[serde(default)]
     pub plant: PlantConfig,
+    /// How crashed nodes are restarted.
+    #[serde(default)]
+    pub restart: RestartPolicy,
 }
 
 /// A loaded, validated harvester.
@@ -164,6 +167,57 @@ fn controller(name: &str, me: Address) -> ControllerConfig {
     ControllerConfig::named(name).with_filter(Filter::SocketCan(filter))
 }
 
+/// How crashed nodes are restarted (the `restart` section of the harvester config).
+#[derive(Clone, Debug, Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RestartPolicy {
+    /// Restarts allowed within `window_s`; beyond that the node stays down.
+    pub max_restarts: u32,
+    /// The window, s.
+    pub window_s: f64,
+    /// Delay from a crash to the restart, ms.
+    pub backoff_ms: u64,
+}
+
+impl Default for RestartPolicy {
+    fn default() -> Self {
+        RestartPolicy {
+            max_restarts: 3,
+            window_s: 60.0,
+            backoff_ms: 100,
+        }
+    }
+}
+
+/// A crash, restart or power cycle, for traces' readers and reports.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct SupervisorEvent {
+    /// Bus time.
+    pub at: BusTime,
+    /// The node ("*" for the whole machine).
+    pub node: String,
+    /// What happened: `crashed: ...`, `restarted`, `gave up ...`, `power cycle`.
+    pub what: String,
+}
+
+/// What a node is rebuilt from.
+#[derive(Clone)]
+enum Spec {
+    Monitor,
+    Script(Box<NodeScript>),
+}
+
+/// One supervised node.
+struct Member {
+    name: String,
+    id: NodeId,
+    spec: Spec,
+    actor: Addr<NodeActor>,
+    restarts: Vec<BusTime>,
+    restart_at: Option<BusTime>,
+    down: bool,
+}
+
 /// A harvester running on a hub.
 pub struct Running {
     /// The hub.
@@ -174,6 +228,31 @@ pub struct Running {
     pub nodes: Vec<(String, NodeId)>,
     /// The monitor's display, when the monitor is emulated.
     pub display: Option<DisplayHandle>,
+    /// Crashes, restarts and power cycles so far.
+    pub events: Vec<SupervisorEvent>,
+    harvester: Harvester,
+    members: Vec<Member>,
+    now: BusTime,
+}
+
+fn build(
+    h: &Harvester,
+    spec: &Spec,
+    plant: &PlantHandle,
+    display: &Option<DisplayHandle>,
+    power_on: BusTime,
+) -> Box<dyn bus::node::NodeLogic> {
+    match spec {
+        Spec::Monitor => {
+            let display = display.clone().unwrap_or_default();
+            Box::new(Monitor::with_display(h.config.monitor.clone(), display, power_on))
+        }
+        Spec::Script(script) => {
+            let env: SharedEnv = plant.clone();
+            let seed = h.config.seed ^ (u64::from(script.address) << 32) ^ power_on.as_nanos();
+            Box::new(ScriptedNode::new((**script).clone(), env, power_on, seed))
+        }
+    }
 }
 
 /// Builds the harvester on a new hub and runs it through start-up: the monitor from time 0, the
@@ -190,43 +269,223 @@ pub async fn start(h: &Harvester, trace: Option<Box<dyn Write>>) -> anyhow::Resu
     };
     let hub = Hub::new(hub_config, trace)?.start();
     let plant: PlantHandle = Rc::new(RefCell::new(Plant::new(c.plant.clone(), c.seed)));
-    let mut nodes = Vec::new();
-    let mut display = None;
-    if c.monitor.enabled {
-        let monitor = Monitor::new(c.monitor.clone());
-        display = Some(monitor.display());
-        let actor = NodeActor::new("F5", Box::new(monitor)).start();
-        let id = hub
-            .send(Attach {
-                controller: controller("F5", Address::MONITOR),
-                node: Some(actor.recipient()),
-                reaction: Duration::from_micros(c.monitor.reaction_us),
-            })
-            .await?;
-        nodes.push(("F5".to_string(), id));
-    }
-    // Start-up as in the source: the monitor first, then the time relay starts every node.
-    hub.send(RunUntil(h.relay())).await??;
-    for script in &h.scripts {
-        let env: SharedEnv = plant.clone();
-        let name = script.name.clone();
-        let address = Address(script.address);
-        let seed = c.seed ^ (u64::from(script.address) << 32);
-        let logic = ScriptedNode::new(script.clone(), env, h.relay(), seed);
-        let actor = NodeActor::new(name.clone(), Box::new(logic)).start();
-        let id = hub
-            .send(Attach {
-                controller: controller(&name, address),
-                node: Some(actor.recipient()),
-                reaction: Duration::from_micros(c.reaction_us),
-            })
-            .await?;
-        nodes.push((name, id));
-    }
-    Ok(Running {
+    let display: Option<DisplayHandle> = c.monitor.enabled.then(DisplayHandle::default);
+    let mut running = Running {
         hub,
         plant,
-        nodes,
+        nodes: Vec::new(),
         display,
-    })
+        events: Vec::new(),
+        harvester: h.clone(),
+        members: Vec::new(),
+        now: BusTime::ZERO,
+    };
+    if c.monitor.enabled {
+        running
+            .attach(
+                "F5",
+                Address::MONITOR,
+                Spec::Monitor,
+                c.monitor.reaction_us,
+                BusTime::ZERO,
+            )
+            .await?;
+    }
+    // Start-up as in the source: the monitor first, then the time relay starts every node.
+    running.hub.send(RunUntil(h.relay())).await??;
+    running.now = h.relay();
+    for script in &h.scripts {
+        let spec = Spec::Script(Box::new(script.clone()));
+        running
+            .attach(
+                &script.name,
+                Address(script.address),
+                spec,
+                c.reaction_us,
+                h.relay(),
+            )
+            .await?;
+    }
+    Ok(running)
+}
+
+impl Running {
+    async fn attach(
+        &mut self,
+        name: &str,
+        address: Address,
+        spec: Spec,
+        reaction_us: u64,
+        power_on: BusTime,
+    ) -> anyhow::Result<()> {
+        let logic = build(&self.harvester, &spec, &self.plant, &self.display, power_on);
+        let actor = NodeActor::new(name, logic).start();
+        let id = self
+            .hub
+            .send(Attach {
+                controller: controller(name, address),
+                node: Some(actor.clone().recipient()),
+                reaction: Duration::from_micros(reaction_us),
+            })
+            .await?;
+        self.nodes.push((name.to_string(), id));
+        self.members.push(Member {
+            name: name.to_string(),
+            id,
+            spec,
+            actor,
+            restarts: Vec::new(),
+            restart_at: None,
+            down: false,
+        });
+        Ok(())
+    }
+
+    /// The node called `name`.
+    pub fn node(&self, name: &str) -> Option<NodeId> {
+        self.members.iter().find(|m| m.name == name).map(|m| m.id)
+    }
+
+    /// The actor of the node called `name` (for fault injection).
+    pub fn actor(&self, name: &str) -> Option<Addr<NodeActor>> {
+        self.members
+            .iter()
+            .find(|m| m.name == name)
+            .map(|m| m.actor.clone())
+    }
+
+    /// Bus time reached.
+    pub fn now(&self) -> BusTime {
+        self.now
+    }
+
+    /// Runs the bus to `until`, looking after crashed nodes every 10 ms of bus time on the way.
+    pub async fn run_until(&mut self, until: BusTime) -> anyhow::Result<()> {
+        const CHECK: u64 = 10_000_000;
+        while self.now < until {
+            let next = BusTime((self.now.as_nanos() / CHECK + 1) * CHECK).min(until);
+            self.now = self.hub.send(RunUntil(next)).await??;
+            self.supervise().await?;
+        }
+        Ok(())
+    }
+
+    /// Notes crashes and restarts what is due, by the restart policy.
+    async fn supervise(&mut self) -> anyhow::Result<()> {
+        let now = self.now;
+        let snap = self.hub.send(GetSnapshot).await?;
+        let policy = self.harvester.config.restart.clone();
+        for m in &mut self.members {
+            let crashed = snap.nodes.get(m.id.index()).and_then(|n| n.crashed.clone());
+            if let Some(why) = crashed
+                && m.restart_at.is_none()
+                && !m.down
+            {
+                self.events.push(SupervisorEvent {
+                    at: now,
+                    node: m.name.clone(),
+                    what: format!("crashed: {why}"),
+                });
+                let window = BusTime((policy.window_s * 1e9) as u64).as_nanos();
+                m.restarts
+                    .retain(|t| now.as_nanos().saturating_sub(t.as_nanos()) < window);
+                if m.restarts.len() as u32 >= policy.max_restarts {
+                    m.down = true;
+                    let what = format!(
+                        "gave up after {} restarts in {} s",
+                        m.restarts.len(),
+                        policy.window_s
+                    );
+                    self.events.push(SupervisorEvent {
+                        at: now,
+                        node: m.name.clone(),
+                        what,
+                    });
+                } else {
+                    m.restart_at = Some(now + policy.backoff_ms * 1_000_000);
+                }
+            }
+        }
+        for i in 0..self.members.len() {
+            if self.members[i].restart_at.is_some_and(|t| t <= now) {
+                self.restart(i, now).await?;
+                self.events.push(SupervisorEvent {
+                    at: now,
+                    node: self.members[i].name.clone(),
+                    what: "restarted".into(),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Rebuilds node `i` from its spec: a new actor with new logic that boots from `now`.
+    async fn restart(&mut self, i: usize, now: BusTime) -> anyhow::Result<()> {
+        let logic = build(
+            &self.harvester,
+            &self.members[i].spec,
+            &self.plant,
+            &self.display,
+            now,
+        );
+        let actor = NodeActor::new(self.members[i].name.clone(), logic).start();
+        self.hub
+            .send(Replace {
+                node: self.members[i].id,
+                actor: actor.clone().recipient(),
+            })
+            .await??;
+        let m = &mut self.members[i];
+        m.actor = actor;
+        m.restart_at = None;
+        m.restarts.push(now);
+        Ok(())
+    }
+
+    /// Makes a node's logic crash at its next wake.
+    pub async fn crash(&self, name: &str) -> anyhow::Result<()> {
+        let actor = self
+            .actor(name)
+            .ok_or_else(|| anyhow::anyhow!("no node {name}"))?;
+        actor.send(Crash).await?;
+        Ok(())
+    }
+
+    /// Switches the whole machine off and on: every node is rebuilt and boots again (the monitor
+    /// at once, the field nodes after the time relay), every controller is reset.
+    pub async fn power_cycle(&mut self) -> anyhow::Result<()> {
+        let now = self.now;
+        self.events.push(SupervisorEvent {
+            at: now,
+            node: "*".into(),
+            what: "power cycle".into(),
+        });
+        let relay = now + self.harvester.config.time_relay_ms * 1_000_000;
+        for i in 0..self.members.len() {
+            let power_on = if matches!(self.members[i].spec, Spec::Monitor) {
+                now
+            } else {
+                relay
+            };
+            let logic = build(
+                &self.harvester,
+                &self.members[i].spec,
+                &self.plant,
+                &self.display,
+                power_on,
+            );
+            let actor = NodeActor::new(self.members[i].name.clone(), logic).start();
+            self.hub
+                .send(Replace {
+                    node: self.members[i].id,
+                    actor: actor.clone().recipient(),
+                })
+                .await??;
+            let m = &mut self.members[i];
+            m.actor = actor;
+            m.restart_at = None;
+            m.down = false;
+        }
+        Ok(())
+    }
 }

@@ -110,7 +110,8 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let fast = args.fast;
     let system = System::with_tokio_rt(move || runtime(fast).expect("a tokio runtime"));
     system.block_on(async move {
-        let running = harvester::start(&h, trace).await?;
+        let mut running = harvester::start(&h, trace).await?;
+        let mut reported = 0;
         // Progress, the live summary and Ctrl-C are looked at once a second of bus time.
         let step = BusTime::from_millis(1000);
         let bar = match (fast, end) {
@@ -131,12 +132,16 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             let next = BusTime((t.as_nanos() / step.as_nanos() + 1) * step.as_nanos());
             let next = end.map_or(next, |e| next.min(e));
             tokio::select! {
-                r = running.hub.send(RunUntil(next)) => { t = r??; }
+                r = running.run_until(next) => { r?; t = running.now(); }
                 _ = &mut ctrl_c => {
                     eprintln!("\nharvemu: interrupted");
                     break;
                 }
             }
+            for e in &running.events[reported..] {
+                eprintln!("\nharvemu: {} {} {}", e.at, e.node, e.what);
+            }
+            reported = running.events.len();
             let snap = running.hub.send(GetSnapshot).await?;
             match &bar {
                 Some(bar) => bar.set_position(t.as_nanos() / 1_000_000_000),

@@ -175,6 +175,13 @@ pub enum Event {
         /// REC after the change.
         rec: u16,
     },
+    /// A node's controller was reset (a node restart or a power cycle).
+    Restarted {
+        /// The node.
+        node: NodeId,
+        /// When.
+        at: BusTime,
+    },
     /// A node's counters crossed the warning limit.
     Warning {
         /// The node.
@@ -333,21 +340,13 @@ impl Bus {
     /// Resets a node's controller (power cycle): counters zero, error active, queues emptied.
     pub fn reset_node(&mut self, node: NodeId, at: BusTime) -> Result<(), Error> {
         let c = self.get_mut(node)?;
-        let before = c.fault.state();
         c.fault.reset();
         c.tx.clear();
         c.drain();
         c.recessive_since = at;
-        if before != ErrorState::Active {
-            self.events.push(Event::State {
-                node,
-                at,
-                from: before,
-                to: ErrorState::Active,
-                tec: 0,
-                rec: 0,
-            });
-        }
+        c.suspended_until = c.suspended_until.max(at);
+        self.events.push(Event::Restarted { node, at });
+        self.sample(node, at);
         Ok(())
     }
 

@@ -106,13 +106,20 @@ pub struct Monitor {
 impl Monitor {
     /// A monitor powered up at time 0.
     pub fn new(config: MonitorConfig) -> Monitor {
+        Monitor::with_display(config, Rc::new(RefCell::new(Display::default())), BusTime::ZERO)
+    }
+
+    /// A monitor powered up at `power_on` that draws on an existing display (after a restart the
+    /// screen is the same screen, blanked).
+    pub fn with_display(config: MonitorConfig, display: DisplayHandle, power_on: BusTime) -> Monitor {
         let sessions: BTreeMap<Address, FlowSession> = Address::all()
             .filter(|a| a.kind() == Some(NodeKind::FlowSensor))
             .map(|a| (a, FlowSession::new(a)))
             .collect();
-        let display = Display {
+        *display.borrow_mut() = Display {
             phase: "power-up".to_string(),
             rows: vec![RowYield::default(); sessions.len()],
+            now: power_on,
             ..Display::default()
         };
         Monitor {
@@ -120,8 +127,8 @@ impl Monitor {
             sessions,
             queue: VecDeque::new(),
             out: VecDeque::new(),
-            display: Rc::new(RefCell::new(display)),
-            next_tick: BusTime::ZERO,
+            display,
+            next_tick: power_on,
             heard: BTreeMap::new(),
             active: BTreeMap::new(),
             last_flow: BTreeMap::new(),

@@ -393,6 +393,10 @@ impl NodeLogic for ScriptedNode {
         self.out.pop_front()
     }
 
+    fn as_any_mut(&mut self) -> Option<&mut dyn std::any::Any> {
+        Some(self)
+    }
+
     fn poll_timeout(&self) -> Option<BusTime> {
         if !self.booted {
             return Some(self.boot_at);
