@@ -187,10 +187,13 @@ impl Handler<Crash> for NodeActor {
     }
 }
 
+/// A change made to a node's logic from outside.
+pub type LogicChange = Box<dyn FnOnce(&mut dyn NodeLogic) + Send>;
+
 /// Runs a function on the node's logic (fault injection specific to a kind of logic).
 #[derive(Message)]
 #[rtype(result = "()")]
-pub struct Apply(pub Box<dyn FnOnce(&mut dyn NodeLogic) + Send>);
+pub struct Apply(pub LogicChange);
 
 impl Handler<Apply> for NodeActor {
     type Result = ();
