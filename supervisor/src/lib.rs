@@ -7,6 +7,8 @@ pub mod bench;
 pub mod harvester;
 pub mod inspect;
 pub mod run;
+pub mod scenario;
+pub mod scenarios_cli;
 
 /// An error that the user caused: reported on one line, exit code 2.
 #[derive(Debug)]

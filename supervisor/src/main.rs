@@ -4,7 +4,7 @@
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
-use supervisor::{BadInput, bench, inspect, run};
+use supervisor::{BadInput, bench, inspect, run, scenarios_cli};
 
 #[derive(Parser)]
 #[command(
@@ -21,6 +21,10 @@ struct Cli {
 enum Command {
     /// Run the emulated harvester on the virtual hub.
     Run(run::Args),
+    /// Run scenarios in virtual time and give verdicts (exit code 1 if any expectation fails).
+    Scenario(scenarios_cli::ScenarioArgs),
+    /// Check harvester configs, node scripts and scenarios without running anything.
+    Validate(scenarios_cli::ValidateArgs),
     /// Decode one frame: identifier fields, catalogue message, CRC, bit lengths, filters.
     Inspect(inspect::Args),
     /// Measure how fast the emulator runs (saturated bus; many buses in one process).
@@ -51,6 +55,12 @@ fn main() -> ExitCode {
         .init();
     let result = match cli.command {
         Command::Run(args) => run::run(&args),
+        Command::Validate(args) => scenarios_cli::validate(&args),
+        Command::Scenario(args) => match scenarios_cli::run(&args) {
+            Ok(true) => Ok(()),
+            Ok(false) => return ExitCode::from(1),
+            Err(e) => Err(e),
+        },
         Command::Inspect(args) => inspect::run(&args),
         Command::Bench(args) => bench::run(&args),
         Command::Protocol { markdown } => {

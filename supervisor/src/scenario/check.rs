@@ -1,0 +1,222 @@
+//! Verdicts: each expectation against what the run produced.
+
+use super::{Expect, Scenario};
+use crate::harvester::Running;
+use bus::fault::ErrorState;
+use bus::hub::Snapshot;
+use bus::time::BusTime;
+use serde::Serialize;
+
+/// The outcome of one expectation.
+#[derive(Clone, Debug, Serialize)]
+pub struct Verdict {
+    /// The expectation, as written.
+    pub expectation: String,
+    /// Pass or fail.
+    pub passed: bool,
+    /// When it was decided (the time of the observation that settled it), if there is one.
+    pub at: Option<BusTime>,
+    /// What was observed.
+    pub observed: String,
+}
+
+fn secs(s: f64) -> BusTime {
+    BusTime((s * 1e9).round() as u64)
+}
+
+fn verdict(e: &Expect, passed: bool, at: Option<BusTime>, observed: String) -> Verdict {
+    Verdict {
+        expectation: format!("{e:?}"),
+        passed,
+        at,
+        observed,
+    }
+}
+
+/// Checks every expectation.
+pub fn all(s: &Scenario, r: &Running, snap: &Snapshot) -> Vec<Verdict> {
+    s.expect.iter().map(|e| one(e, r, snap)).collect()
+}
+
+fn one(e: &Expect, r: &Running, snap: &Snapshot) -> Verdict {
+    let display = r.display.as_ref().map(|d| d.borrow().clone()).unwrap_or_default();
+    match e {
+        Expect::AlarmRaised {
+            node,
+            alarm,
+            after_s,
+            within_ms,
+        }
+        | Expect::AlarmCleared {
+            node,
+            alarm,
+            after_s,
+            within_ms,
+        } => {
+            let raised = matches!(e, Expect::AlarmRaised { .. });
+            let from = secs(*after_s);
+            let to = from + within_ms * 1_000_000;
+            let times: Vec<BusTime> = display
+                .alarms
+                .iter()
+                .filter(|a| &a.node == node && &a.name == alarm)
+                .filter_map(|a| if raised { Some(a.raised) } else { a.cleared })
+                .filter(|t| *t >= from)
+                .collect();
+            match times.first() {
+                Some(&t) => {
+                    let delay = (t - from) as f64 / 1e6;
+                    verdict(
+                        e,
+                        t <= to,
+                        Some(t),
+                        format!(
+                            "{} after {delay:.1} ms",
+                            if raised { "raised" } else { "cleared" }
+                        ),
+                    )
+                }
+                None => verdict(
+                    e,
+                    false,
+                    None,
+                    format!(
+                        "not {} after {after_s} s",
+                        if raised { "raised" } else { "cleared" }
+                    ),
+                ),
+            }
+        }
+        Expect::NoAlarms => {
+            let first = display.alarms.first();
+            verdict(
+                e,
+                first.is_none(),
+                first.map(|a| a.raised),
+                match first {
+                    Some(a) => format!(
+                        "{} alarm(s), first {} {} at {}",
+                        display.alarms.len(),
+                        a.node,
+                        a.name,
+                        a.raised
+                    ),
+                    None => "none".into(),
+                },
+            )
+        }
+        Expect::BusLoadBelow(limit) => {
+            let load = snap.stats.total_load() * 100.0;
+            verdict(e, load < *limit, Some(snap.now), format!("{load:.1} %"))
+        }
+        Expect::NoFrameLost => {
+            let (overruns, lost, broken) = (snap.stats.overruns, display.lost, display.broken_groups);
+            verdict(
+                e,
+                overruns == 0 && lost == 0 && broken == 0,
+                Some(snap.now),
+                format!("{overruns} overrun(s), {lost} lost by the monitor, {broken} broken group(s)"),
+            )
+        }
+        Expect::NodeState {
+            node,
+            state,
+            after_s,
+            within_ms,
+        } => {
+            let from = secs(*after_s);
+            let to = from + within_ms * 1_000_000;
+            let history = r.node(node).and_then(|id| snap.stats.nodes.get(id.index()));
+            let hit = history.and_then(|h| {
+                h.counters
+                    .points
+                    .iter()
+                    .find(|(t, (_, _, s))| *t >= from && s == state)
+                    .map(|(t, _)| *t)
+            });
+            // A node that never left the state has no history point: its current state counts.
+            let now_state = r
+                .node(node)
+                .and_then(|id| snap.nodes.get(id.index()))
+                .map(|n| n.state);
+            match hit {
+                Some(t) => verdict(
+                    e,
+                    t <= to,
+                    Some(t),
+                    format!("{state:?} after {:.3} ms", (t - from) as f64 / 1e6),
+                ),
+                None if now_state == Some(*state)
+                    && *state == ErrorState::Active
+                    && history.is_none_or(|h| h.counters.points.is_empty()) =>
+                {
+                    verdict(e, true, Some(snap.now), "error active throughout".into())
+                }
+                None => verdict(
+                    e,
+                    false,
+                    None,
+                    format!("not {state:?} after {after_s} s (now {now_state:?})"),
+                ),
+            }
+        }
+        Expect::ErrorFrames { min, max } => {
+            let n = snap.stats.error_frames;
+            verdict(
+                e,
+                (*min..=*max).contains(&n),
+                Some(snap.now),
+                format!("{n} error frame(s)"),
+            )
+        }
+        Expect::YieldWithin(percent) => {
+            let truth = r.plant.borrow().signal("harvested.total").unwrap_or(0.0);
+            let err = if truth > 0.0 {
+                (display.total_kg - truth) / truth * 100.0
+            } else {
+                f64::INFINITY
+            };
+            verdict(
+                e,
+                err.abs() <= *percent,
+                Some(snap.now),
+                format!(
+                    "monitor {:.1} kg, plant {truth:.1} kg ({err:+.2} %)",
+                    display.total_kg
+                ),
+            )
+        }
+        Expect::Display { field, min, max } => {
+            let value = serde_json::to_value(&display)
+                .ok()
+                .and_then(|v| v.get(field).and_then(|x| x.as_f64()));
+            match value {
+                Some(v) => verdict(
+                    e,
+                    (*min..=*max).contains(&v),
+                    Some(snap.now),
+                    format!("{field} = {v}"),
+                ),
+                None => verdict(e, false, Some(snap.now), format!("{field} has no value")),
+            }
+        }
+        Expect::Plant { signal, min, max } => {
+            let v = r.plant.borrow().signal(signal).unwrap_or(f64::NAN);
+            verdict(
+                e,
+                (*min..=*max).contains(&v),
+                Some(snap.now),
+                format!("{signal} = {v}"),
+            )
+        }
+        Expect::Restarts { node, count } => {
+            let n = r
+                .events
+                .iter()
+                .filter(|ev| &ev.node == node && ev.what == "restarted")
+                .count();
+            let at = r.events.iter().rev().find(|ev| &ev.node == node).map(|ev| ev.at);
+            verdict(e, n == *count, at, format!("{n} restart(s)"))
+        }
+    }
+}

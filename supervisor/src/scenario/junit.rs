@@ -1,0 +1,48 @@
+//! JUnit XML for CI systems: one test suite per scenario, one test case per expectation.
+
+use super::{Outcome, Scenario};
+
+fn escape(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}
+
+/// The XML for a set of scenario runs.
+pub fn xml(runs: &[(String, &Scenario, &Outcome)]) -> String {
+    let mut out = String::from("<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuites>\n");
+    for (file, s, o) in runs {
+        let failures = o.verdicts.iter().filter(|v| !v.passed).count();
+        out += &format!(
+            "  <testsuite name=\"{}\" tests=\"{}\" failures=\"{failures}\" time=\"{:.3}\">\n    <properties><property name=\"file\" value=\"{}\"/><property name=\"seed\" value=\"{}\"/></properties>\n",
+            escape(&s.name),
+            o.verdicts.len(),
+            o.wall_seconds,
+            escape(file),
+            o.seed
+        );
+        for v in &o.verdicts {
+            out += &format!(
+                "    <testcase classname=\"{}\" name=\"{}\"",
+                escape(&s.name),
+                escape(&v.expectation)
+            );
+            if v.passed {
+                out += "/>\n";
+            } else {
+                let at = v.at.map_or("-".to_string(), |t| format!("{t} s"));
+                out += &format!(
+                    ">\n      <failure message=\"{}\">at {at}; seed {}; reproduce: harvemu scenario {} --seed {}</failure>\n    </testcase>\n",
+                    escape(&v.observed),
+                    o.seed,
+                    escape(file),
+                    o.seed
+                );
+            }
+        }
+        out += "  </testsuite>\n";
+    }
+    out += "</testsuites>\n";
+    out
+}

@@ -1,0 +1,496 @@
+//! Scenarios: a harvester run in virtual time with a timeline of stimuli and faults, and
+//! expectations checked against the monitor's display, the bus statistics and node states, each
+//! with a verdict.
+
+mod check;
+pub mod junit;
+mod model;
+
+pub use check::Verdict;
+pub use model::*;
+
+use crate::BadInput;
+use crate::harvester::{self, Harvester, Running};
+use actix::prelude::*;
+use bus::candump::parse_frame;
+use bus::engine::{BitPosition, ControllerConfig, Filter, Rule, Schedule};
+use bus::hub::{Attach, Control, GetSnapshot, Submit, runtime};
+use bus::node::{Apply, NodeActor, NodeLogic};
+use bus::time::BusTime;
+use nodes::plant::Plant;
+use nodes::script::ScriptedNode;
+use nodes::{Error, Problem};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// A scenario read and checked, with the harvester it runs on.
+pub struct Loaded {
+    /// Its file.
+    pub path: PathBuf,
+    /// The scenario.
+    pub scenario: Scenario,
+    /// The harvester, with the scenario's seed applied.
+    pub harvester: Harvester,
+}
+
+fn problem(file: &str, field: String, message: impl Into<String>) -> Problem {
+    Problem {
+        file: file.to_string(),
+        position: None,
+        node: None,
+        field: Some(field),
+        message: message.into(),
+    }
+}
+
+/// Reads and checks a scenario and its harvester; every problem is listed.
+pub fn load(path: &Path, seed: Option<u64>) -> Result<Loaded, Error> {
+    let file = path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
+        path: file.clone(),
+        source,
+    })?;
+    let scenario: Scenario = nodes::parse_ron(&file, &text)?;
+    let config = path.parent().unwrap_or(Path::new(".")).join(&scenario.config);
+    let mut harvester = Harvester::load(&config)?;
+    let problems = validate(&file, &scenario, &harvester);
+    if !problems.is_empty() {
+        return Err(Error::Invalid(problems));
+    }
+    if let Some(s) = seed.or(scenario.seed) {
+        harvester.config.seed = s;
+    }
+    if let Some(s) = scenario.cruise_start_s {
+        harvester.config.monitor.cruise.start_s = Some(s);
+    }
+    Ok(Loaded {
+        path: path.to_path_buf(),
+        scenario,
+        harvester,
+    })
+}
+
+/// Checks names, times and values of a scenario against its harvester.
+pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
+    let mut p = Vec::new();
+    let mut names: Vec<String> = h.scripts.iter().map(|s| s.name.clone()).collect();
+    if h.config.monitor.enabled {
+        names.push("F5".into());
+    }
+    let node_ok = |p: &mut Vec<Problem>, field: String, n: &str| {
+        if !names.iter().any(|x| x == n) {
+            p.push(problem(
+                file,
+                field,
+                format!("unknown node '{n}' (nodes: {})", names.join(", ")),
+            ));
+        }
+    };
+    let time_ok = |p: &mut Vec<Problem>, field: String, t: f64| {
+        if !(t.is_finite() && t >= 0.0) {
+            p.push(problem(
+                file,
+                field,
+                format!("time {t} s is negative or not a number"),
+            ));
+        } else if t > s.duration_s {
+            p.push(problem(
+                file,
+                field,
+                format!("time {t} s is after the end of the run ({} s)", s.duration_s),
+            ));
+        }
+    };
+    if !(s.duration_s.is_finite() && s.duration_s > 0.0) {
+        p.push(problem(
+            file,
+            "duration_s".into(),
+            "must be a positive number of seconds",
+        ));
+    }
+    if s.expect.is_empty() {
+        p.push(problem(
+            file,
+            "expect".into(),
+            "a scenario needs at least one expectation",
+        ));
+    }
+    let signals = Plant::signal_names();
+    let display_fields = serde_json::to_value(nodes::monitor::Display::default()).unwrap_or_default();
+    for (i, step) in s.timeline.iter().enumerate() {
+        let at = format!("timeline[{i}]");
+        time_ok(&mut p, format!("{at}.at_s"), step.at_s);
+        match &step.action {
+            Action::BitErrors {
+                target,
+                hits,
+                until_s,
+            } => {
+                match target {
+                    Target::Node(n) => node_ok(&mut p, format!("{at}.action.target"), n),
+                    Target::Id(id) => {
+                        if u32::from_str_radix(id, 16)
+                            .ok()
+                            .filter(|v| *v <= 0x1FFF_FFFF && id.len() == 8)
+                            .is_none()
+                        {
+                            p.push(problem(
+                                file,
+                                format!("{at}.action.target"),
+                                format!("'{id}' is not an 8-digit 29-bit identifier"),
+                            ));
+                        }
+                    }
+                    Target::Priority(pr) if *pr > 31 => p.push(problem(
+                        file,
+                        format!("{at}.action.target"),
+                        format!("priority {pr} is over 31"),
+                    )),
+                    _ => {}
+                }
+                match hits {
+                    Hits::EveryNth(0) => p.push(problem(file, format!("{at}.action.hits"), "EveryNth(0)")),
+                    Hits::BitErrorRate(r) if !(0.0..=1.0).contains(r) => p.push(problem(
+                        file,
+                        format!("{at}.action.hits"),
+                        format!("bit-error rate {r} is outside 0..1"),
+                    )),
+                    _ => {}
+                }
+                if let Some(u) = until_s {
+                    time_ok(&mut p, format!("{at}.action.until_s"), *u);
+                }
+            }
+            Action::AckFailure(n)
+            | Action::AckRestored(n)
+            | Action::Disconnect(n)
+            | Action::Reconnect(n)
+            | Action::Crash(n)
+            | Action::Hang(n)
+            | Action::Resume(n) => node_ok(&mut p, format!("{at}.action"), n),
+            Action::Babble { frame, until_s } => {
+                if let Err(e) = parse_frame(frame) {
+                    p.push(problem(file, format!("{at}.action.frame"), e.to_string()));
+                }
+                time_ok(&mut p, format!("{at}.action.until_s"), *until_s);
+            }
+            Action::SendFrame { node, frame } => {
+                node_ok(&mut p, format!("{at}.action.node"), node);
+                if let Err(e) = parse_frame(frame) {
+                    p.push(problem(file, format!("{at}.action.frame"), e.to_string()));
+                }
+            }
+            Action::SensorFault { node, signal, .. } | Action::SensorRepaired { node, signal } => {
+                node_ok(&mut p, format!("{at}.action.node"), node);
+                if node == "F5" {
+                    p.push(problem(
+                        file,
+                        format!("{at}.action.node"),
+                        "the monitor has no sensors",
+                    ));
+                }
+                if !signals.iter().any(|s| s == signal) {
+                    p.push(problem(
+                        file,
+                        format!("{at}.action.signal"),
+                        format!("unknown plant signal '{signal}'"),
+                    ));
+                }
+            }
+            Action::Plant { input, value } => {
+                if !Plant::is_input(input) {
+                    p.push(problem(
+                        file,
+                        format!("{at}.action.input"),
+                        format!("'{input}' is not a plant input"),
+                    ));
+                }
+                if !value.is_finite() {
+                    p.push(problem(file, format!("{at}.action.value"), "not a number"));
+                }
+            }
+            Action::PowerCycle => {}
+        }
+    }
+    for (i, e) in s.expect.iter().enumerate() {
+        let at = format!("expect[{i}]");
+        match e {
+            Expect::AlarmRaised { node, after_s, .. } | Expect::AlarmCleared { node, after_s, .. } => {
+                node_ok(&mut p, format!("{at}.node"), node);
+                time_ok(&mut p, format!("{at}.after_s"), *after_s);
+            }
+            Expect::NodeState { node, after_s, .. } => {
+                node_ok(&mut p, format!("{at}.node"), node);
+                time_ok(&mut p, format!("{at}.after_s"), *after_s);
+            }
+            Expect::Restarts { node, .. } => node_ok(&mut p, format!("{at}.node"), node),
+            Expect::Display { field, .. } => {
+                if display_fields.get(field).is_none() {
+                    p.push(problem(
+                        file,
+                        format!("{at}.field"),
+                        format!("the display has no field '{field}'"),
+                    ));
+                }
+            }
+            Expect::Plant { signal, .. } => {
+                if !signals.iter().any(|s| s == signal) {
+                    p.push(problem(
+                        file,
+                        format!("{at}.signal"),
+                        format!("unknown plant signal '{signal}'"),
+                    ));
+                }
+            }
+            Expect::ErrorFrames { min, max } if min > max => {
+                p.push(problem(file, at, format!("min {min} is above max {max}")))
+            }
+            _ => {}
+        }
+        let needs_monitor = matches!(
+            e,
+            Expect::AlarmRaised { .. }
+                | Expect::AlarmCleared { .. }
+                | Expect::NoAlarms
+                | Expect::YieldWithin(_)
+                | Expect::Display { .. }
+        );
+        if needs_monitor && !h.config.monitor.enabled {
+            p.push(problem(
+                file,
+                format!("expect[{i}]"),
+                "needs the emulated monitor, which the config switches off",
+            ));
+        }
+    }
+    p
+}
+
+fn secs(s: f64) -> BusTime {
+    BusTime((s * 1e9).round() as u64)
+}
+
+/// A babbling idiot: tops up its transmit queue every millisecond, so that it always has a
+/// frame pending.
+struct Babbler {
+    frame: bus::Frame,
+    next: BusTime,
+    owed: usize,
+}
+
+const BABBLER_QUEUE: usize = 4;
+
+impl NodeLogic for Babbler {
+    fn handle_frame(&mut self, _: BusTime, _: &bus::Frame) {}
+    fn handle_timeout(&mut self, now: BusTime) {
+        self.owed = BABBLER_QUEUE;
+        self.next = now + 1_000_000;
+    }
+    fn poll_transmit(&mut self) -> Option<bus::Frame> {
+        // Frames beyond the queue are refused by the controller: no harm, it tries again.
+        self.owed = self.owed.checked_sub(1)?;
+        Some(self.frame)
+    }
+    fn poll_timeout(&self) -> Option<BusTime> {
+        Some(self.next)
+    }
+}
+
+/// What a scenario run produced.
+pub struct Outcome {
+    /// Verdicts, one per expectation.
+    pub verdicts: Vec<Verdict>,
+    /// The seed used.
+    pub seed: u64,
+    /// Crashes, restarts, power cycles.
+    pub events: Vec<harvester::SupervisorEvent>,
+    /// Wall-clock seconds.
+    pub wall_seconds: f64,
+}
+
+impl Outcome {
+    /// True when every expectation passed.
+    pub fn passed(&self) -> bool {
+        self.verdicts.iter().all(|v| v.passed)
+    }
+}
+
+enum Todo {
+    Act(usize, Action),
+    EndBitErrors(usize),
+    EndBabble,
+}
+
+/// Runs a loaded scenario in virtual time. `progress` is called with bus seconds reached.
+pub fn run(
+    l: &Loaded,
+    trace: Option<Box<dyn Write>>,
+    mut progress: impl FnMut(f64),
+) -> anyhow::Result<Outcome> {
+    let started = std::time::Instant::now();
+    let s = l.scenario.clone();
+    let h = l.harvester.clone();
+    let seed = h.config.seed;
+    let mut todo: Vec<(BusTime, usize, Todo)> = Vec::new();
+    for (i, step) in s.timeline.iter().enumerate() {
+        todo.push((secs(step.at_s), i, Todo::Act(i, step.action.clone())));
+        match &step.action {
+            Action::BitErrors { until_s: Some(u), .. } => todo.push((secs(*u), i, Todo::EndBitErrors(i))),
+            Action::Babble { until_s, .. } => todo.push((secs(*until_s), i, Todo::EndBabble)),
+            _ => {}
+        }
+    }
+    todo.sort_by_key(|(t, i, _)| (*t, *i));
+    let system = System::with_tokio_rt(|| runtime(true).expect("a tokio runtime"));
+    let result = system.block_on(async move {
+        let mut running = harvester::start(&h, trace).await?;
+        let mut rules = std::collections::BTreeMap::new();
+        let mut babbler = None;
+        for (at, _, what) in todo {
+            running.run_until(at.max(running.now())).await?;
+            progress(running.now().as_secs_f64());
+            match what {
+                Todo::Act(i, action) => act(&mut running, i, action, &mut rules, &mut babbler).await?,
+                Todo::EndBitErrors(i) => {
+                    if let Some(id) = rules.remove(&i) {
+                        running.hub.send(Control::RemoveRule(id)).await??;
+                    }
+                }
+                Todo::EndBabble => {
+                    if let Some(id) = babbler.take() {
+                        running.hub.send(Control::SetConnected(id, false)).await??;
+                        running.hub.send(Control::SetHung(id, true)).await??;
+                    }
+                }
+            }
+        }
+        let end = secs(s.duration_s);
+        while running.now() < end {
+            let next = (running.now() + 1_000_000_000).min(end);
+            running.run_until(next).await?;
+            progress(running.now().as_secs_f64());
+        }
+        let snap = running.hub.send(GetSnapshot).await?;
+        let verdicts = check::all(&s, &running, &snap);
+        anyhow::Ok((verdicts, running.events.clone()))
+    })?;
+    Ok(Outcome {
+        verdicts: result.0,
+        seed,
+        events: result.1,
+        wall_seconds: started.elapsed().as_secs_f64(),
+    })
+}
+
+async fn act(
+    running: &mut Running,
+    index: usize,
+    action: Action,
+    rules: &mut std::collections::BTreeMap<usize, bus::engine::RuleId>,
+    babbler: &mut Option<bus::engine::NodeId>,
+) -> anyhow::Result<()> {
+    let id = |n: &str| running.node(n).ok_or_else(|| anyhow::anyhow!("no node {n}"));
+    match action {
+        Action::BitErrors { target, hits, .. } => {
+            let target = match target {
+                Target::Any => bus::engine::Target::Any,
+                Target::Node(n) => bus::engine::Target::Node(id(&n)?),
+                Target::Id(text) => bus::engine::Target::Id {
+                    id: u32::from_str_radix(&text, 16)?,
+                    mask: 0x1FFF_FFFF,
+                },
+                Target::Priority(p) => bus::engine::Target::Id {
+                    id: u32::from(p) << 24,
+                    mask: 0x1F00_0000,
+                },
+            };
+            let schedule = match hits {
+                Hits::Once => Schedule::Once,
+                Hits::EveryNth(n) => Schedule::EveryNth(n),
+                Hits::Always => Schedule::Always,
+                Hits::BitErrorRate(r) => Schedule::BitErrorRate(r),
+            };
+            let rule = Rule {
+                target,
+                schedule,
+                bit: BitPosition::Random,
+            };
+            if let Some(r) = running.hub.send(Control::AddRule(rule)).await?? {
+                // Keyed by timeline entry, so that its `until_s` removes this rule.
+                rules.insert(index, r);
+            }
+        }
+        Action::AckFailure(n) => drop(running.hub.send(Control::SetAck(id(&n)?, false)).await??),
+        Action::AckRestored(n) => drop(running.hub.send(Control::SetAck(id(&n)?, true)).await??),
+        Action::Disconnect(n) => drop(running.hub.send(Control::SetConnected(id(&n)?, false)).await??),
+        Action::Reconnect(n) => drop(running.hub.send(Control::SetConnected(id(&n)?, true)).await??),
+        Action::Hang(n) => drop(running.hub.send(Control::SetHung(id(&n)?, true)).await??),
+        Action::Resume(n) => drop(running.hub.send(Control::SetHung(id(&n)?, false)).await??),
+        Action::Crash(n) => running.crash(&n).await?,
+        Action::Babble { frame, .. } => {
+            let frame = parse_frame(&frame)?;
+            let babbler_logic = Babbler {
+                frame,
+                next: running.now(),
+                owed: 0,
+            };
+            let actor = NodeActor::new("babbler", Box::new(babbler_logic)).start();
+            let controller = ControllerConfig {
+                tx_queue_len: BABBLER_QUEUE,
+                ..ControllerConfig::named("babbler")
+            }
+            .with_filter(Filter::Nothing);
+            let node = running
+                .hub
+                .send(Attach {
+                    controller,
+                    node: Some(actor.recipient()),
+                    reaction: std::time::Duration::from_micros(50),
+                })
+                .await?;
+            *babbler = Some(node);
+        }
+        Action::SendFrame { node, frame } => {
+            let frame = parse_frame(&frame)?;
+            running
+                .hub
+                .send(Submit {
+                    node: id(&node)?,
+                    frame,
+                })
+                .await??;
+        }
+        Action::SensorFault { node, signal, fault } => sensor(running, &node, signal, Some(fault)).await?,
+        Action::SensorRepaired { node, signal } => sensor(running, &node, signal, None).await?,
+        Action::Plant { input, value } => {
+            let now = running.now();
+            running
+                .plant
+                .borrow_mut()
+                .set_input_at(now, &input, value)
+                .map_err(|e| anyhow::anyhow!("{e}"))?;
+        }
+        Action::PowerCycle => running.power_cycle().await?,
+    }
+    Ok(())
+}
+
+async fn sensor(
+    running: &Running,
+    node: &str,
+    signal: String,
+    fault: Option<nodes::script::FaultKind>,
+) -> anyhow::Result<()> {
+    let actor = running
+        .actor(node)
+        .ok_or_else(|| BadInput(format!("no node {node}")))?;
+    let now = running.now();
+    actor
+        .send(Apply(Box::new(move |logic| {
+            if let Some(n) = logic.as_any_mut().and_then(|a| a.downcast_mut::<ScriptedNode>()) {
+                n.set_fault(&signal, fault, now);
+            }
+        })))
+        .await?;
+    Ok(())
+}

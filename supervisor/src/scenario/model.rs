@@ -1,0 +1,218 @@
+//! The scenario format (RON): a timeline of stimuli and faults, and expectations.
+
+use bus::fault::ErrorState;
+use nodes::script::FaultKind;
+use serde::{Deserialize, Serialize};
+
+/// A scenario file.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename = "Scenario")]
+pub struct Scenario {
+    /// Short name (JUnit test suite name).
+    pub name: String,
+    /// What it shows.
+    #[serde(default)]
+    pub description: String,
+    /// Harvester config, relative to the scenario file.
+    #[serde(default = "default_config")]
+    pub config: String,
+    /// Seed; the config's when absent.
+    #[serde(default)]
+    pub seed: Option<u64>,
+    /// Virtual seconds to run.
+    pub duration_s: f64,
+    /// Cruise control start, s (overrides the config; `None` keeps it).
+    #[serde(default)]
+    pub cruise_start_s: Option<f64>,
+    /// What happens when.
+    #[serde(default)]
+    pub timeline: Vec<Step>,
+    /// What must be true.
+    pub expect: Vec<Expect>,
+}
+
+fn default_config() -> String {
+    "../harvester.ron".to_string()
+}
+
+/// One stimulus at one time.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Step {
+    /// Bus time, s.
+    pub at_s: f64,
+    /// What to do.
+    pub action: Action,
+}
+
+/// Which frames bit errors hit.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub enum Target {
+    /// Every frame.
+    Any,
+    /// Frames sent by this node.
+    Node(String),
+    /// Frames with this identifier (8 hex digits).
+    Id(String),
+    /// Frames of this priority (0–31).
+    Priority(u8),
+}
+
+/// Which of the targeted frames are hit.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
+pub enum Hits {
+    /// The first one.
+    Once,
+    /// Every n-th.
+    EveryNth(u32),
+    /// All.
+    Always,
+    /// Each bit flips with this probability.
+    BitErrorRate(f64),
+}
+
+/// Stimuli and faults.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub enum Action {
+    /// Corrupt frames on the wire (until `until_s`, if given).
+    BitErrors {
+        /// Which frames.
+        target: Target,
+        /// Which of them.
+        hits: Hits,
+        /// End of the fault, s.
+        #[serde(default)]
+        until_s: Option<f64>,
+    },
+    /// A node stops acknowledging frames.
+    AckFailure(String),
+    /// It acknowledges again.
+    AckRestored(String),
+    /// A node is disconnected from the bus.
+    Disconnect(String),
+    /// It is connected again.
+    Reconnect(String),
+    /// A node's logic crashes (the supervisor restarts it).
+    Crash(String),
+    /// A node hangs: alive, silent, not draining its receive FIFO.
+    Hang(String),
+    /// It runs again.
+    Resume(String),
+    /// A babbling idiot floods the bus with this frame (`ID#DATA`) until `until_s`.
+    Babble {
+        /// The frame, in candump notation.
+        frame: String,
+        /// End of the flood, s.
+        until_s: f64,
+    },
+    /// A node sends one frame of its own making (a wrong DLC or payload), in candump notation.
+    SendFrame {
+        /// The node whose controller sends it.
+        node: String,
+        /// The frame.
+        frame: String,
+    },
+    /// A node's sensor reading goes wrong.
+    SensorFault {
+        /// The node.
+        node: String,
+        /// The plant signal it reads.
+        signal: String,
+        /// How.
+        fault: FaultKind,
+    },
+    /// The sensor is repaired.
+    SensorRepaired {
+        /// The node.
+        node: String,
+        /// The plant signal.
+        signal: String,
+    },
+    /// Set a plant input (`fault.door3_open`, `operator.speed`, ...).
+    Plant {
+        /// The input.
+        input: String,
+        /// Its value.
+        value: f64,
+    },
+    /// Switch the whole machine off and on.
+    PowerCycle,
+}
+
+/// What must be true.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub enum Expect {
+    /// The monitor shows this alarm, raised within `within_ms` after `after_s`.
+    AlarmRaised {
+        /// Node that reports it ("C0"), or that it is about.
+        node: String,
+        /// Alarm name (the catalogue field, or `silent`, `flow sensor stopped`, `setpoint_timeout`).
+        alarm: String,
+        /// From, s.
+        after_s: f64,
+        /// Deadline, ms.
+        within_ms: u64,
+    },
+    /// The alarm is cleared within `within_ms` after `after_s`.
+    AlarmCleared {
+        /// Node.
+        node: String,
+        /// Alarm name.
+        alarm: String,
+        /// From, s.
+        after_s: f64,
+        /// Deadline, ms.
+        within_ms: u64,
+    },
+    /// No alarm was raised at all during the run.
+    NoAlarms,
+    /// Bus load over the whole run below this, %.
+    BusLoadBelow(f64),
+    /// No frame lost: no receive overrun anywhere, nothing lost or broken in the monitor.
+    NoFrameLost,
+    /// A node is in `state` within `within_ms` after `after_s`.
+    NodeState {
+        /// Node.
+        node: String,
+        /// Error state.
+        state: ErrorState,
+        /// From, s.
+        after_s: f64,
+        /// Deadline, ms.
+        within_ms: u64,
+    },
+    /// Error frames on the bus, between these counts.
+    ErrorFrames {
+        /// At least.
+        min: u64,
+        /// At most.
+        max: u64,
+    },
+    /// The monitor's total yield is within this percentage of the plant's truth.
+    YieldWithin(f64),
+    /// A field of the monitor's display at the end is within `min..=max`.
+    Display {
+        /// Field name (as in `nodes::monitor::Display`).
+        field: String,
+        /// Lowest.
+        min: f64,
+        /// Highest.
+        max: f64,
+    },
+    /// A plant signal at the end is within `min..=max`.
+    Plant {
+        /// Signal.
+        signal: String,
+        /// Lowest.
+        min: f64,
+        /// Highest.
+        max: f64,
+    },
+    /// A node was restarted this many times.
+    Restarts {
+        /// Node.
+        node: String,
+        /// Count.
+        count: usize,
+    },
+}

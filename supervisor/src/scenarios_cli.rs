@@ -1,0 +1,156 @@
+//! `harvemu scenario FILE...` and `harvemu validate FILE...`.
+
+use crate::BadInput;
+use crate::harvester::{self, Harvester};
+use crate::scenario::{self, Loaded, junit};
+use indicatif::{ProgressBar, ProgressStyle};
+use nodes::Error;
+use std::io::{BufWriter, Write};
+use std::path::PathBuf;
+
+/// Arguments of `harvemu scenario`.
+#[derive(clap::Args)]
+pub struct ScenarioArgs {
+    /// Scenario files (RON).
+    #[arg(required = true)]
+    files: Vec<PathBuf>,
+    /// Seed for every scenario (default: the scenario's, else its config's).
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Write a JUnit XML report here.
+    #[arg(long)]
+    junit: Option<PathBuf>,
+    /// Write the candump trace here (with several files, the last one's).
+    #[arg(long)]
+    record: Option<PathBuf>,
+}
+
+/// Runs `harvemu scenario`: exit code 0 only when every expectation of every scenario passed.
+pub fn run(args: &ScenarioArgs) -> anyhow::Result<bool> {
+    // Load everything first: a bad file stops the whole batch before anything runs.
+    let mut loaded = Vec::new();
+    let mut problems = Vec::new();
+    for f in &args.files {
+        match scenario::load(f, args.seed) {
+            Ok(l) => loaded.push(l),
+            Err(Error::Invalid(p)) => problems.extend(p),
+            Err(e) => return Err(harvester::bad(e)),
+        }
+    }
+    if !problems.is_empty() {
+        return Err(harvester::bad(Error::Invalid(problems)));
+    }
+    let mut outcomes = Vec::new();
+    for l in &loaded {
+        outcomes.push(run_one(l, args.record.as_ref())?);
+    }
+    let mut all_passed = true;
+    for (l, o) in loaded.iter().zip(&outcomes) {
+        let file = l.path.display();
+        println!(
+            "{} ({file}, seed {}, {:.1} s wall)",
+            l.scenario.name, o.seed, o.wall_seconds
+        );
+        for e in &o.events {
+            println!("  event {} {} {}", e.at, e.node, e.what);
+        }
+        for v in &o.verdicts {
+            let at = v.at.map_or("-".to_string(), |t| format!("{t}"));
+            println!(
+                "  {} {}  [{at}] {}",
+                if v.passed { "pass" } else { "FAIL" },
+                v.expectation,
+                v.observed
+            );
+        }
+        if !o.passed() {
+            all_passed = false;
+            println!(
+                "  failed: seed {}; reproduce with: harvemu scenario {file} --seed {}",
+                o.seed, o.seed
+            );
+        }
+    }
+    let passed: usize = outcomes
+        .iter()
+        .map(|o| o.verdicts.iter().filter(|v| v.passed).count())
+        .sum();
+    let failed: usize = outcomes
+        .iter()
+        .map(|o| o.verdicts.iter().filter(|v| !v.passed).count())
+        .sum();
+    println!("{passed} passed, {failed} failed");
+    if let Some(path) = &args.junit {
+        let runs: Vec<(String, &scenario::Scenario, &scenario::Outcome)> = loaded
+            .iter()
+            .zip(&outcomes)
+            .map(|(l, o)| (l.path.display().to_string(), &l.scenario, o))
+            .collect();
+        std::fs::write(path, junit::xml(&runs))
+            .map_err(|e| BadInput(format!("cannot write {}: {e}", path.display())))?;
+    }
+    Ok(all_passed)
+}
+
+fn run_one(l: &Loaded, record: Option<&PathBuf>) -> anyhow::Result<scenario::Outcome> {
+    let trace: Option<Box<dyn Write>> = match record {
+        Some(p) => Some(Box::new(BufWriter::new(
+            std::fs::File::create(p).map_err(|e| BadInput(format!("cannot create {}: {e}", p.display())))?,
+        ))),
+        None => None,
+    };
+    let bar = ProgressBar::new(l.scenario.duration_s.ceil() as u64);
+    bar.set_style(
+        ProgressStyle::with_template("{msg:30} {bar:30} {pos}/{len} s virtual time")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    bar.set_message(l.scenario.name.clone());
+    let outcome = scenario::run(l, trace, |t| bar.set_position(t as u64));
+    bar.finish_and_clear();
+    outcome
+}
+
+/// Arguments of `harvemu validate`.
+#[derive(clap::Args)]
+pub struct ValidateArgs {
+    /// Harvester configs, node scripts or scenarios (RON); the kind is read from the file.
+    #[arg(required = true)]
+    files: Vec<PathBuf>,
+}
+
+/// Runs `harvemu validate`: every problem of every file, exit code 2 when there is any.
+pub fn validate(args: &ValidateArgs) -> anyhow::Result<()> {
+    let mut problems = Vec::new();
+    for f in &args.files {
+        let text = std::fs::read_to_string(f).map_err(|e| BadInput(format!("{}: {e}", f.display())))?;
+        // The struct name at the top of the file says what it is.
+        let body: String = text
+            .lines()
+            .filter(|l| !l.trim_start().starts_with("//"))
+            .collect::<Vec<_>>()
+            .join("\n");
+        let result = if body.trim_start().starts_with("Scenario") {
+            scenario::load(f, None).map(|_| "scenario")
+        } else if body.trim_start().starts_with("NodeScript") {
+            nodes::script::load(f, &nodes::environment::PlantSignals).map(|_| "node script")
+        } else {
+            Harvester::load(f).map(|_| "harvester config")
+        };
+        match result {
+            Ok(kind) => println!("{}: ok ({kind})", f.display()),
+            Err(Error::Invalid(p)) => problems.extend(p),
+            Err(e) => problems.push(nodes::Problem {
+                file: f.display().to_string(),
+                position: None,
+                node: None,
+                field: None,
+                message: e.to_string(),
+            }),
+        }
+    }
+    if problems.is_empty() {
+        Ok(())
+    } else {
+        Err(harvester::bad(Error::Invalid(problems)))
+    }
+}

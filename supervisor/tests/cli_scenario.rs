@@ -1,0 +1,132 @@
+//! `harvemu scenario` and `harvemu validate` as a user runs them.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn harvemu(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_harvemu"))
+        .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
+        .args(args)
+        .output()
+        .expect("run harvemu")
+}
+
+fn scratch(tag: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("harvemu-cli-scenario-{tag}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn config() -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../configs/harvester.ron")
+        .display()
+        .to_string()
+}
+
+#[test]
+fn a_failing_expectation_gives_exit_1_the_seed_the_command_and_junit() {
+    let dir = scratch("fail");
+    let file = dir.join("strict.ron");
+    std::fs::write(
+        &file,
+        format!(
+            r#"Scenario(name: "too strict", config: "{}", duration_s: 3.0, seed: Some(42),
+                 expect: [BusLoadBelow(1.0), ErrorFrames(min: 0, max: 0)])"#,
+            config()
+        ),
+    )
+    .unwrap();
+    let junit = dir.join("report.xml");
+    let out = harvemu(&[
+        "scenario",
+        file.to_str().unwrap(),
+        "--junit",
+        junit.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(1));
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains("FAIL BusLoadBelow(1.0)"), "{text}");
+    assert!(text.contains("pass ErrorFrames"), "{text}");
+    assert!(
+        text.contains(&format!(
+            "reproduce with: harvemu scenario {} --seed 42",
+            file.display()
+        )),
+        "{text}"
+    );
+    assert!(text.contains("1 passed, 1 failed"), "{text}");
+    let xml = std::fs::read_to_string(&junit).unwrap();
+    assert!(xml.contains("tests=\"2\" failures=\"1\""), "{xml}");
+    assert_eq!(xml.matches("<failure").count(), 1);
+}
+
+#[test]
+fn a_bad_scenario_lists_every_problem_and_runs_nothing() {
+    let dir = scratch("bad");
+    let file = dir.join("bad.ron");
+    std::fs::write(
+        &file,
+        format!(
+            r#"Scenario(name: "bad", config: "{}", duration_s: 10.0,
+                 timeline: [
+                   (at_s: -1.0, action: Crash("D9")),
+                   (at_s: 2.0, action: BitErrors(target: Priority(40), hits: Always)),
+                   (at_s: 3.0, action: Plant(input: "fault.door9_open", value: 1.0)),
+                   (at_s: 30.0, action: Hang("B1")),
+                 ],
+                 expect: [Display(field: "speeed_kmh", min: 0.0, max: 1.0)])"#,
+            config()
+        ),
+    )
+    .unwrap();
+    let record = dir.join("never.log");
+    let out = harvemu(&[
+        "scenario",
+        file.to_str().unwrap(),
+        "--record",
+        record.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8(out.stderr).unwrap();
+    for needle in [
+        "timeline[0].at_s: time -1 s is negative",
+        "timeline[0].action: unknown node 'D9'",
+        "timeline[1].action.target: priority 40 is over 31",
+        "timeline[2].action.input: 'fault.door9_open' is not a plant input",
+        "timeline[3].at_s: time 30 s is after the end of the run",
+        "expect[0].field: the display has no field 'speeed_kmh'",
+    ] {
+        assert!(err.contains(needle), "missing {needle} in:\n{err}");
+    }
+    assert!(!record.exists());
+    // Syntax and unknown fields: line and column.
+    std::fs::write(&file, "Scenario(\n  name: \"x\",\n  duration: 3.0,\n)").unwrap();
+    let out = harvemu(&["validate", file.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert!(err.contains("bad.ron:3:"), "{err}");
+}
+
+#[test]
+fn validate_accepts_every_shipped_file() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs");
+    let mut files = vec![root.join("harvester.ron")];
+    for d in ["nodes", "scenarios"] {
+        files.extend(
+            std::fs::read_dir(root.join(d))
+                .unwrap()
+                .map(|e| e.unwrap().path()),
+        );
+    }
+    let args: Vec<String> = files.iter().map(|f| f.display().to_string()).collect();
+    let mut all = vec!["validate"];
+    all.extend(args.iter().map(String::as_str));
+    let out = harvemu(&all);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(
+        String::from_utf8(out.stdout).unwrap().matches(": ok (").count(),
+        files.len()
+    );
+}
