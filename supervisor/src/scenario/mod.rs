@@ -128,18 +128,14 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
             } => {
                 match target {
                     Target::Node(n) => node_ok(&mut p, format!("{at}.action.target"), n),
-                    Target::Id(id) => {
-                        if u32::from_str_radix(id, 16)
-                            .ok()
-                            .filter(|v| *v <= 0x1FFF_FFFF && id.len() == 8)
-                            .is_none()
-                        {
-                            p.push(problem(
-                                file,
-                                format!("{at}.action.target"),
-                                format!("'{id}' is not an 8-digit 29-bit identifier"),
-                            ));
-                        }
+                    Target::Id(id)
+                        if id.len() != 8 || u32::from_str_radix(id, 16).map_or(true, |v| v > 0x1FFF_FFFF) =>
+                    {
+                        p.push(problem(
+                            file,
+                            format!("{at}.action.target"),
+                            format!("'{id}' is not an 8-digit 29-bit identifier"),
+                        ))
                     }
                     Target::Priority(pr) if *pr > 31 => p.push(problem(
                         file,
@@ -224,24 +220,16 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
                 time_ok(&mut p, format!("{at}.after_s"), *after_s);
             }
             Expect::Restarts { node, .. } => node_ok(&mut p, format!("{at}.node"), node),
-            Expect::Display { field, .. } => {
-                if display_fields.get(field).is_none() {
-                    p.push(problem(
-                        file,
-                        format!("{at}.field"),
-                        format!("the display has no field '{field}'"),
-                    ));
-                }
-            }
-            Expect::Plant { signal, .. } => {
-                if !signals.iter().any(|s| s == signal) {
-                    p.push(problem(
-                        file,
-                        format!("{at}.signal"),
-                        format!("unknown plant signal '{signal}'"),
-                    ));
-                }
-            }
+            Expect::Display { field, .. } if display_fields.get(field).is_none() => p.push(problem(
+                file,
+                format!("{at}.field"),
+                format!("the display has no field '{field}'"),
+            )),
+            Expect::Plant { signal, .. } if !signals.iter().any(|s| s == signal) => p.push(problem(
+                file,
+                format!("{at}.signal"),
+                format!("unknown plant signal '{signal}'"),
+            )),
             Expect::ErrorFrames { min, max } if min > max => {
                 p.push(problem(file, at, format!("min {min} is above max {max}")))
             }
