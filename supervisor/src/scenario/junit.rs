@@ -42,7 +42,11 @@ pub fn xml(runs: &[(String, &Scenario, &Outcome)]) -> String {
             }
         }
         // Crashes, restarts and power cycles are part of the report.
-        let events: Vec<String> = o.events.iter().map(|e| format!("{} {} {}", e.at, e.node, e.what)).collect();
+        let events: Vec<String> = o
+            .events
+            .iter()
+            .map(|e| format!("{} {} {}", e.at, e.node, e.what))
+            .collect();
         out += &format!("    <system-out>{}</system-out>\n", escape(&events.join("\n")));
         out += "  </testsuite>\n";
     }
