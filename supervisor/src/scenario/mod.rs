@@ -334,8 +334,22 @@ pub fn run(
         let mut running = harvester::start(&h, trace).await?;
         let mut rules = std::collections::BTreeMap::new();
         let mut babbler = None;
+        // Ctrl-C stops the run where it is; verdicts, trace and report are still written.
+        let mut ctrl_c = Box::pin(tokio::signal::ctrl_c());
+        let mut interrupted = false;
+        macro_rules! run_to {
+            ($t:expr) => {
+                tokio::select! {
+                    r = running.run_until($t) => r?,
+                    _ = &mut ctrl_c => interrupted = true,
+                }
+            };
+        }
         for (at, _, what) in todo {
-            running.run_until(at.max(running.now())).await?;
+            run_to!(at.max(running.now()));
+            if interrupted {
+                break;
+            }
             progress(running.now().as_secs_f64());
             match what {
                 Todo::Act(i, action) => act(&mut running, i, action, &mut rules, &mut babbler).await?,
@@ -353,13 +367,24 @@ pub fn run(
             }
         }
         let end = secs(s.duration_s);
-        while running.now() < end {
+        while running.now() < end && !interrupted {
             let next = (running.now() + 1_000_000_000).min(end);
-            running.run_until(next).await?;
+            run_to!(next);
             progress(running.now().as_secs_f64());
         }
+        // Pausing the hub at the present flushes the trace.
+        let now = running.hub.send(GetSnapshot).await?.now;
+        running.hub.send(bus::hub::RunUntil(now)).await??;
         let snap = running.hub.send(GetSnapshot).await?;
-        let verdicts = check::all(&s, &running, &snap);
+        let mut verdicts = check::all(&s, &running, &snap);
+        if interrupted {
+            verdicts.push(Verdict {
+                expectation: "the run completes".into(),
+                passed: false,
+                at: Some(snap.now),
+                observed: "interrupted (Ctrl-C)".into(),
+            });
+        }
         anyhow::Ok((verdicts, running.events.clone()))
     })?;
     Ok(Outcome {
