@@ -510,6 +510,25 @@ pub struct Snapshot {
     pub trace_error: Option<String>,
 }
 
+/// Asks which nodes have crashed, and why: cheap enough to ask often (a [`Snapshot`] copies the
+/// statistics).
+#[derive(Message)]
+#[rtype(result = "Vec<(NodeId, String)>")]
+pub struct GetCrashed;
+
+impl Handler<GetCrashed> for Hub {
+    type Result = MessageResult<GetCrashed>;
+    fn handle(&mut self, _: GetCrashed, _: &mut Context<Self>) -> Self::Result {
+        MessageResult(
+            self.slots
+                .iter()
+                .enumerate()
+                .filter_map(|(i, s)| s.crashed.clone().map(|why| (NodeId(i as u16), why)))
+                .collect(),
+        )
+    }
+}
+
 /// Asks for a [`Snapshot`].
 #[derive(Message)]
 #[rtype(result = "Snapshot")]

@@ -6,7 +6,7 @@ use actix::prelude::*;
 use bus::bits::BitRate;
 use bus::engine::{BusConfig, ControllerConfig, Filter, NodeId};
 use bus::filter::{CAN_EFF_FLAG, SocketCanFilter, SocketCanFilterSet};
-use bus::hub::{Attach, GetSnapshot, Hub, HubConfig, Replace, RunUntil};
+use bus::hub::{Attach, GetCrashed, Hub, HubConfig, Replace, RunUntil};
 use bus::ident::Address;
 use bus::node::{Crash, NodeActor};
 use bus::time::BusTime;
@@ -373,11 +373,14 @@ impl Running {
     /// Notes crashes and restarts what is due, by the restart policy.
     async fn supervise(&mut self) -> anyhow::Result<()> {
         let now = self.now;
-        let snap = self.hub.send(GetSnapshot).await?;
+        let crashed = self.hub.send(GetCrashed).await?;
         let policy = self.harvester.config.restart.clone();
         for m in &mut self.members {
-            let crashed = snap.nodes.get(m.id.index()).and_then(|n| n.crashed.clone());
-            if let Some(why) = crashed
+            let why = crashed
+                .iter()
+                .find(|(id, _)| *id == m.id)
+                .map(|(_, why)| why.clone());
+            if let Some(why) = why
                 && m.restart_at.is_none()
                 && !m.down
             {
