@@ -24,6 +24,14 @@ impl BusTime {
     pub const fn from_secs(s: u64) -> BusTime {
         BusTime(s * 1_000_000_000)
     }
+    /// From seconds, rounded to the nanosecond (negative and non-numbers give zero).
+    pub fn from_secs_f64(s: f64) -> BusTime {
+        BusTime(if s.is_finite() && s > 0.0 {
+            (s * 1e9).round() as u64
+        } else {
+            0
+        })
+    }
     /// From whole milliseconds.
     pub const fn from_millis(ms: u64) -> BusTime {
         BusTime(ms * 1_000_000)

@@ -16,6 +16,19 @@ pub struct Problem {
     pub message: String,
 }
 
+impl Problem {
+    /// A problem in `field` of `file`, with no position or node.
+    pub fn at(file: &str, field: impl Into<String>, message: impl Into<String>) -> Problem {
+        Problem {
+            file: file.to_string(),
+            position: None,
+            node: None,
+            field: Some(field.into()),
+            message: message.into(),
+        }
+    }
+}
+
 impl fmt::Display for Problem {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "{}", self.file)?;

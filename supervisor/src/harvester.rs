@@ -59,16 +59,6 @@ pub struct Harvester {
     pub scripts: Vec<NodeScript>,
 }
 
-fn problem(file: &str, field: &str, message: impl Into<String>) -> Problem {
-    Problem {
-        file: file.to_string(),
-        position: None,
-        node: None,
-        field: Some(field.to_string()),
-        message: message.into(),
-    }
-}
-
 impl Harvester {
     /// Reads and checks a harvester config and every script it names; every problem is
     /// reported at once.
@@ -84,17 +74,17 @@ impl Harvester {
             .and_then(|r| r.exact_bit_time_ns())
             .is_none()
         {
-            problems.push(problem(
+            problems.push(Problem::at(
                 &file,
                 "bitrate",
                 format!("{} bit/s: use 125000, 250000, 500000 or 1000000", config.bitrate),
             ));
         }
         if config.nodes.is_empty() {
-            problems.push(problem(&file, "nodes", "no nodes"));
+            problems.push(Problem::at(&file, "nodes", "no nodes"));
         }
         if config.monitor.calibration_samples == 0 {
-            problems.push(problem(
+            problems.push(Problem::at(
                 &file,
                 "monitor.calibration_samples",
                 "must be at least 1",
@@ -103,7 +93,7 @@ impl Harvester {
         problems.extend(
             nodes::environment::validate_plant(&config.plant)
                 .into_iter()
-                .map(|(field, m)| problem(&file, &format!("plant.{field}"), m)),
+                .map(|(field, m)| Problem::at(&file, &format!("plant.{field}"), m)),
         );
         let dir = path.parent().unwrap_or(Path::new("."));
         let mut scripts = Vec::new();
@@ -112,7 +102,7 @@ impl Harvester {
             match nodes::script::load(&dir.join(rel), &signals) {
                 Ok(s) => scripts.push(s),
                 Err(Error::Invalid(p)) => problems.extend(p),
-                Err(Error::Io { path, source }) => problems.push(problem(
+                Err(Error::Io { path, source }) => problems.push(Problem::at(
                     &file,
                     &format!("nodes[{i}]"),
                     format!("cannot read {path}: {source}"),
@@ -122,14 +112,14 @@ impl Harvester {
         let mut seen = std::collections::BTreeMap::new();
         for s in &scripts {
             if s.address == Address::MONITOR.0 {
-                problems.push(problem(
+                problems.push(Problem::at(
                     &file,
                     "nodes",
                     format!("{} takes the monitor's address F5", s.name),
                 ));
             }
             if let Some(other) = seen.insert(s.address, s.name.clone()) {
-                problems.push(problem(
+                problems.push(Problem::at(
                     &file,
                     "nodes",
                     format!("{} and {other} both have address {:02X}", s.name, s.address),

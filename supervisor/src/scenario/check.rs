@@ -20,10 +20,6 @@ pub struct Verdict {
     pub observed: String,
 }
 
-fn secs(s: f64) -> BusTime {
-    BusTime((s * 1e9).round() as u64)
-}
-
 fn verdict(e: &Expect, passed: bool, at: Option<BusTime>, observed: String) -> Verdict {
     Verdict {
         expectation: format!("{e:?}"),
@@ -54,7 +50,7 @@ fn one(e: &Expect, r: &Running, snap: &Snapshot) -> Verdict {
             within_ms,
         } => {
             let raised = matches!(e, Expect::AlarmRaised { .. });
-            let from = secs(*after_s);
+            let from = BusTime::from_secs_f64(*after_s);
             let to = from + within_ms * 1_000_000;
             let times: Vec<BusTime> = display
                 .alarms
@@ -124,7 +120,7 @@ fn one(e: &Expect, r: &Running, snap: &Snapshot) -> Verdict {
             after_s,
             within_ms,
         } => {
-            let from = secs(*after_s);
+            let from = BusTime::from_secs_f64(*after_s);
             let to = from + within_ms * 1_000_000;
             let history = r.node(node).and_then(|id| snap.stats.nodes.get(id.index()));
             let hit = history.and_then(|h| {

@@ -33,16 +33,6 @@ pub struct Loaded {
     pub harvester: Harvester,
 }
 
-fn problem(file: &str, field: String, message: impl Into<String>) -> Problem {
-    Problem {
-        file: file.to_string(),
-        position: None,
-        node: None,
-        field: Some(field),
-        message: message.into(),
-    }
-}
-
 /// Reads and checks a scenario and its harvester; every problem is listed.
 pub fn load(path: &Path, seed: Option<u64>) -> Result<Loaded, Error> {
     let file = path.display().to_string();
@@ -79,7 +69,7 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
     }
     let node_ok = |p: &mut Vec<Problem>, field: String, n: &str| {
         if !names.iter().any(|x| x == n) {
-            p.push(problem(
+            p.push(Problem::at(
                 file,
                 field,
                 format!("unknown node '{n}' (nodes: {})", names.join(", ")),
@@ -88,13 +78,13 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
     };
     let time_ok = |p: &mut Vec<Problem>, field: String, t: f64| {
         if !(t.is_finite() && t >= 0.0) {
-            p.push(problem(
+            p.push(Problem::at(
                 file,
                 field,
                 format!("time {t} s is negative or not a number"),
             ));
         } else if t > s.duration_s {
-            p.push(problem(
+            p.push(Problem::at(
                 file,
                 field,
                 format!("time {t} s is after the end of the run ({} s)", s.duration_s),
@@ -102,16 +92,16 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
         }
     };
     if !(s.duration_s.is_finite() && s.duration_s > 0.0) {
-        p.push(problem(
+        p.push(Problem::at(
             file,
-            "duration_s".into(),
+            "duration_s",
             "must be a positive number of seconds",
         ));
     }
     if s.expect.is_empty() {
-        p.push(problem(
+        p.push(Problem::at(
             file,
-            "expect".into(),
+            "expect",
             "a scenario needs at least one expectation",
         ));
     }
@@ -131,13 +121,13 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
                     Target::Id(id)
                         if id.len() != 8 || u32::from_str_radix(id, 16).map_or(true, |v| v > 0x1FFF_FFFF) =>
                     {
-                        p.push(problem(
+                        p.push(Problem::at(
                             file,
                             format!("{at}.action.target"),
                             format!("'{id}' is not an 8-digit 29-bit identifier"),
                         ))
                     }
-                    Target::Priority(pr) if *pr > 31 => p.push(problem(
+                    Target::Priority(pr) if *pr > 31 => p.push(Problem::at(
                         file,
                         format!("{at}.action.target"),
                         format!("priority {pr} is over 31"),
@@ -145,8 +135,10 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
                     _ => {}
                 }
                 match hits {
-                    Hits::EveryNth(0) => p.push(problem(file, format!("{at}.action.hits"), "EveryNth(0)")),
-                    Hits::BitErrorRate(r) if !(0.0..=1.0).contains(r) => p.push(problem(
+                    Hits::EveryNth(0) => {
+                        p.push(Problem::at(file, format!("{at}.action.hits"), "EveryNth(0)"))
+                    }
+                    Hits::BitErrorRate(r) if !(0.0..=1.0).contains(r) => p.push(Problem::at(
                         file,
                         format!("{at}.action.hits"),
                         format!("bit-error rate {r} is outside 0..1"),
@@ -166,27 +158,27 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
             | Action::Resume(n) => node_ok(&mut p, format!("{at}.action"), n),
             Action::Babble { frame, until_s } => {
                 if let Err(e) = parse_frame(frame) {
-                    p.push(problem(file, format!("{at}.action.frame"), e.to_string()));
+                    p.push(Problem::at(file, format!("{at}.action.frame"), e.to_string()));
                 }
                 time_ok(&mut p, format!("{at}.action.until_s"), *until_s);
             }
             Action::SendFrame { node, frame } => {
                 node_ok(&mut p, format!("{at}.action.node"), node);
                 if let Err(e) = parse_frame(frame) {
-                    p.push(problem(file, format!("{at}.action.frame"), e.to_string()));
+                    p.push(Problem::at(file, format!("{at}.action.frame"), e.to_string()));
                 }
             }
             Action::SensorFault { node, signal, .. } | Action::SensorRepaired { node, signal } => {
                 node_ok(&mut p, format!("{at}.action.node"), node);
                 if node == "F5" {
-                    p.push(problem(
+                    p.push(Problem::at(
                         file,
                         format!("{at}.action.node"),
                         "the monitor has no sensors",
                     ));
                 }
                 if !signals.iter().any(|s| s == signal) {
-                    p.push(problem(
+                    p.push(Problem::at(
                         file,
                         format!("{at}.action.signal"),
                         format!("unknown plant signal '{signal}'"),
@@ -195,14 +187,14 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
             }
             Action::Plant { input, value } => {
                 if !Plant::is_input(input) {
-                    p.push(problem(
+                    p.push(Problem::at(
                         file,
                         format!("{at}.action.input"),
                         format!("'{input}' is not a plant input"),
                     ));
                 }
                 if !value.is_finite() {
-                    p.push(problem(file, format!("{at}.action.value"), "not a number"));
+                    p.push(Problem::at(file, format!("{at}.action.value"), "not a number"));
                 }
             }
             Action::PowerCycle => {}
@@ -220,18 +212,18 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
                 time_ok(&mut p, format!("{at}.after_s"), *after_s);
             }
             Expect::Restarts { node, .. } => node_ok(&mut p, format!("{at}.node"), node),
-            Expect::Display { field, .. } if display_fields.get(field).is_none() => p.push(problem(
+            Expect::Display { field, .. } if display_fields.get(field).is_none() => p.push(Problem::at(
                 file,
                 format!("{at}.field"),
                 format!("the display has no field '{field}'"),
             )),
-            Expect::Plant { signal, .. } if !signals.iter().any(|s| s == signal) => p.push(problem(
+            Expect::Plant { signal, .. } if !signals.iter().any(|s| s == signal) => p.push(Problem::at(
                 file,
                 format!("{at}.signal"),
                 format!("unknown plant signal '{signal}'"),
             )),
             Expect::ErrorFrames { min, max } if min > max => {
-                p.push(problem(file, at, format!("min {min} is above max {max}")))
+                p.push(Problem::at(file, at, format!("min {min} is above max {max}")))
             }
             _ => {}
         }
@@ -244,7 +236,7 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
                 | Expect::Display { .. }
         );
         if needs_monitor && !h.config.monitor.enabled {
-            p.push(problem(
+            p.push(Problem::at(
                 file,
                 format!("expect[{i}]"),
                 "needs the emulated monitor, which the config switches off",
@@ -252,10 +244,6 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
         }
     }
     p
-}
-
-fn secs(s: f64) -> BusTime {
-    BusTime((s * 1e9).round() as u64)
 }
 
 /// A babbling idiot: tops up its transmit queue every millisecond, so that it always has a
@@ -321,10 +309,18 @@ pub fn run(
     let seed = h.config.seed;
     let mut todo: Vec<(BusTime, usize, Todo)> = Vec::new();
     for (i, step) in s.timeline.iter().enumerate() {
-        todo.push((secs(step.at_s), i, Todo::Act(i, step.action.clone())));
+        todo.push((
+            BusTime::from_secs_f64(step.at_s),
+            i,
+            Todo::Act(i, step.action.clone()),
+        ));
         match &step.action {
-            Action::BitErrors { until_s: Some(u), .. } => todo.push((secs(*u), i, Todo::EndBitErrors(i))),
-            Action::Babble { until_s, .. } => todo.push((secs(*until_s), i, Todo::EndBabble)),
+            Action::BitErrors { until_s: Some(u), .. } => {
+                todo.push((BusTime::from_secs_f64(*u), i, Todo::EndBitErrors(i)))
+            }
+            Action::Babble { until_s, .. } => {
+                todo.push((BusTime::from_secs_f64(*until_s), i, Todo::EndBabble))
+            }
             _ => {}
         }
     }
@@ -366,7 +362,7 @@ pub fn run(
                 }
             }
         }
-        let end = secs(s.duration_s);
+        let end = BusTime::from_secs_f64(s.duration_s);
         while running.now() < end && !interrupted {
             let next = (running.now() + 1_000_000_000).min(end);
             run_to!(next);
