@@ -93,7 +93,7 @@ impl Harvester {
         problems.extend(
             nodes::environment::validate_plant(&config.plant)
                 .into_iter()
-                .map(|(field, m)| Problem::at(&file, &format!("plant.{field}"), m)),
+                .map(|(field, m)| Problem::at(&file, format!("plant.{field}"), m)),
         );
         let dir = path.parent().unwrap_or(Path::new("."));
         let mut scripts = Vec::new();
@@ -104,7 +104,7 @@ impl Harvester {
                 Err(Error::Invalid(p)) => problems.extend(p),
                 Err(Error::Io { path, source }) => problems.push(Problem::at(
                     &file,
-                    &format!("nodes[{i}]"),
+                    format!("nodes[{i}]"),
                     format!("cannot read {path}: {source}"),
                 )),
             }
