@@ -105,6 +105,23 @@ pub struct Hub {
     line: String,
     scratch: Vec<Event>,
     wakes: u64,
+    observers: Vec<Observer>,
+}
+
+/// A frame as an observer of the bus sees it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Observed {
+    /// End of frame.
+    pub at: BusTime,
+    /// Transmitter.
+    pub node: NodeId,
+    /// The frame.
+    pub frame: Frame,
+}
+
+struct Observer {
+    tx: tokio::sync::mpsc::Sender<Observed>,
+    dropped: u64,
 }
 
 impl Hub {
@@ -127,6 +144,7 @@ impl Hub {
             line: String::with_capacity(256),
             scratch: Vec::with_capacity(64),
             wakes: 0,
+            observers: Vec::new(),
         })
     }
 
@@ -205,6 +223,18 @@ impl Hub {
                     self.trace_error = Some(e.to_string());
                     self.trace = None;
                 }
+            }
+            if let Event::Frame { end, node, frame, .. } = event {
+                // A slow observer loses frames (counted); it never holds up the bus.
+                self.observers
+                    .retain_mut(|o| match o.tx.try_send(Observed { at: end, node, frame }) {
+                        Ok(()) => true,
+                        Err(tokio::sync::mpsc::error::TrySendError::Full(_)) => {
+                            o.dropped += 1;
+                            true
+                        }
+                        Err(tokio::sync::mpsc::error::TrySendError::Closed(_)) => false,
+                    });
             }
             let (node, at, input, wakes) = match event {
                 Event::Delivered { node, at } => (node, at, None, true),
@@ -508,6 +538,19 @@ pub struct Snapshot {
     pub late_submissions: u64,
     /// Why the trace stopped, if writing it failed.
     pub trace_error: Option<String>,
+}
+
+/// Registers an observer of every frame on the bus (gateways, displays). The channel is
+/// bounded: frames that do not fit are dropped for that observer and counted.
+#[derive(Message)]
+#[rtype(result = "()")]
+pub struct Subscribe(pub tokio::sync::mpsc::Sender<Observed>);
+
+impl Handler<Subscribe> for Hub {
+    type Result = ();
+    fn handle(&mut self, Subscribe(tx): Subscribe, _: &mut Context<Self>) {
+        self.observers.push(Observer { tx, dropped: 0 });
+    }
 }
 
 /// Asks which nodes have crashed, and why: cheap enough to ask often (a [`Snapshot`] copies the

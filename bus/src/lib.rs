@@ -26,6 +26,7 @@ mod error;
 pub mod fault;
 pub mod filter;
 mod frame;
+pub mod gateway;
 pub mod hub;
 pub mod ident;
 pub mod node;

@@ -25,6 +25,10 @@ pub struct Args {
     /// Write every frame on the bus to this candump log.
     #[arg(long)]
     record: Option<PathBuf>,
+    /// Serve the bus to socketcand clients (python-can's `socketcand` interface, ...) on this
+    /// address; loopback port 29536 when no address is given. The bus is called `harv0`.
+    #[arg(long, num_args = 0..=1, default_missing_value = "127.0.0.1:29536", value_name = "ADDR")]
+    socketcand: Option<std::net::SocketAddr>,
 }
 
 /// Parses `120s`, `10m`, `1h`, `500ms` or a plain number of seconds.
@@ -108,10 +112,24 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         }
     );
     let fast = args.fast;
+    let socketcand = args.socketcand;
+    if fast && socketcand.is_some() {
+        eprintln!(
+            "harvemu: note: with --fast the bus runs in virtual time, far faster than clients can follow"
+        );
+    }
     let system = System::with_tokio_rt(move || runtime(fast).expect("a tokio runtime"));
     system.block_on(async move {
         let mut running = harvester::start(&h, trace).await?;
         let mut reported = 0;
+        let _gateway = match socketcand {
+            Some(addr) => {
+                let gw = bus::gateway::Gateway::start(running.hub.clone(), addr, Default::default()).await?;
+                eprintln!("harvemu: socketcand gateway on {}, bus harv0", gw.addr);
+                Some(gw)
+            }
+            None => None,
+        };
         // Progress, the live summary and Ctrl-C are looked at once a second of bus time.
         let step = BusTime::from_millis(1000);
         let bar = match (fast, end) {

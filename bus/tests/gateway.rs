@@ -1,0 +1,247 @@
+//! The socketcand gateway against clients written here, on loopback, in real time.
+
+use actix::prelude::*;
+use bus::Frame;
+use bus::candump::parse_frame;
+use bus::engine::ControllerConfig;
+use bus::gateway::{Gateway, GatewayConfig};
+use bus::hub::{Attach, Hub, HubConfig, RunUntil, runtime};
+use bus::node::{NodeActor, NodeLogic};
+use bus::time::BusTime;
+use std::time::Duration;
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio::net::TcpStream;
+
+/// Sends one frame every `period_us`.
+struct Ticker {
+    frame: Frame,
+    period: u64,
+    next: BusTime,
+    due: bool,
+}
+
+impl NodeLogic for Ticker {
+    fn handle_frame(&mut self, _: BusTime, _: &Frame) {}
+    fn handle_timeout(&mut self, now: BusTime) {
+        self.due = true;
+        self.next = now + self.period;
+    }
+    fn poll_transmit(&mut self) -> Option<Frame> {
+        std::mem::take(&mut self.due).then_some(self.frame)
+    }
+    fn poll_timeout(&self) -> Option<BusTime> {
+        Some(self.next)
+    }
+}
+
+async fn bus_with_ticker(period_us: u64) -> (Addr<Hub>, Gateway) {
+    let hub = Hub::new(HubConfig::default(), None).unwrap().start();
+    let logic = Ticker {
+        frame: parse_frame("0601F5D0#200D0002FFBFFF00").unwrap(),
+        period: period_us * 1000,
+        next: BusTime::ZERO,
+        due: false,
+    };
+    let node = NodeActor::new("ticker", Box::new(logic)).start();
+    hub.send(Attach {
+        controller: ControllerConfig::named("ticker"),
+        node: Some(node.recipient()),
+        reaction: Duration::ZERO,
+    })
+    .await
+    .unwrap();
+    // Someone must acknowledge the gateway's and the ticker's frames.
+    hub.send(Attach {
+        controller: ControllerConfig::named("listener"),
+        node: None,
+        reaction: Duration::ZERO,
+    })
+    .await
+    .unwrap();
+    let gateway = Gateway::start(
+        hub.clone(),
+        "127.0.0.1:0".parse().unwrap(),
+        GatewayConfig::default(),
+    )
+    .await
+    .unwrap();
+    hub.do_send(RunUntil(BusTime::NEVER));
+    (hub, gateway)
+}
+
+/// A client connection that keeps what it read past the last message.
+struct Conn {
+    s: TcpStream,
+    pending: String,
+}
+
+impl Conn {
+    /// The next `n` messages.
+    async fn read(&mut self, n: usize) -> Vec<String> {
+        let mut out = Vec::new();
+        let mut buf = [0u8; 4096];
+        while out.len() < n {
+            if let Some(end) = self.pending.find('>') {
+                let m: String = self.pending.drain(..=end).collect();
+                out.push(m.trim().to_string());
+                continue;
+            }
+            let k = tokio::time::timeout(Duration::from_secs(10), self.s.read(&mut buf))
+                .await
+                .expect("no answer")
+                .unwrap();
+            assert!(k > 0, "closed after {out:?}");
+            self.pending.push_str(&String::from_utf8_lossy(&buf[..k]));
+        }
+        out
+    }
+    async fn write(&mut self, bytes: &[u8]) {
+        self.s.write_all(bytes).await.unwrap();
+    }
+}
+
+async fn connect(addr: std::net::SocketAddr, recv_buffer: Option<u32>) -> Conn {
+    let socket = tokio::net::TcpSocket::new_v4().unwrap();
+    if let Some(size) = recv_buffer {
+        socket.set_recv_buffer_size(size).unwrap();
+    }
+    Conn {
+        s: socket.connect(addr).await.unwrap(),
+        pending: String::new(),
+    }
+}
+
+async fn handshake_with(addr: std::net::SocketAddr, recv_buffer: Option<u32>) -> Conn {
+    let mut c = connect(addr, recv_buffer).await;
+    assert_eq!(c.read(1).await, ["< hi >"]);
+    c.write(b"< open harv0 >").await;
+    assert_eq!(c.read(1).await, ["< ok >"]);
+    c.write(b"< rawmode >").await;
+    assert_eq!(c.read(1).await, ["< ok >"]);
+    c
+}
+
+async fn handshake(addr: std::net::SocketAddr) -> Conn {
+    handshake_with(addr, None).await
+}
+
+fn in_real_time<F: Future>(f: F) -> F::Output {
+    System::with_tokio_rt(|| runtime(false).unwrap()).block_on(f)
+}
+
+#[test]
+fn handshake_stream_and_send() {
+    in_real_time(async {
+        let (_hub, gw) = bus_with_ticker(10_000).await;
+        let mut a = handshake(gw.addr).await;
+        let mut b = handshake(gw.addr).await;
+        let frames = a.read(3).await;
+        for f in &frames {
+            let words: Vec<&str> = f.split_whitespace().collect();
+            assert_eq!(
+                (words[0], words[1], words[2], words[4], words[5]),
+                ("<", "frame", "0601F5D0", "200D0002FFBFFF00", ">"),
+                "{f}"
+            );
+            assert!(words[3].parse::<f64>().is_ok(), "{f}");
+        }
+        a.write(b"< send 123 2 AB CD >").await;
+        // b sees a's frame among the ticker's; a does not get its own back.
+        let mut seen = false;
+        for _ in 0..50 {
+            if b.read(1)
+                .await
+                .iter()
+                .any(|m| m.starts_with("< frame 123 ") && m.ends_with(" ABCD >"))
+            {
+                seen = true;
+                break;
+            }
+        }
+        assert!(seen);
+        let own = a.read(20).await;
+        assert!(own.iter().all(|m| !m.contains("frame 123 ")), "{own:?}");
+        assert_eq!(gw.stats().sent, 1);
+    });
+}
+
+#[test]
+fn garbage_and_oversized_input_get_errors_not_a_panic() {
+    in_real_time(async {
+        let (_hub, gw) = bus_with_ticker(1_000_000).await;
+        let mut s = connect(gw.addr, None).await;
+        s.read(1).await;
+        s.write(b"< rawmode >").await;
+        assert!(s.read(1).await[0].starts_with("< error open a bus first"));
+        s.write(b"< open can9 >").await;
+        assert!(s.read(1).await[0].starts_with("< error no bus 'can9'"));
+        s.write(b"< open harv0 >").await;
+        assert_eq!(s.read(1).await, ["< ok >"]);
+        for bad in [
+            &b"hello"[..],
+            b"< send 123 9 1 2 >",
+            b"< bcmmode >",
+            b"< send XYZ 0 >",
+            b"< \xff >",
+        ] {
+            s.write(bad).await;
+            let m = s.read(1).await;
+            assert!(m[0].starts_with("< error "), "{bad:?}: {m:?}");
+        }
+        let mut long = vec![b'<'];
+        long.extend(std::iter::repeat_n(b'a', 100_000));
+        long.extend(b"> < echo >");
+        s.write(&long).await;
+        let m = s.read(2).await;
+        assert!(m[0].contains("longer than 256"), "{m:?}");
+        assert_eq!(m[1], "< echo >", "the connection goes on");
+        // Five bad messages and one too long (refusals of the protocol order are answers, not errors).
+        assert_eq!(gw.stats().errors, 6);
+    });
+}
+
+#[test]
+fn a_hundred_clients_at_once() {
+    in_real_time(async {
+        let (_hub, gw) = bus_with_ticker(5_000).await;
+        let mut clients = Vec::new();
+        for _ in 0..100 {
+            clients.push(handshake(gw.addr).await);
+        }
+        assert_eq!(gw.stats().clients, 100);
+        for c in &mut clients {
+            let m = c.read(2).await;
+            assert!(m.iter().all(|x| x.starts_with("< frame 0601F5D0 ")), "{m:?}");
+        }
+        drop(clients);
+        for _ in 0..100 {
+            if gw.stats().clients == 0 {
+                break;
+            }
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+        assert_eq!(gw.stats().clients, 0, "closed connections are forgotten");
+    });
+}
+
+#[test]
+fn a_client_that_never_reads_cannot_stall_the_bus() {
+    in_real_time(async {
+        // A frame every 600 us: about as fast as the bus goes.
+        let (hub, gw) = bus_with_ticker(600).await;
+        let _silent = handshake_with(gw.addr, Some(4096)).await;
+        let mut live = handshake(gw.addr).await;
+        let before = hub.send(bus::hub::GetSnapshot).await.unwrap().stats.frames;
+        let mut got = 0;
+        let start = std::time::Instant::now();
+        while start.elapsed() < Duration::from_secs(3) {
+            got += live.read(100).await.len();
+        }
+        let after = hub.send(bus::hub::GetSnapshot).await.unwrap().stats.frames;
+        // The bus kept going and the live client kept receiving...
+        assert!(after - before > 1000, "{before} -> {after}");
+        assert!(got > 1000, "{got}");
+        // ...while the silent one's queue overflowed and its frames were dropped and counted.
+        assert!(gw.stats().dropped > 0, "{:?}", gw.stats());
+    });
+}
