@@ -412,14 +412,15 @@ impl Running {
         Ok(())
     }
 
-    /// Rebuilds node `i` from its spec: a new actor with new logic that boots from `now`.
-    async fn restart(&mut self, i: usize, now: BusTime) -> anyhow::Result<()> {
+    /// Rebuilds node `i` from its spec: a new actor with new logic that powers on at
+    /// `power_on`, behind the node's controller (which is reset).
+    async fn rebuild(&mut self, i: usize, power_on: BusTime) -> anyhow::Result<()> {
         let logic = build(
             &self.harvester,
             &self.members[i].spec,
             &self.plant,
             &self.display,
-            now,
+            power_on,
         );
         let actor = NodeActor::new(self.members[i].name.clone(), logic).start();
         self.hub
@@ -431,7 +432,13 @@ impl Running {
         let m = &mut self.members[i];
         m.actor = actor;
         m.restart_at = None;
-        m.restarts.push(now);
+        Ok(())
+    }
+
+    /// Restarts a crashed node now, counting the restart against the policy.
+    async fn restart(&mut self, i: usize, now: BusTime) -> anyhow::Result<()> {
+        self.rebuild(i, now).await?;
+        self.members[i].restarts.push(now);
         Ok(())
     }
 
@@ -460,24 +467,8 @@ impl Running {
             } else {
                 relay
             };
-            let logic = build(
-                &self.harvester,
-                &self.members[i].spec,
-                &self.plant,
-                &self.display,
-                power_on,
-            );
-            let actor = NodeActor::new(self.members[i].name.clone(), logic).start();
-            self.hub
-                .send(Replace {
-                    node: self.members[i].id,
-                    actor: actor.clone().recipient(),
-                })
-                .await??;
-            let m = &mut self.members[i];
-            m.actor = actor;
-            m.restart_at = None;
-            m.down = false;
+            self.rebuild(i, power_on).await?;
+            self.members[i].down = false;
         }
         Ok(())
     }
