@@ -18,6 +18,7 @@
 //! Nothing here does I/O, reads a clock or panics on input; fallible input gives [`Error`].
 #![warn(missing_docs)]
 
+pub mod backend;
 pub mod bits;
 pub mod candump;
 pub mod catalogue;

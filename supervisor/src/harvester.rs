@@ -137,6 +137,30 @@ impl Harvester {
         }
     }
 
+    /// Leaves nodes out (a real device takes each one's place); "F5" is the monitor.
+    pub fn without(&mut self, names: &[String]) -> Result<(), Error> {
+        let mut problems = Vec::new();
+        for n in names {
+            if n == "F5" {
+                self.config.monitor.enabled = false;
+            } else if let Some(i) = self.scripts.iter().position(|s| &s.name == n) {
+                self.scripts.remove(i);
+            } else {
+                let file = self.path.display().to_string();
+                problems.push(Problem::at(
+                    &file,
+                    "nodes",
+                    format!("--without {n}: no such node"),
+                ));
+            }
+        }
+        if problems.is_empty() {
+            Ok(())
+        } else {
+            Err(Error::Invalid(problems))
+        }
+    }
+
     /// The time at which the field nodes power up.
     pub fn relay(&self) -> BusTime {
         BusTime::from_millis(self.config.time_relay_ms)

@@ -29,6 +29,14 @@ pub struct Args {
     /// address; loopback port 29536 when no address is given. The bus is called `harv0`.
     #[arg(long, num_args = 0..=1, default_missing_value = "127.0.0.1:29536", value_name = "ADDR")]
     socketcand: Option<std::net::SocketAddr>,
+    /// Put the emulated nodes on this SocketCAN interface (vcan0, can0) as well: their frames go
+    /// out on it, frames of real devices on it reach them. Real time only.
+    #[arg(long)]
+    iface: Option<String>,
+    /// Leave a node out, so that a real device on the interface takes its place (repeatable;
+    /// F5 is the monitor).
+    #[arg(long, value_name = "NODE")]
+    without: Vec<String>,
 }
 
 /// Parses `120s`, `10m`, `1h`, `500ms` or a plain number of seconds.
@@ -86,7 +94,15 @@ pub fn summary(s: &Snapshot, running: &harvester::Running) -> String {
 
 /// Runs `harvemu run`.
 pub fn run(args: &Args) -> anyhow::Result<()> {
-    let h = Harvester::load(&args.config).map_err(harvester::bad)?;
+    let mut h = Harvester::load(&args.config).map_err(harvester::bad)?;
+    h.without(&args.without).map_err(harvester::bad)?;
+    if args.fast && args.iface.is_some() {
+        return Err(BadInput("--iface runs in real time: leave out --fast".into()).into());
+    }
+    let iface = args.iface.clone();
+    if let Some(name) = &iface {
+        bus::backend::socketcan::check(name).map_err(|e| BadInput(e.to_string()))?;
+    }
     if args.fast && args.duration.is_none() {
         return Err(BadInput("--fast needs --for: virtual time would otherwise run for ever".into()).into());
     }
@@ -122,6 +138,16 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     system.block_on(async move {
         let mut running = harvester::start(&h, trace).await?;
         let mut reported = 0;
+        let _bridge = match &iface {
+            Some(name) => {
+                let b = bus::backend::socketcan::bridge(running.hub.clone(), name)
+                    .await
+                    .map_err(|e| BadInput(e.to_string()))?;
+                eprintln!("harvemu: bridged to CAN interface {name}");
+                Some(b)
+            }
+            None => None,
+        };
         let _gateway = match socketcand {
             Some(addr) => {
                 let gw = bus::gateway::Gateway::start(running.hub.clone(), addr, Default::default()).await?;

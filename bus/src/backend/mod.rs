@@ -1,0 +1,3 @@
+//! Real interfaces for the emulated bus.
+
+pub mod socketcan;

@@ -1,0 +1,199 @@
+//! A bridge between the hub and a SocketCAN interface (vcan0, can0): the emulated nodes' frames
+//! go out on the interface, and frames from real devices on it come in to the emulated nodes
+//! through their acceptance filters.
+//!
+//! The hub still schedules and times the emulated nodes (in real time); the bridge is one more
+//! controller on its bus. Frames read from the interface are submitted through that controller
+//! the moment they arrive; what the emulated nodes send is written to the interface as it ends on
+//! the emulated bus. The socket does not receive its own frames, so nothing loops. Error frames
+//! the interface reports are logged and counted.
+
+use crate::engine::{ControllerConfig, Filter};
+use crate::hub::{Attach, Hub, Submit, Subscribe};
+use crate::{Error, Frame, Id};
+use actix::Addr;
+use embedded_can::Frame as _;
+use socketcan::{CanFrame, SocketOptions};
+use std::cell::RefCell;
+use std::rc::Rc;
+use tokio::sync::mpsc;
+
+/// Counters of a running bridge.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct BridgeStats {
+    /// Frames read from the interface and put on the emulated bus.
+    pub received: u64,
+    /// Frames of the emulated nodes written to the interface.
+    pub sent: u64,
+    /// Error frames the interface reported.
+    pub error_frames: u64,
+    /// Frames that could not be written (interface down, buffer full).
+    pub write_errors: u64,
+}
+
+/// A running bridge.
+pub struct Bridge {
+    stats: Rc<RefCell<BridgeStats>>,
+}
+
+impl Bridge {
+    /// Its counters.
+    pub fn stats(&self) -> BridgeStats {
+        self.stats.borrow().clone()
+    }
+}
+
+/// Explains why an interface cannot be opened, in the user's terms.
+fn open_error(iface: &str, e: std::io::Error) -> Error {
+    let hint = match e.raw_os_error() {
+        Some(97) => " (this kernel has no CAN support: load the can and can-raw modules, or run inside a VM)",
+        Some(19) => {
+            " (no such interface: create it, e.g. `ip link add dev vcan0 type vcan && ip link set vcan0 up`)"
+        }
+        Some(100) => " (the interface is down: `ip link set IFACE up`)",
+        _ => "",
+    };
+    Error::Syntax(format!("cannot open CAN interface {iface}: {e}{hint}"))
+}
+
+fn to_socketcan(f: &Frame) -> Option<CanFrame> {
+    if f.is_remote() {
+        CanFrame::new_remote(f.id(), usize::from(f.dlc()))
+    } else {
+        CanFrame::new(f.id(), f.data())
+    }
+}
+
+fn from_socketcan(f: &CanFrame) -> Option<Frame> {
+    let id: Id = f.id();
+    if f.is_remote_frame() {
+        Frame::new_remote(id, f.dlc()).ok()
+    } else {
+        Frame::new_data(id, f.data()).ok()
+    }
+}
+
+/// Checks that `iface` can be opened, before anything is started.
+pub fn check(iface: &str) -> Result<(), Error> {
+    <socketcan::CanSocket as socketcan::Socket>::open(iface)
+        .map(drop)
+        .map_err(|e| open_error(iface, e))
+}
+
+/// Opens `iface` and bridges it to `hub`. Must run inside the actor system.
+pub async fn bridge(hub: Addr<Hub>, iface: &str) -> Result<Bridge, Error> {
+    let socket = socketcan::tokio::CanSocket::open(iface).map_err(|e| open_error(iface, e))?;
+    // Error frames of every class, so that bus errors on the real bus are seen.
+    socket
+        .set_error_filter_accept_all()
+        .map_err(|e| open_error(iface, e))?;
+    let socket = Rc::new(socket);
+    let controller = ControllerConfig {
+        tx_queue_len: 256,
+        ..ControllerConfig::named(iface)
+    }
+    .with_filter(Filter::Nothing);
+    let node = hub
+        .send(Attach {
+            controller,
+            node: None,
+            reaction: std::time::Duration::ZERO,
+        })
+        .await
+        .map_err(|e| Error::Syntax(e.to_string()))?;
+    let (tx, mut rx) = mpsc::channel(4096);
+    hub.send(Subscribe(tx))
+        .await
+        .map_err(|e| Error::Syntax(e.to_string()))?;
+    let stats = Rc::new(RefCell::new(BridgeStats::default()));
+
+    let (out, st) = (socket.clone(), stats.clone());
+    actix::spawn(async move {
+        while let Some(o) = rx.recv().await {
+            if o.node == node {
+                continue; // came from the interface: it is already there
+            }
+            let Some(frame) = to_socketcan(&o.frame) else {
+                continue;
+            };
+            match out.write_frame(frame).await {
+                Ok(()) => st.borrow_mut().sent += 1,
+                Err(e) => {
+                    let mut s = st.borrow_mut();
+                    s.write_errors += 1;
+                    if s.write_errors.is_power_of_two() {
+                        tracing::warn!(error = %e, "writing to the CAN interface failed");
+                    }
+                }
+            }
+        }
+    });
+
+    let (input, st) = (socket, stats.clone());
+    let name = iface.to_string();
+    actix::spawn(async move {
+        loop {
+            // Kernel receive timestamps: logged with error frames; frames enter the emulated
+            // bus at once, so their bus time is their arrival.
+            match input.read_frame_with_timestamp().await {
+                Ok((CanFrame::Error(e), at)) => {
+                    st.borrow_mut().error_frames += 1;
+                    tracing::warn!(iface = %name, error = ?e, kernel_time = ?at, "error frame on the interface");
+                }
+                Ok((f, _at)) => {
+                    if let Some(frame) = from_socketcan(&f) {
+                        st.borrow_mut().received += 1;
+                        let _ = hub.send(Submit { node, frame }).await;
+                    }
+                }
+                Err(e) => {
+                    tracing::error!(iface = %name, error = %e, "reading the CAN interface failed; the bridge stops");
+                    break;
+                }
+            }
+        }
+    });
+    Ok(Bridge { stats })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::candump::parse_frame;
+
+    #[test]
+    fn frames_convert_both_ways() {
+        for text in [
+            "0601F5D0#200D0002FFBFFF00",
+            "123#DEADBEEF",
+            "7FF#",
+            "123#R",
+            "0300A0F5#R8",
+        ] {
+            let f = parse_frame(text).unwrap();
+            let back = from_socketcan(&to_socketcan(&f).unwrap()).unwrap();
+            assert_eq!(back, f, "{text}");
+        }
+    }
+
+    #[test]
+    fn a_kernel_without_can_gets_a_clear_error() {
+        // This host's kernel has no AF_CAN; elsewhere there is no such interface. Either way the
+        // error says what to do.
+        let e = socketcan::tokio::CanSocket::open("harvemu-none");
+        let msg = match e {
+            Ok(_) => return,
+            Err(e) => open_error("harvemu-none", e).to_string(),
+        };
+        assert!(
+            msg.starts_with("cannot open CAN interface harvemu-none: "),
+            "{msg}"
+        );
+        assert!(
+            msg.contains("no CAN support")
+                || msg.contains("no such interface")
+                || msg.contains("No such device"),
+            "{msg}"
+        );
+    }
+}
