@@ -10,13 +10,19 @@
 //! Usage: `harvemu-vmcheck [INTERFACE]` (default `vcan0`; it must not exist yet). Needs root
 //! (`CAP_NET_ADMIN`). Exit code 0 only if every check passed, 1 otherwise, 2 on bad arguments.
 //! `scripts/vm/run` boots a VM that runs it; see `scripts/vm/README.md`.
+//!
+//! `harvemu-vmcheck harvester HARVEMU CONFIG` is the end-to-end check of `harvemu run --iface
+//! vcan0` instead (see [`harvester`]).
 #![warn(missing_docs)]
+
+mod harvester;
 
 use socketcan::{
     CanFilter, CanFrame, CanInterface, CanSocket, EmbeddedFrame, ExtendedId, Id, Socket, SocketOptions,
     StandardId,
 };
 use std::io;
+use std::path::Path;
 use std::process::ExitCode;
 use std::time::{Duration, SystemTime};
 
@@ -77,16 +83,22 @@ impl Report {
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let name = match args.as_slice() {
-        [] => "vcan0".to_owned(),
-        [name] if !name.starts_with('-') => name.clone(),
+    let mut report = Report::default();
+    match args.as_slice() {
+        [] => run("vcan0", &mut report),
+        [mode, harvemu, config] if mode == "harvester" => {
+            harvester::run(Path::new(harvemu), Path::new(config), &mut report)
+        }
+        [name] if !name.starts_with('-') && name != "harvester" => run(name, &mut report),
         _ => {
-            eprintln!("usage: harvemu-vmcheck [INTERFACE]   (default vcan0; needs root)");
+            eprintln!(
+                "usage: harvemu-vmcheck [INTERFACE]                   plumbing checks (default vcan0)\n       \
+                 harvemu-vmcheck harvester HARVEMU CONFIG   harvemu run on vcan0, end to end\n\
+                 (needs root)"
+            );
             return ExitCode::from(2);
         }
-    };
-    let mut report = Report::default();
-    run(&name, &mut report);
+    }
     println!("vmcheck: {} passed, {} failed", report.passed, report.failed);
     if report.failed == 0 && report.passed > 0 {
         ExitCode::SUCCESS

@@ -1,0 +1,561 @@
+//! `harvemu-vmcheck harvester HARVEMU CONFIG`: the end-to-end check of `harvemu run --iface`.
+//!
+//! Creates vcan0, opens a raw socket on it, runs `HARVEMU run CONFIG --iface vcan0 --for 6s` as a
+//! child process and records every frame with its kernel receive time for 5 s from the first one.
+//! 2.5 s into the recording it sends `0300A0F5#0101` (`row.command`: start auto alignment). Then it
+//! waits for the child and checks the identifiers, the periods of the periodic messages over the
+//! second half of the recording, A0's state before and after the command, and the frames' format.
+
+use crate::{Outcome, Report, create_vcan, delete_vcan, format_frame, parse_frame, read_error};
+use socketcan::{CanFrame, CanSocket, EmbeddedFrame, Id, Socket, SocketOptions};
+use std::collections::BTreeMap;
+use std::io;
+use std::path::Path;
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::time::{Duration, Instant, SystemTime};
+
+/// The interface the harvester is put on.
+const IFACE: &str = "vcan0";
+
+/// How much emulated time `harvemu run` is given.
+const RUN_FOR: &str = "6s";
+
+/// How long frames are recorded, from the first one.
+const RECORD: Duration = Duration::from_secs(5);
+
+/// When, from the first frame, the row command is injected.
+const INJECT_AFTER: Duration = Duration::from_millis(2500);
+
+/// The injected frame: `row.command` to A0, start auto alignment.
+const INJECTED: &str = "0300A0F5#0101";
+
+/// How long harvemu may take to put its first frame on the interface (TCG is slow).
+const STARTUP_TIMEOUT: Duration = Duration::from_secs(30);
+
+/// How long harvemu may take to exit once the recording is over.
+const EXIT_TIMEOUT: Duration = Duration::from_secs(20);
+
+/// How long one read waits, so that the loop can look at the clock.
+const POLL: Duration = Duration::from_millis(10);
+
+/// Allowed deviation of a mean period from the nominal one.
+const PERIOD_TOLERANCE: f64 = 0.10;
+
+/// After the command, a row.status frame this soon may still have been produced before A0 saw it.
+const REACTION_GRACE: f64 = 0.1;
+
+/// A0 locks onto the row 2 s after it starts seeking (configs/nodes/a0.ron); from this long after
+/// the command `row.status` may report 2 = locked instead of 1 = seeking.
+const SEEKING_FOR: f64 = 1.8;
+
+/// One received frame: seconds since the first frame, and the frame.
+struct Rx {
+    /// Kernel receive time, in seconds since the first frame's.
+    at: f64,
+    /// The frame.
+    frame: CanFrame,
+}
+
+/// What the recording saw.
+struct Recording {
+    /// Every frame, in order of arrival.
+    frames: Vec<Rx>,
+    /// When the row command was sent, in seconds since the first frame.
+    injected_at: Option<f64>,
+    /// Read errors other than timeouts, and the injection's failure.
+    errors: Vec<String>,
+}
+
+/// Runs the harvester checks with `harvemu` and `config`.
+pub fn run(harvemu: &Path, config: &Path, report: &mut Report) {
+    let iface = match create_vcan(IFACE) {
+        Ok(iface) => iface,
+        Err(why) => {
+            report.check(&format!("create and bring up {IFACE}"), Err(why));
+            return;
+        }
+    };
+    report.check(&format!("create and bring up {IFACE}"), Ok("netlink".to_owned()));
+    match open(IFACE) {
+        Ok(socket) => {
+            report.check("open a raw CAN socket with receive timestamps", Ok(String::new()));
+            with_socket(&socket, harvemu, config, report);
+        }
+        Err(why) => {
+            report.check("open a raw CAN socket with receive timestamps", Err(why));
+        }
+    }
+    report.check(&format!("delete {IFACE}"), delete_vcan(iface, IFACE));
+}
+
+/// Opens the raw socket, with `SO_TIMESTAMPNS` and a short read timeout.
+fn open(name: &str) -> Result<CanSocket, String> {
+    let socket = CanSocket::open(name).map_err(|e| format!("open a raw CAN socket on {name}: {e}"))?;
+    socket
+        .set_read_timeout(POLL)
+        .map_err(|e| format!("SO_RCVTIMEO: {e}"))?;
+    socket
+        .set_recv_timestamp(true)
+        .map_err(|e| format!("set SO_TIMESTAMPNS: {e}"))?;
+    Ok(socket)
+}
+
+/// Starts harvemu, records, waits for it and checks what was recorded.
+fn with_socket(socket: &CanSocket, harvemu: &Path, config: &Path, report: &mut Report) {
+    let mut command = Command::new(harvemu);
+    command
+        .arg("run")
+        .arg(config)
+        .args(["--iface", IFACE, "--for", RUN_FOR])
+        .stdin(Stdio::null())
+        .stdout(Stdio::inherit())
+        .stderr(Stdio::inherit());
+    let shown = format!(
+        "{} run {} --iface {IFACE} --for {RUN_FOR}",
+        harvemu.display(),
+        config.display()
+    );
+    println!("vmcheck: starting {shown}");
+    let mut child = match command.spawn() {
+        Ok(child) => child,
+        Err(e) => {
+            report.check(&format!("start {shown}"), Err(e.to_string()));
+            return;
+        }
+    };
+    report.check(&format!("start {shown}"), Ok(format!("pid {}", child.id())));
+    let spawned = Instant::now();
+
+    let recording = record(socket, &mut child, spawned);
+    // harvemu's console line ends in '\r'; start the checker's lines on a fresh one.
+    println!();
+    report.check(
+        "harvemu exits with code 0",
+        wait(&mut child).and_then(|status| match status.code() {
+            Some(0) => Ok(format!(
+                "{:.1} s after it started",
+                spawned.elapsed().as_secs_f64()
+            )),
+            Some(code) => Err(format!("exit code {code}")),
+            None => Err(format!("ended by {status}")),
+        }),
+    );
+    let recording = match recording {
+        Ok(recording) => recording,
+        Err(why) => {
+            report.check("record the bus", Err(why));
+            return;
+        }
+    };
+    report.check(
+        "record the bus",
+        if recording.errors.is_empty() {
+            Ok(format!(
+                "{} frames, {} identifiers, in {:.2} s",
+                recording.frames.len(),
+                identifiers(&recording.frames).len(),
+                recording.frames.last().map_or(0.0, |rx| rx.at)
+            ))
+        } else {
+            Err(recording.errors.join("; "))
+        },
+    );
+    check_identifiers(&recording, report);
+    check_periods(&recording, report);
+    report.check("A0 reacts to row.command", row_state(&recording));
+    report.check(
+        "every frame is a well-formed harvester frame",
+        well_formed(&recording.frames),
+    );
+}
+
+/// Records frames until `RECORD` after the first one, injecting the row command on the way.
+/// Fails when harvemu ends, or sends nothing, before the recording starts.
+fn record(socket: &CanSocket, child: &mut Child, spawned: Instant) -> Result<Recording, String> {
+    let mut recording = Recording {
+        frames: Vec::new(),
+        injected_at: None,
+        errors: Vec::new(),
+    };
+    let mut first: Option<(SystemTime, Instant)> = None;
+    loop {
+        match first {
+            None => {
+                if let Ok(Some(status)) = child.try_wait() {
+                    return Err(format!("harvemu ended ({status}) before it sent a frame"));
+                }
+                if spawned.elapsed() > STARTUP_TIMEOUT {
+                    return Err(format!(
+                        "no frame on {IFACE} within {STARTUP_TIMEOUT:?} of the start"
+                    ));
+                }
+            }
+            Some((_, started)) => {
+                let elapsed = started.elapsed();
+                if elapsed >= RECORD {
+                    return Ok(recording);
+                }
+                if recording.injected_at.is_none() && elapsed >= INJECT_AFTER {
+                    recording.injected_at = Some(inject(socket, &first, &mut recording.errors));
+                }
+            }
+        }
+        match socket.read_frame_with_timestamp() {
+            Ok((frame, stamp)) => {
+                let (origin, _) = *first.get_or_insert_with(|| {
+                    println!(
+                        "vmcheck: first frame {:.2} s after the start: recording for {RECORD:?}",
+                        spawned.elapsed().as_secs_f64()
+                    );
+                    (stamp, Instant::now())
+                });
+                recording.frames.push(Rx {
+                    at: seconds_since(origin, stamp),
+                    frame,
+                });
+            }
+            Err(e) if matches!(e.kind(), io::ErrorKind::TimedOut | io::ErrorKind::WouldBlock) => {}
+            Err(e) => {
+                let why = read_error(&e, POLL, "recorder");
+                if recording.errors.len() < 5 {
+                    recording.errors.push(why);
+                }
+                if recording.errors.len() >= 5 {
+                    return Ok(recording);
+                }
+            }
+        }
+    }
+}
+
+/// Sends the row command and returns when, in seconds since the first frame.
+fn inject(socket: &CanSocket, first: &Option<(SystemTime, Instant)>, errors: &mut Vec<String>) -> f64 {
+    let origin = first.map_or(SystemTime::UNIX_EPOCH, |(stamp, _)| stamp);
+    let sent = parse_frame(INJECTED).and_then(|frame| {
+        let at = SystemTime::now();
+        socket
+            .write_frame(&frame)
+            .map(|()| at)
+            .map_err(|e| format!("send {INJECTED}: {e}"))
+    });
+    match sent {
+        Ok(at) => {
+            let at = seconds_since(origin, at);
+            println!("vmcheck: sent {INJECTED} at {at:.3} s");
+            at
+        }
+        Err(why) => {
+            errors.push(why);
+            f64::NAN
+        }
+    }
+}
+
+/// Seconds from `origin` to `at` (negative if `at` is earlier).
+fn seconds_since(origin: SystemTime, at: SystemTime) -> f64 {
+    match at.duration_since(origin) {
+        Ok(d) => d.as_secs_f64(),
+        Err(e) => -e.duration().as_secs_f64(),
+    }
+}
+
+/// Waits for harvemu to exit, killing it after `EXIT_TIMEOUT`.
+fn wait(child: &mut Child) -> Result<ExitStatus, String> {
+    let deadline = Instant::now() + EXIT_TIMEOUT;
+    loop {
+        match child.try_wait() {
+            Ok(Some(status)) => return Ok(status),
+            Ok(None) if Instant::now() < deadline => std::thread::sleep(Duration::from_millis(50)),
+            Ok(None) => {
+                let killed = child.kill().and_then(|()| child.wait());
+                return Err(format!(
+                    "still running {EXIT_TIMEOUT:?} after the recording; killed ({killed:?})"
+                ));
+            }
+            Err(e) => return Err(format!("wait: {e}")),
+        }
+    }
+}
+
+/// The raw identifier of an extended frame, None for a base one.
+fn extended_id(frame: &CanFrame) -> Option<u32> {
+    match frame.id() {
+        Id::Extended(id) => Some(id.as_raw()),
+        Id::Standard(_) => None,
+    }
+}
+
+/// How many frames of each extended identifier were received.
+fn identifiers(frames: &[Rx]) -> BTreeMap<u32, usize> {
+    let mut seen = BTreeMap::new();
+    for rx in frames {
+        if let Some(id) = extended_id(&rx.frame) {
+            *seen.entry(id).or_insert(0) += 1;
+        }
+    }
+    seen
+}
+
+/// Receive times of the data frames with identifier `id` whose payload starts with `prefix`.
+fn times(frames: &[Rx], id: u32, prefix: &[u8]) -> Vec<f64> {
+    frames
+        .iter()
+        .filter(|rx| extended_id(&rx.frame) == Some(id) && rx.frame.data().starts_with(prefix))
+        .map(|rx| rx.at)
+        .collect()
+}
+
+/// Checks that every expected message appears, each on its own PASS/FAIL line.
+fn check_identifiers(recording: &Recording, report: &mut Report) {
+    let frames = &recording.frames;
+    let mut expect = |what: &str, id: u32, prefix: &[u8]| {
+        let n = times(frames, id, prefix).len();
+        let name = format!("identifier {id:08X} {what} present");
+        report.check(
+            &name,
+            if n > 0 {
+                Ok(format!("{n} frames"))
+            } else {
+                Err("not received".to_owned())
+            },
+        );
+    };
+    expect("E0 speed.status", 0x0200_F5E0, &[0x10]);
+    expect("B1 param.engine", 0x0500_F5B1, &[0x21]);
+    expect("A0 row.status", 0x0300_F5A0, &[0x10]);
+    for sensor in 0..6u32 {
+        let d = 0xD0 + sensor;
+        expect(
+            &format!("D{sensor} flow.marker_flow"),
+            0x0601_F500 | d,
+            &[0x20, 0x0D, 0x00, 0x02, 0xFF, 0xBF, 0xFF, 0x00],
+        );
+        expect(
+            &format!("monitor flow.ack to D{sensor}"),
+            0x0601_00F5 | d << 8,
+            &[0x21],
+        );
+    }
+}
+
+/// Checks the mean periods over the second half of the recording.
+fn check_periods(recording: &Recording, report: &mut Report) {
+    let half = RECORD.as_secs_f64() / 2.0;
+    for (what, id, prefix, nominal_ms) in [
+        ("E0 speed.status", 0x0200_F5E0, &[0x10u8][..], 50.0),
+        ("B1 param.engine", 0x0500_F5B1, &[0x21][..], 100.0),
+        ("A0 row.status", 0x0300_F5A0, &[0x10][..], 200.0),
+        ("D0 flow.marker_flow", 0x0601_F5D0, &[0x20, 0x0D][..], 100.0),
+    ] {
+        let name = format!("{what} period {nominal_ms} ms ±10 % (from {half:.1} s)");
+        let late: Vec<f64> = times(&recording.frames, id, prefix)
+            .into_iter()
+            .filter(|&at| at >= half)
+            .collect();
+        report.check(&name, period(&late, nominal_ms));
+    }
+}
+
+/// The mean period of `times` against `nominal_ms`.
+fn period(times: &[f64], nominal_ms: f64) -> Outcome {
+    let (Some(first), Some(last)) = (times.first(), times.last()) else {
+        return Err("no frames".to_owned());
+    };
+    if times.len() < 3 {
+        return Err(format!("only {} frames", times.len()));
+    }
+    let gaps: Vec<f64> = times.windows(2).map(|w| (w[1] - w[0]) * 1e3).collect();
+    let mean = (last - first) * 1e3 / gaps.len() as f64;
+    let min = gaps.iter().copied().fold(f64::INFINITY, f64::min);
+    let max = gaps.iter().copied().fold(0.0, f64::max);
+    let detail = format!(
+        "mean {mean:.1} ms over {} periods, min {min:.1} ms, max {max:.1} ms",
+        gaps.len()
+    );
+    if (mean - nominal_ms).abs() <= nominal_ms * PERIOD_TOLERANCE {
+        Ok(detail)
+    } else {
+        Err(detail)
+    }
+}
+
+/// A0's `row.status` state (Data1) reads 0 before the injected command, 1 = seeking after it
+/// (2 = locked is allowed from `SEEKING_FOR` after it).
+fn row_state(recording: &Recording) -> Outcome {
+    let Some(injected) = recording.injected_at.filter(|at| at.is_finite()) else {
+        return Err(format!("{INJECTED} was not sent"));
+    };
+    let statuses: Vec<(f64, u8)> = recording
+        .frames
+        .iter()
+        .filter(|rx| extended_id(&rx.frame) == Some(0x0300_F5A0) && rx.frame.data().first() == Some(&0x10))
+        .map(|rx| (rx.at - injected, rx.frame.data().get(1).copied().unwrap_or(0xFF)))
+        .collect();
+    let before: Vec<u8> = statuses
+        .iter()
+        .filter(|(t, _)| *t < 0.0)
+        .map(|&(_, s)| s)
+        .collect();
+    let after: Vec<(f64, u8)> = statuses
+        .iter()
+        .copied()
+        .filter(|(t, _)| *t >= REACTION_GRACE)
+        .collect();
+    let states = |list: &[(f64, u8)]| {
+        list.iter()
+            .map(|(t, s)| format!("{s}@{:+.0}ms", t * 1e3))
+            .collect::<Vec<_>>()
+            .join(" ")
+    };
+    let detail = format!(
+        "before: {} frames, states {:?}; after: {}",
+        before.len(),
+        before.iter().collect::<std::collections::BTreeSet<_>>(),
+        states(
+            &statuses
+                .iter()
+                .copied()
+                .filter(|(t, _)| *t >= 0.0)
+                .collect::<Vec<_>>()
+        )
+    );
+    if before.is_empty() || before.iter().any(|&s| s != 0) {
+        return Err(format!("expected only state 0 before the command; {detail}"));
+    }
+    let seeking = after.iter().filter(|&&(t, s)| t < SEEKING_FOR && s == 1).count();
+    let wrong: Vec<(f64, u8)> = after
+        .iter()
+        .copied()
+        .filter(|&(t, s)| !(s == 1 || (t >= SEEKING_FOR && s == 2)))
+        .collect();
+    if seeking == 0 {
+        return Err(format!(
+            "no state 1 within {SEEKING_FOR} s of the command; {detail}"
+        ));
+    }
+    if !wrong.is_empty() {
+        return Err(format!("unexpected states {}; {detail}", states(&wrong)));
+    }
+    Ok(detail)
+}
+
+/// Every frame is an extended data frame with identifier fields and a DLC harvemu can send:
+/// priority 2–6, frame type 00 or 01, DLC 1–8, and the catalogue's DLC for the checked messages.
+fn well_formed(frames: &[Rx]) -> Outcome {
+    if frames.is_empty() {
+        return Err("no frames".to_owned());
+    }
+    let mut bad = Vec::new();
+    let mut dlcs: BTreeMap<usize, usize> = BTreeMap::new();
+    for rx in frames {
+        let why = malformed(&rx.frame);
+        *dlcs.entry(rx.frame.dlc()).or_insert(0) += 1;
+        if let Some(why) = why {
+            if bad.len() < 5 {
+                bad.push(format!("{} at {:.3} s: {why}", format_frame(&rx.frame), rx.at));
+            } else {
+                bad.push(String::new());
+            }
+        }
+    }
+    if bad.is_empty() {
+        Ok(format!("{} frames, DLCs {dlcs:?}", frames.len()))
+    } else {
+        let n = bad.len();
+        bad.retain(|s| !s.is_empty());
+        Err(format!("{n} bad frames: {}", bad.join("; ")))
+    }
+}
+
+/// Why a frame is not one harvemu sends, or None.
+fn malformed(frame: &CanFrame) -> Option<String> {
+    if !matches!(frame, CanFrame::Data(_)) {
+        return Some("not a data frame".to_owned());
+    }
+    let Some(id) = extended_id(frame) else {
+        return Some("base identifier".to_owned());
+    };
+    let (priority, kind) = (id >> 24, (id >> 16) & 0xFF);
+    if !(2..=6).contains(&priority) {
+        return Some(format!("priority {priority}"));
+    }
+    if kind > 1 {
+        return Some(format!("frame type {kind:02X}"));
+    }
+    let dlc = frame.dlc();
+    if !(1..=8).contains(&dlc) || dlc != frame.data().len() {
+        return Some(format!("DLC {dlc} with {} data bytes", frame.data().len()));
+    }
+    let data = frame.data();
+    let expected = match (id, data[0]) {
+        (0x0200_F5E0, 0x10) => Some(7),
+        (0x0500_F5B1, 0x21) => Some(3),
+        (0x0300_F5A0, 0x10) => Some(5),
+        (id, 0x20 | 0x01 | 0x02) if id & 0xFFFF_FFF0 == 0x0601_F5D0 => Some(8),
+        (id, 0x30) if id & 0xFFFF_FFF0 == 0x0601_F5D0 => Some(4),
+        (id, 0x21) if id & 0xFFFF_F0FF == 0x0601_D0F5 => Some(3),
+        (id, 0x10) if id & 0xFFFF_F0FF == 0x0601_D0F5 => Some(5),
+        _ => None,
+    };
+    match expected {
+        Some(n) if n != dlc => Some(format!("DLC {dlc}, the catalogue says {n}")),
+        _ => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rx(at: f64, text: &str) -> Rx {
+        Rx {
+            at,
+            frame: parse_frame(text).expect("valid frame"),
+        }
+    }
+
+    #[test]
+    fn periods_are_measured_as_means() {
+        let times: Vec<f64> = (0..20)
+            .map(|i| f64::from(i) * 0.05 + if i % 2 == 0 { 0.004 } else { 0.0 })
+            .collect();
+        assert!(period(&times, 50.0).is_ok());
+        assert!(period(&times, 100.0).is_err());
+        assert!(period(&[0.0, 0.05], 50.0).is_err());
+    }
+
+    #[test]
+    fn malformed_frames_are_found() {
+        assert!(malformed(&parse_frame("0200F5E0#10000000000000").expect("frame")).is_none());
+        assert!(malformed(&parse_frame("0601F5D3#200D0002FFBFFF00").expect("frame")).is_none());
+        assert!(malformed(&parse_frame("0601D2F5#210D05").expect("frame")).is_none());
+        assert!(malformed(&parse_frame("0200F5E0#1000").expect("frame")).is_some());
+        assert!(malformed(&parse_frame("123#10").expect("frame")).is_some());
+        assert!(malformed(&parse_frame("0300F5A0#R").expect("frame")).is_some());
+        assert!(malformed(&parse_frame("0702F5A0#10").expect("frame")).is_some());
+        assert!(malformed(&parse_frame("0500F5B2#").expect("frame")).is_some());
+    }
+
+    #[test]
+    fn row_state_wants_idle_then_seeking() {
+        let frames = vec![
+            rx(0.1, "0300F5A0#1000000000"),
+            rx(0.3, "0300F5A0#1000000000"),
+            rx(0.55, "0300F5A0#1000000000"),
+            rx(0.75, "0300F5A0#1001000000"),
+            rx(2.7, "0300F5A0#1002000000"),
+        ];
+        let ok = Recording {
+            frames,
+            injected_at: Some(0.5),
+            errors: Vec::new(),
+        };
+        assert!(row_state(&ok).is_ok(), "{:?}", row_state(&ok));
+        let late = Recording {
+            frames: vec![rx(0.1, "0300F5A0#1000000000"), rx(0.75, "0300F5A0#1000000000")],
+            injected_at: Some(0.5),
+            errors: Vec::new(),
+        };
+        assert!(row_state(&late).is_err());
+    }
+}
