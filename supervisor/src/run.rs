@@ -203,6 +203,13 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         let _ = running.hub.send(RunUntil(now)).await;
         let snap = running.hub.send(GetSnapshot).await?;
         eprintln!("\n{}", summary(&snap, &running));
+        if let Some(b) = &_bridge {
+            let s = b.stats();
+            eprintln!(
+                "harvemu: interface: {} frames in ({} with kernel timestamps, longest wait {} us), {} out, {} error frames, {} write errors",
+                s.received, s.kernel_stamped, s.max_wait_us, s.sent, s.error_frames, s.write_errors
+            );
+        }
         if let Some(e) = &snap.trace_error {
             return Err(anyhow::anyhow!("the trace could not be written: {e}"));
         }

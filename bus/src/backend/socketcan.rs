@@ -29,6 +29,10 @@ pub struct BridgeStats {
     pub error_frames: u64,
     /// Frames that could not be written (interface down, buffer full).
     pub write_errors: u64,
+    /// Frames received with a kernel timestamp.
+    pub kernel_stamped: u64,
+    /// Longest time a frame waited between its kernel timestamp and the bridge, µs.
+    pub max_wait_us: u64,
 }
 
 /// A running bridge.
@@ -134,15 +138,25 @@ pub async fn bridge(hub: Addr<Hub>, iface: &str) -> Result<Bridge, Error> {
     actix::spawn(async move {
         let mut failures = 0u32;
         loop {
-            // Frames enter the emulated bus at once, so their bus time is their arrival.
-            match input.read_frame().await {
-                Ok(CanFrame::Error(e)) => {
+            // Frames enter the emulated bus at once, so their bus time is their arrival; the
+            // kernel's receive time goes to the log and the latency statistics.
+            match input.read_frame_with_timestamps().await {
+                Ok((CanFrame::Error(e), at)) => {
                     failures = 0;
                     st.borrow_mut().error_frames += 1;
-                    tracing::warn!(iface = %name, error = ?e, "error frame on the interface");
+                    tracing::warn!(iface = %name, error = ?e, kernel_time = ?at.socket, "error frame on the interface");
                 }
-                Ok(f) => {
+                Ok((f, at)) => {
                     failures = 0;
+                    if let Some(kernel) = at.socket {
+                        // How long the frame waited between the kernel and the bridge.
+                        let waited = std::time::SystemTime::now()
+                            .duration_since(kernel)
+                            .unwrap_or_default();
+                        let mut s = st.borrow_mut();
+                        s.kernel_stamped += 1;
+                        s.max_wait_us = s.max_wait_us.max(waited.as_micros() as u64);
+                    }
                     if let Some(frame) = from_socketcan(&f) {
                         st.borrow_mut().received += 1;
                         let _ = hub.send(Submit { node, frame }).await;
