@@ -87,3 +87,31 @@ pub fn run_virtual<T: 'static>(
     let text = String::from_utf8(trace.0.take()).expect("utf-8 trace");
     (parse_trace(&text), result)
 }
+
+/// Runs the default harvester in virtual time and lets `script` drive it (run to a time, send
+/// controls, submit frames); returns the trace, decoded through the catalogue, as (time, message)
+/// for `node`.
+pub fn traffic_of(
+    node: bus::ident::Address,
+    script: impl AsyncFnOnce(&Running),
+) -> Vec<(BusTime, bus::catalogue::Decoded)> {
+    let trace = Shared::default();
+    let t = trace.clone();
+    System::with_tokio_rt(|| runtime(true).expect("runtime")).block_on(async move {
+        let running = harvester::start(&default_harvester(), Some(Box::new(t)))
+            .await
+            .expect("the harvester starts");
+        script(&running).await;
+    });
+    let text = String::from_utf8(trace.0.take()).expect("utf-8 trace");
+    parse_trace(&text)
+        .iter()
+        .filter_map(|l| bus::catalogue::decode(&l.frame).ok().flatten().map(|d| (l.at, d)))
+        .filter(|(_, d)| d.node == node)
+        .collect()
+}
+
+/// Runs the hub of `running` to bus time `t`.
+pub async fn run_to(running: &Running, t: BusTime) {
+    running.hub.send(RunUntil(t)).await.expect("hub").expect("run");
+}

@@ -1,47 +1,21 @@
 //! The socketcand gateway against clients written here, on loopback, in real time.
 
+mod common;
+
 use actix::prelude::*;
-use bus::Frame;
-use bus::candump::parse_frame;
 use bus::engine::ControllerConfig;
 use bus::gateway::{Gateway, GatewayConfig};
 use bus::hub::{Attach, Hub, HubConfig, RunUntil, runtime};
-use bus::node::{NodeActor, NodeLogic};
+use bus::node::NodeActor;
 use bus::time::BusTime;
+use common::Periodic;
 use std::time::Duration;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::TcpStream;
 
-/// Sends one frame every `period_us`.
-struct Ticker {
-    frame: Frame,
-    period: u64,
-    next: BusTime,
-    due: bool,
-}
-
-impl NodeLogic for Ticker {
-    fn handle_frame(&mut self, _: BusTime, _: &Frame) {}
-    fn handle_timeout(&mut self, now: BusTime) {
-        self.due = true;
-        self.next = now + self.period;
-    }
-    fn poll_transmit(&mut self) -> Option<Frame> {
-        std::mem::take(&mut self.due).then_some(self.frame)
-    }
-    fn poll_timeout(&self) -> Option<BusTime> {
-        Some(self.next)
-    }
-}
-
 async fn bus_with_ticker(period_us: u64) -> (Addr<Hub>, Gateway) {
     let hub = Hub::new(HubConfig::default(), None).unwrap().start();
-    let logic = Ticker {
-        frame: parse_frame("0601F5D0#200D0002FFBFFF00").unwrap(),
-        period: period_us * 1000,
-        next: BusTime::ZERO,
-        due: false,
-    };
+    let logic = Periodic::every_us("0601F5D0#200D0002FFBFFF00", period_us, 0);
     let node = NodeActor::new("ticker", Box::new(logic)).start();
     hub.send(Attach {
         controller: ControllerConfig::named("ticker"),

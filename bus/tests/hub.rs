@@ -1,5 +1,7 @@
 //! The hub actor with node actors, in virtual time (and once in real time).
 
+mod common;
+
 use actix::prelude::*;
 use bus::candump::parse_frame;
 use bus::engine::{BitPosition, BusConfig, ControllerConfig, Rule, Schedule, Target};
@@ -7,43 +9,11 @@ use bus::hub::{Attach, Control, GetSnapshot, Hub, HubConfig, RunUntil, runtime};
 use bus::node::{NodeActor, NodeLogic};
 use bus::time::BusTime;
 use bus::{Frame, bits};
+use common::Periodic;
 use std::cell::RefCell;
 use std::io::Write;
 use std::rc::Rc;
 use std::time::Duration;
-
-/// Sends `frame` every `period`, starting at `phase`.
-struct Periodic {
-    frame: Frame,
-    period: u64,
-    next: BusTime,
-    due: bool,
-}
-
-impl Periodic {
-    fn new(text: &str, period_ms: u64, phase_us: u64) -> Periodic {
-        Periodic {
-            frame: parse_frame(text).unwrap(),
-            period: period_ms * 1_000_000,
-            next: BusTime::from_micros(phase_us),
-            due: false,
-        }
-    }
-}
-
-impl NodeLogic for Periodic {
-    fn handle_frame(&mut self, _: BusTime, _: &Frame) {}
-    fn handle_timeout(&mut self, now: BusTime) {
-        self.due = true;
-        self.next = now + self.period;
-    }
-    fn poll_transmit(&mut self) -> Option<Frame> {
-        std::mem::take(&mut self.due).then_some(self.frame)
-    }
-    fn poll_timeout(&self) -> Option<BusTime> {
-        Some(self.next)
-    }
-}
 
 /// Answers every frame it receives with `reply`.
 struct Echo {

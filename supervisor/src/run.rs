@@ -138,7 +138,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     system.block_on(async move {
         let mut running = harvester::start(&h, trace).await?;
         let mut reported = 0;
-        let _bridge = match &iface {
+        let bridge = match &iface {
             Some(name) => {
                 let b = bus::backend::socketcan::bridge(running.hub.clone(), name)
                     .await
@@ -203,7 +203,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         let _ = running.hub.send(RunUntil(now)).await;
         let snap = running.hub.send(GetSnapshot).await?;
         eprintln!("\n{}", summary(&snap, &running));
-        if let Some(b) = &_bridge {
+        if let Some(b) = &bridge {
             let s = b.stats();
             eprintln!(
                 "harvemu: interface: {} frames in ({} with kernel timestamps, longest wait {} us), {} out, {} error frames, {} write errors",

@@ -1,13 +1,11 @@
 //! Monitor commands reaching the row alignment module and the speed controller, sent through the
 //! monitor's controller as an external monitor would.
 
-use actix::prelude::*;
 use bus::catalogue::{self, by_name};
-use bus::hub::{RunUntil, Submit, runtime};
+use bus::hub::Submit;
 use bus::ident::Address;
 use bus::time::BusTime;
-use harvemu_e2e::{Shared, default_harvester, parse_trace};
-use supervisor::harvester;
+use harvemu_e2e::{run_to, traffic_of};
 
 fn command(name: &str, node: Address, values: &'static [(&'static str, f64)]) -> bus::Frame {
     by_name(name)
@@ -17,26 +15,16 @@ fn command(name: &str, node: Address, values: &'static [(&'static str, f64)]) ->
 }
 
 /// Runs the harvester, sending `(time, frame)` from the monitor's controller; returns the decoded
-/// traffic of `node` as (ms, message, decoded).
+/// traffic of `node` as (ms, decoded).
 fn run_with(
     commands: Vec<(u64, bus::Frame)>,
     until_ms: u64,
     node: Address,
 ) -> Vec<(u64, catalogue::Decoded)> {
-    let trace = Shared::default();
-    let t = trace.clone();
-    System::with_tokio_rt(|| runtime(true).unwrap()).block_on(async move {
-        let running = harvester::start(&default_harvester(), Some(Box::new(t)))
-            .await
-            .unwrap();
+    let traffic = traffic_of(node, async |running| {
         let monitor = running.nodes[0].1;
         for (at, frame) in commands {
-            running
-                .hub
-                .send(RunUntil(BusTime::from_millis(at)))
-                .await
-                .unwrap()
-                .unwrap();
+            run_to(running, BusTime::from_millis(at)).await;
             assert!(
                 running
                     .hub
@@ -46,22 +34,11 @@ fn run_with(
                     .unwrap()
             );
         }
-        running
-            .hub
-            .send(RunUntil(BusTime::from_millis(until_ms)))
-            .await
-            .unwrap()
-            .unwrap();
+        run_to(running, BusTime::from_millis(until_ms)).await;
     });
-    parse_trace(&String::from_utf8(trace.0.take()).unwrap())
-        .iter()
-        .filter_map(|l| {
-            catalogue::decode(&l.frame)
-                .ok()
-                .flatten()
-                .map(|d| (l.at.as_nanos() / 1_000_000, d))
-        })
-        .filter(|(_, d)| d.node == node)
+    traffic
+        .into_iter()
+        .map(|(t, d)| (t.as_nanos() / 1_000_000, d))
         .collect()
 }
 

@@ -1,29 +1,16 @@
 //! Connection-oriented flow sensor traffic when the monitor stops acknowledging, and when it
 //! comes back.
 
-use actix::prelude::*;
-use bus::catalogue;
-use bus::hub::{Control, RunUntil, runtime};
+use bus::hub::Control;
 use bus::ident::Address;
 use bus::time::BusTime;
-use harvemu_e2e::{Shared, default_harvester, parse_trace};
-use supervisor::harvester;
+use harvemu_e2e::{run_to, traffic_of};
 
 #[test]
 fn sensors_give_up_without_acknowledgements_and_resume() {
-    let trace = Shared::default();
-    let t = trace.clone();
-    System::with_tokio_rt(|| runtime(true).unwrap()).block_on(async move {
-        let running = harvester::start(&default_harvester(), Some(Box::new(t)))
-            .await
-            .unwrap();
+    let decoded = traffic_of(Address::flow_sensor(0), async |running| {
         let monitor = running.nodes[0].1;
-        running
-            .hub
-            .send(RunUntil(BusTime::from_secs(5)))
-            .await
-            .unwrap()
-            .unwrap();
+        run_to(running, BusTime::from_secs(5)).await;
         // The monitor hangs: alive on the bus (it still acknowledges at the CAN level), silent.
         running
             .hub
@@ -31,32 +18,15 @@ fn sensors_give_up_without_acknowledgements_and_resume() {
             .await
             .unwrap()
             .unwrap();
-        running
-            .hub
-            .send(RunUntil(BusTime::from_secs(8)))
-            .await
-            .unwrap()
-            .unwrap();
+        run_to(running, BusTime::from_secs(8)).await;
         running
             .hub
             .send(Control::SetHung(monitor, false))
             .await
             .unwrap()
             .unwrap();
-        running
-            .hub
-            .send(RunUntil(BusTime::from_secs(12)))
-            .await
-            .unwrap()
-            .unwrap();
+        run_to(running, BusTime::from_secs(12)).await;
     });
-    let lines = parse_trace(&String::from_utf8(trace.0.take()).unwrap());
-    let d0 = Address::flow_sensor(0);
-    let decoded: Vec<(BusTime, catalogue::Decoded)> = lines
-        .iter()
-        .filter_map(|l| catalogue::decode(&l.frame).ok().flatten().map(|d| (l.at, d)))
-        .filter(|(_, d)| d.node == d0)
-        .collect();
     let markers = |from: u64, to: u64| {
         decoded
             .iter()

@@ -1,0 +1,46 @@
+//! Node logics the hub's integration tests share.
+
+use bus::Frame;
+use bus::candump::parse_frame;
+use bus::node::NodeLogic;
+use bus::time::BusTime;
+
+/// Sends `frame` every `period` nanoseconds, the first time at `next`.
+pub struct Periodic {
+    pub frame: Frame,
+    pub period: u64,
+    pub next: BusTime,
+    pub due: bool,
+}
+
+impl Periodic {
+    /// Every `period_ms`, starting at `phase_us`.
+    #[allow(dead_code)] // not every test file uses every constructor
+    pub fn new(text: &str, period_ms: u64, phase_us: u64) -> Periodic {
+        Periodic::every_us(text, period_ms * 1000, phase_us)
+    }
+
+    /// Every `period_us`, starting at `phase_us`.
+    pub fn every_us(text: &str, period_us: u64, phase_us: u64) -> Periodic {
+        Periodic {
+            frame: parse_frame(text).unwrap(),
+            period: period_us * 1000,
+            next: BusTime::from_micros(phase_us),
+            due: false,
+        }
+    }
+}
+
+impl NodeLogic for Periodic {
+    fn handle_frame(&mut self, _: BusTime, _: &Frame) {}
+    fn handle_timeout(&mut self, now: BusTime) {
+        self.due = true;
+        self.next = now + self.period;
+    }
+    fn poll_transmit(&mut self) -> Option<Frame> {
+        std::mem::take(&mut self.due).then_some(self.frame)
+    }
+    fn poll_timeout(&self) -> Option<BusTime> {
+        Some(self.next)
+    }
+}
