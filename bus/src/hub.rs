@@ -7,11 +7,13 @@
 //! The hub never sleeps per frame. It commits bus events in time order up to the next moment a
 //! node could change the outcome — the earliest node deadline, or a delivery plus that node's
 //! reaction time — then wakes the nodes due at that moment, waits for their answers (which may
-//! submit frames), and goes on. Before committing anything at bus time `t` it waits until the
-//! runtime's clock has reached `t` less a slack of one millisecond (one timer tick).
+//! submit frames), and goes on.
 //!
-//! The same code runs in both clocks: on a runtime with paused time (virtual time), waiting costs
-//! nothing and the run is deterministic; on a normal runtime it paces the bus in real time.
+//! Paced (real time, [`HubConfig::paced`]): before committing anything at bus time `t` the hub
+//! waits until the runtime's clock has reached `t` less a slack of one millisecond (one timer
+//! tick). Unpaced (virtual time): nothing but the nodes holds the bus back, and bus time runs as
+//! fast as they answer; the runtime's clock is not consulted at all, so a run costs no timers and
+//! is deterministic. Runtimes made by [`runtime`] tell hubs made on their thread which to be.
 //!
 //! # Wakes
 //!
@@ -43,6 +45,9 @@ pub struct HubConfig {
     pub iface: String,
     /// How far bus time may run ahead of the runtime's clock.
     pub slack: Duration,
+    /// Keep bus time in step with the runtime's clock (real time); when false, run as fast as
+    /// the nodes answer (virtual time). Defaults to what [`runtime`] made on this thread.
+    pub paced: bool,
 }
 
 impl Default for HubConfig {
@@ -51,6 +56,7 @@ impl Default for HubConfig {
             bus: BusConfig::default(),
             iface: "harv0".to_string(),
             slack: Duration::from_millis(1),
+            paced: !VIRTUAL_TIME.get(),
         }
     }
 }
@@ -92,6 +98,7 @@ pub struct Hub {
     bus: Bus,
     iface: String,
     slack_ns: u64,
+    paced: bool,
     slots: Vec<Slot>,
     start: Option<tokio::time::Instant>,
     now: BusTime,
@@ -131,6 +138,7 @@ impl Hub {
             bus: Bus::new(config.bus)?,
             iface: config.iface,
             slack_ns: u64::try_from(config.slack.as_nanos()).unwrap_or(u64::MAX),
+            paced: config.paced,
             slots: Vec::new(),
             start: None,
             now: BusTime::ZERO,
@@ -155,7 +163,7 @@ impl Hub {
 
     /// True when the runtime's clock allows committing at `t`.
     fn reached(&self, t: BusTime) -> bool {
-        t.as_nanos() <= self.clock().saturating_add(self.slack_ns)
+        !self.paced || t.as_nanos() <= self.clock().saturating_add(self.slack_ns)
     }
 
     fn arm(&mut self, t: BusTime, ctx: &mut Context<Self>) {
@@ -605,10 +613,17 @@ impl Handler<GetSnapshot> for Hub {
     }
 }
 
+thread_local! {
+    /// Whether the runtime last made on this thread by [`runtime`] runs virtual time.
+    static VIRTUAL_TIME: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
 /// A tokio runtime for the hub: with paused time (`virtual_time`: deterministic, as fast as the
-/// CPU allows) or the normal clock (real time). Wrap it with
+/// CPU allows) or the normal clock (real time). Hubs configured by default on this thread from
+/// then on are unpaced or paced to match. Wrap it with
 /// `actix::System::with_tokio_rt(|| runtime(true).expect(...))`.
 pub fn runtime(virtual_time: bool) -> std::io::Result<tokio::runtime::Runtime> {
+    VIRTUAL_TIME.set(virtual_time);
     let mut builder = tokio::runtime::Builder::new_current_thread();
     builder.enable_all();
     if virtual_time {

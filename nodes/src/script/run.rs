@@ -44,7 +44,10 @@ struct Dropout;
 
 /// A behaviour script running as a node.
 pub struct ScriptedNode {
-    s: NodeScript,
+    /// Shared so that building a frame can borrow its spec while the node changes.
+    s: Rc<NodeScript>,
+    /// The catalogue entry of every frame of every send, looked up once.
+    defs: Vec<Vec<Option<&'static catalogue::MessageDef>>>,
     address: Address,
     env: SharedEnv,
     boot_at: BusTime,
@@ -84,7 +87,12 @@ impl ScriptedNode {
                 })
                 .collect(),
             timers: vec![None; script.timers.len()],
-            s: script,
+            defs: script
+                .messages
+                .iter()
+                .map(|m| m.frames.iter().map(|f| catalogue::by_name(&f.message)).collect())
+                .collect(),
+            s: Rc::new(script),
             env,
             boot_at,
             booted: false,
@@ -211,18 +219,21 @@ impl ScriptedNode {
 
     /// The frames of send `k` as they would go out now.
     fn build(&mut self, k: usize, frame: Option<&Decoded>) -> Option<Vec<Frame>> {
-        let specs = self.s.messages[k].frames.clone();
+        let script = Rc::clone(&self.s);
+        let specs = &script.messages[k].frames;
         let mut frames = Vec::with_capacity(specs.len());
-        for spec in &specs {
-            let def = catalogue::by_name(&spec.message)?;
-            let mut values = BTreeMap::new();
+        let mut values: Vec<(&str, f64)> = Vec::with_capacity(8);
+        for (j, spec) in specs.iter().enumerate() {
+            let def = self.defs[k][j]?;
+            values.clear();
             for (name, e) in &spec.fields {
                 let v = self.eval(e, frame).ok()?;
                 // A sensor saturates at the ends of what its message can carry.
                 let v = def.field(name).map_or(v, |f| v.clamp(f.min, f.max));
-                values.insert(name.as_str(), v);
+                values.push((name.as_str(), v));
             }
-            frames.push(def.encode(self.address, |n| values.get(n).copied()).ok()?);
+            let value = |n: &str| values.iter().find(|(m, _)| *m == n).map(|&(_, v)| v);
+            frames.push(def.encode(self.address, value).ok()?);
         }
         Some(frames)
     }
@@ -236,7 +247,8 @@ impl ScriptedNode {
         self.out.extend(frames.iter().copied());
         self.sends[k].last = frames;
         self.sends[k].last_sent = Some(self.now);
-        if let Some(ack) = self.s.messages[k].ack.clone() {
+        let script = Rc::clone(&self.s);
+        if let Some(ack) = &script.messages[k].ack {
             self.unacked += 1;
             let count = self.unacked;
             if let Some(v) = &ack.count_var {
@@ -383,8 +395,9 @@ impl NodeLogic for ScriptedNode {
         for k in 0..self.timers.len() {
             if self.timers[k].is_some_and(|t| t <= now) {
                 self.timers[k] = Some(now + self.s.timers[k].after_ms * MS);
-                let actions = self.s.timers[k].actions.clone();
-                self.run_actions(&actions, None);
+                let script = Rc::clone(&self.s);
+                let actions = &script.timers[k].actions;
+                self.run_actions(actions, None);
             }
         }
     }

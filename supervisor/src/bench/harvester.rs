@@ -1,0 +1,43 @@
+//! The harvester workload: whole harvesters, each on its own hub, in virtual time.
+
+use super::Totals;
+use crate::harvester::{self, Harvester};
+use actix::prelude::*;
+use bus::hub::{GetSnapshot, runtime};
+use bus::time::BusTime;
+use futures_util::future::join_all;
+
+/// Runs `count` harvesters on this thread for `seconds` of virtual time each; harvester `i` gets
+/// the config's seed plus `first + i`, so that no two buses run the same traffic in lockstep.
+pub fn run_on_this_thread(h: &Harvester, count: usize, first: u64, seconds: f64) -> Result<Totals, String> {
+    let system = System::with_tokio_rt(|| runtime(true).expect("a tokio runtime"));
+    let h = h.clone();
+    system.block_on(async move {
+        let mut running = Vec::new();
+        for i in 0..count as u64 {
+            let mut h = h.clone();
+            h.config.seed = h.config.seed.wrapping_add(first + i);
+            running.push(harvester::start(&h, None).await.map_err(|e| format!("{e:#}"))?);
+        }
+        let until = BusTime::from_secs_f64(seconds);
+        for r in join_all(running.iter_mut().map(|r| r.run_until(until))).await {
+            r.map_err(|e| format!("{e:#}"))?;
+        }
+        let mut totals = Totals {
+            frames: 0,
+            deliveries: 0,
+            wakes: 0,
+            load: 0.0,
+        };
+        for (i, r) in running.iter().enumerate() {
+            let snap = r.hub.send(GetSnapshot).await.map_err(|e| e.to_string())?;
+            totals.frames += snap.stats.frames;
+            totals.deliveries += snap.stats.deliveries;
+            totals.wakes += snap.wakes;
+            if i == 0 {
+                totals.load = snap.stats.total_load();
+            }
+        }
+        Ok(totals)
+    })
+}

@@ -1,0 +1,292 @@
+//! `harvemu bench`: how fast the emulator runs, measured, never asserted.
+//!
+//! Workloads, each on one or many independent buses spread over threads (one actor system per
+//! thread):
+//! - saturated: 21 nodes that always have a frame pending at 250 kbit/s, each frame addressed to
+//!   the next node, so every frame is arbitrated among all pending contenders, bit-timed exactly,
+//!   delivered once and answered by a wake of its receiver;
+//! - harvester: the harvester of a config (the default one unless told), monitor, plant and
+//!   supervision included, in virtual time;
+//! - realtime: the same harvester paced by the wall clock, watched from outside the hub.
+//!
+//! Every workload reports the same figures ([`Measurement`]); the peak RSS is the process's peak
+//! since the workload started (the kernel's high-water mark is reset before each one).
+
+use serde::Serialize;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Instant;
+
+mod harvester;
+mod realtime;
+mod saturated;
+
+pub use realtime::Jitter;
+
+/// Arguments of `harvemu bench`.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Print one JSON object per scenario (JSON lines) instead of a table.
+    #[arg(long)]
+    json: bool,
+    /// Virtual seconds each saturated bus runs.
+    #[arg(long, default_value_t = 600.0)]
+    seconds: f64,
+    /// Bus counts for the multi-bus scenario.
+    #[arg(long, value_delimiter = ',', default_value = "1,10,100")]
+    buses: Vec<usize>,
+    /// Threads for the multi-bus scenarios (each runs its own actor system).
+    #[arg(long, default_value_t = 2)]
+    threads: usize,
+    /// Harvester config of the harvester scenarios.
+    #[arg(long, default_value = "configs/harvester.ron")]
+    config: PathBuf,
+    /// Virtual seconds of the one-harvester scenario.
+    #[arg(long, default_value_t = 3600.0)]
+    harvester_seconds: f64,
+    /// Harvester counts of the many-harvester scenario.
+    #[arg(long, value_delimiter = ',', default_value = "100")]
+    harvesters: Vec<usize>,
+    /// Virtual seconds of each harvester in the many-harvester scenario.
+    #[arg(long, default_value_t = 120.0)]
+    many_seconds: f64,
+    /// Run only these scenarios (saturated, saturated-multi, harvester, realtime).
+    #[arg(long, value_delimiter = ',')]
+    only: Vec<String>,
+    /// Run the harvester in real time for this many seconds and measure period jitter against
+    /// the wall clock and losses (the realtime scenario, which only runs when asked; e.g. 600).
+    #[arg(long, value_name = "SECONDS")]
+    realtime: Option<f64>,
+}
+
+/// One measured scenario.
+#[derive(Serialize, Debug, Clone)]
+pub struct Measurement {
+    /// Scenario name.
+    pub scenario: String,
+    /// Independent buses.
+    pub buses: usize,
+    /// Threads used.
+    pub threads: usize,
+    /// Virtual seconds per bus.
+    pub virtual_seconds: f64,
+    /// Wall-clock seconds.
+    pub wall_seconds: f64,
+    /// Frames arbitrated and delivered, all buses.
+    pub frames: u64,
+    /// Frames per wall second.
+    pub frames_per_second: f64,
+    /// Frames placed in receive FIFOs, all buses.
+    pub deliveries: u64,
+    /// Deliveries per wall second.
+    pub deliveries_per_second: f64,
+    /// Node wakes, all buses.
+    pub wakes: u64,
+    /// Bus load of the first bus, 0..=1.
+    pub bus_load: f64,
+    /// Peak resident set size of the process while the scenario ran.
+    pub peak_rss_bytes: u64,
+    /// Virtual seconds per wall second, per bus.
+    pub speedup: f64,
+    /// Real-time scenario only: period jitter against the wall clock, and losses.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub jitter: Option<Jitter>,
+}
+
+/// What one thread's share of buses did.
+pub struct Totals {
+    frames: u64,
+    deliveries: u64,
+    wakes: u64,
+    load: f64,
+}
+
+/// A workload: builds and runs some buses on the calling thread.
+#[derive(Clone)]
+pub enum Workload {
+    /// The saturated bus.
+    Saturated,
+    /// The harvester of a config.
+    Harvester(Arc<crate::harvester::Harvester>),
+}
+
+impl Workload {
+    fn run_on_this_thread(&self, buses: usize, first: u64, seconds: f64) -> Result<Totals, String> {
+        match self {
+            Workload::Saturated => saturated::run_on_this_thread(buses, first, seconds),
+            Workload::Harvester(h) => harvester::run_on_this_thread(h, buses, first, seconds),
+        }
+    }
+}
+
+/// Peak resident set size (VmHWM) of this process, 0 where /proc is not there.
+pub fn peak_rss_bytes() -> u64 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("VmHWM:"))
+                .and_then(|l| l.split_whitespace().nth(1))
+                .and_then(|kb| kb.parse::<u64>().ok())
+        })
+        .map_or(0, |kb| kb * 1024)
+}
+
+/// Resets the peak RSS to the present RSS, so that the next reading is one workload's peak.
+fn reset_peak_rss() {
+    // "5" resets the high-water mark (Linux 4.0 and later); where it cannot, the peak reported is
+    // the process's.
+    let _ = std::fs::write("/proc/self/clear_refs", "5");
+}
+
+/// Measures `buses` buses of a workload spread over `threads` threads.
+pub fn measure(
+    scenario: &str,
+    workload: &Workload,
+    buses: usize,
+    threads: usize,
+    seconds: f64,
+) -> Result<Measurement, String> {
+    let threads = threads.clamp(1, buses.max(1));
+    reset_peak_rss();
+    let started = Instant::now();
+    let handles: Vec<_> = (0..threads)
+        .map(|t| {
+            let share = buses / threads + usize::from(t < buses % threads);
+            let first = (t * buses) as u64;
+            let workload = workload.clone();
+            std::thread::spawn(move || workload.run_on_this_thread(share, first, seconds))
+        })
+        .collect();
+    let mut frames = 0;
+    let mut deliveries = 0;
+    let mut wakes = 0;
+    let mut load = 0.0;
+    for (i, h) in handles.into_iter().enumerate() {
+        let t = h.join().map_err(|_| "a bench thread panicked".to_string())??;
+        frames += t.frames;
+        deliveries += t.deliveries;
+        wakes += t.wakes;
+        if i == 0 {
+            load = t.load;
+        }
+    }
+    let wall = started.elapsed().as_secs_f64();
+    Ok(Measurement {
+        scenario: scenario.to_string(),
+        buses,
+        threads,
+        virtual_seconds: seconds,
+        wall_seconds: wall,
+        frames,
+        frames_per_second: frames as f64 / wall,
+        deliveries,
+        deliveries_per_second: deliveries as f64 / wall,
+        wakes,
+        bus_load: load,
+        peak_rss_bytes: peak_rss_bytes(),
+        speedup: seconds / wall,
+        jitter: None,
+    })
+}
+
+const SCENARIOS: [&str; 4] = ["saturated", "saturated-multi", "harvester", "realtime"];
+
+/// Runs `harvemu bench`.
+pub fn run(args: &Args) -> anyhow::Result<()> {
+    for (flag, v) in [
+        ("--seconds", args.seconds),
+        ("--harvester-seconds", args.harvester_seconds),
+        ("--many-seconds", args.many_seconds),
+        ("--realtime", args.realtime.unwrap_or(1.0)),
+    ] {
+        if !(v > 0.0 && v.is_finite()) {
+            return Err(crate::BadInput(format!("{flag} {v} must be a positive number")).into());
+        }
+    }
+    if let Some(bad) = args.only.iter().find(|n| !SCENARIOS.contains(&n.as_str())) {
+        return Err(crate::BadInput(format!(
+            "--only {bad}: the scenarios are {}",
+            SCENARIOS.join(", ")
+        ))
+        .into());
+    }
+    let wanted = |n: &str| args.only.is_empty() || args.only.iter().any(|o| o == n);
+    let mut plan: Vec<(&str, Workload, usize, usize, f64)> = Vec::new();
+    if wanted("saturated") {
+        plan.push(("saturated", Workload::Saturated, 1, 1, args.seconds));
+    }
+    if wanted("saturated-multi") {
+        for &n in &args.buses {
+            plan.push((
+                "saturated-multi",
+                Workload::Saturated,
+                n,
+                args.threads,
+                args.seconds,
+            ));
+        }
+    }
+    let realtime = args.realtime.filter(|_| wanted("realtime"));
+    let harvester = if wanted("harvester") || realtime.is_some() {
+        let h = crate::harvester::Harvester::load(&args.config).map_err(crate::harvester::bad)?;
+        Some(Arc::new(h))
+    } else {
+        None
+    };
+    if let (true, Some(h)) = (wanted("harvester"), &harvester) {
+        let w = Workload::Harvester(h.clone());
+        plan.push(("harvester", w.clone(), 1, 1, args.harvester_seconds));
+        for &n in &args.harvesters {
+            plan.push(("harvester", w.clone(), n, args.threads, args.many_seconds));
+        }
+    }
+    if !args.json {
+        println!(
+            "{:<16} {:>5} {:>7} {:>8} {:>8} {:>11} {:>12} {:>9} {:>6} {:>9}",
+            "scenario",
+            "buses",
+            "threads",
+            "virt s",
+            "wall s",
+            "frames",
+            "frames/s",
+            "speedup",
+            "load",
+            "peak RSS"
+        );
+    }
+    let print = |m: &Measurement| -> anyhow::Result<()> {
+        if args.json {
+            println!("{}", serde_json::to_string(m)?);
+        } else {
+            println!(
+                "{:<16} {:>5} {:>7} {:>8.0} {:>8.2} {:>11} {:>12.0} {:>8.1}x {:>5.1}% {:>5.1} MiB",
+                m.scenario,
+                m.buses,
+                m.threads,
+                m.virtual_seconds,
+                m.wall_seconds,
+                m.frames,
+                m.frames_per_second,
+                m.speedup,
+                m.bus_load * 100.0,
+                m.peak_rss_bytes as f64 / (1024.0 * 1024.0)
+            );
+            if let Some(j) = &m.jitter {
+                println!("{}", j.summary());
+            }
+        }
+        Ok(())
+    };
+    for (name, workload, buses, threads, seconds) in plan {
+        let threads = threads.clamp(1, buses.max(1));
+        eprintln!("bench: {name}, {buses} bus(es) on {threads} thread(s), {seconds} s of virtual time ...");
+        print(&measure(name, &workload, buses, threads, seconds).map_err(anyhow::Error::msg)?)?;
+    }
+    if let (Some(seconds), Some(h)) = (realtime, &harvester) {
+        eprintln!("bench: realtime, the harvester for {seconds} s of wall-clock time ...");
+        print(&realtime::measure(h, seconds).map_err(anyhow::Error::msg)?)?;
+    }
+    Ok(())
+}
