@@ -174,7 +174,47 @@ pub fn encode(frame: &Frame) -> Encoded {
 
 /// Exact bus time of a frame in bits, intermission included (can-utils' "exact" mode).
 pub fn frame_bits(frame: &Frame) -> u32 {
-    encode(frame).total_bits()
+    stuffed_len(frame) + TAIL_BITS
+}
+
+/// Length of the stuffed bitstream (SOF through the last CRC bit), as [`encode`] gives it, counted
+/// a run of equal bits at a time instead of a bit at a time: what the bus needs for every frame
+/// that goes through without an error.
+pub fn stuffed_len(frame: &Frame) -> u32 {
+    let (head, head_len) = unstuffed_head(frame);
+    let crc = crc15(head, head_len);
+    let all = (head << 15) | u128::from(crc);
+    let len = head_len + 15;
+    let mut stuff_bits = 0;
+    // The bit value of the run in the stuffed stream so far, and its length (a stuff bit starts a
+    // run of its own value).
+    let mut last = false;
+    let mut run = 0u32;
+    let mut p = len; // bits left, the next one at index p - 1
+    while p > 0 {
+        let bit = (all >> (p - 1)) & 1 == 1;
+        // Equal bits from p - 1 down: the leading zeros of the bits that differ from `bit`.
+        let differ = if bit { !all } else { all };
+        let equal = (differ << (128 - p)).leading_zeros().min(p);
+        let before = if bit == last { run } else { 0 };
+        let to_first = 5 - before;
+        if equal >= to_first {
+            let after = equal - to_first;
+            stuff_bits += 1 + after / 5;
+            if after % 5 == 0 {
+                last = !bit;
+                run = 1;
+            } else {
+                last = bit;
+                run = after % 5;
+            }
+        } else {
+            last = bit;
+            run = before + equal;
+        }
+        p -= equal;
+    }
+    len + stuff_bits
 }
 
 /// Data bytes that count for the can-utils estimates: none for a remote frame.
@@ -404,8 +444,39 @@ mod tests {
             })
     }
 
+    /// Frames made of long runs of equal bits, where stuffing does the most.
+    fn arb_runny_frame() -> impl Strategy<Value = Frame> {
+        let byte = prop::sample::select(vec![
+            0x00u8, 0xFF, 0x0F, 0xF0, 0x1F, 0xF8, 0x07, 0xE0, 0x3E, 0x83, 0x7C,
+        ]);
+        (
+            any::<bool>(),
+            prop::array::uniform4(byte.clone()),
+            prop::array::uniform8(byte),
+            0usize..=8,
+        )
+            .prop_map(|(ext, id, data, len)| {
+                let raw = u32::from_be_bytes(id);
+                let id: Id = if ext {
+                    Id::Extended(extended_id(raw & 0x1FFF_FFFF).unwrap())
+                } else {
+                    Id::Standard(standard_id((raw & 0x7FF) as u16).unwrap())
+                };
+                Frame::new_data(id, &data[..len]).unwrap()
+            })
+    }
+
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(2000))]
+
+        #[test]
+        fn run_counting_matches_reference_on_long_runs(frame in arb_runny_frame()) {
+            let mut bits = reference_head(&frame);
+            let crc = reference_crc(&bits);
+            push_bits(&mut bits, u32::from(crc), 15);
+            let (stuffed, _) = reference_stuff(&bits);
+            prop_assert_eq!(stuffed_len(&frame) as usize, stuffed.len());
+        }
 
         #[test]
         fn encoder_matches_reference(frame in arb_frame()) {
@@ -419,6 +490,7 @@ mod tests {
             let text: String = stuffed.iter().map(|&b| if b { '1' } else { '0' }).collect();
             prop_assert_eq!(e.stuffed.to_string(), text);
             prop_assert_eq!(e.total_bits() as usize, stuffed.len() + 13);
+            prop_assert_eq!(frame_bits(&frame) as usize, stuffed.len() + 13);
             prop_assert!(no_stuffing_bits(&frame) <= e.total_bits());
             prop_assert!(e.total_bits() <= worst_case_bits(&frame));
         }

@@ -27,11 +27,10 @@ use crate::engine::{
     Bus, BusConfig, ControllerConfig, ControllerCounters, Event, NodeId, Rule, RuleId, Stats,
 };
 use crate::fault::ErrorState;
-use crate::node::{ControllerEvent, Report, Wake};
+use crate::node::{Answer, ControllerEvent, Reply, Report, Wake};
 use crate::time::BusTime;
 use crate::{Error, Frame, trace};
 use actix::prelude::*;
-use futures_util::future::join_all;
 use std::io::Write;
 use std::time::Duration;
 use tokio::sync::oneshot;
@@ -102,7 +101,11 @@ pub struct Hub {
     slots: Vec<Slot>,
     start: Option<tokio::time::Instant>,
     now: BusTime,
-    waiting: bool,
+    /// Answers still awaited from the present wake round.
+    waiting: usize,
+    round: u64,
+    me: Option<std::sync::Arc<Recipient<Answer>>>,
+    crashed_in_round: bool,
     paused: bool,
     timer: Option<SpawnHandle>,
     stop_at: Option<BusTime>,
@@ -142,7 +145,10 @@ impl Hub {
             slots: Vec::new(),
             start: None,
             now: BusTime::ZERO,
-            waiting: false,
+            waiting: 0,
+            round: 0,
+            me: None,
+            crashed_in_round: false,
             paused: true,
             timer: None,
             stop_at: None,
@@ -183,7 +189,7 @@ impl Hub {
 
     /// Runs the bus as far as it can without hearing from a node.
     fn pump(&mut self, ctx: &mut Context<Self>) {
-        if self.waiting || self.paused {
+        if self.waiting > 0 || self.paused {
             return;
         }
         if let Some(h) = self.timer.take() {
@@ -262,10 +268,15 @@ impl Hub {
         }
     }
 
-    /// Wakes every node due at `at` and waits for all of them.
+    /// Wakes every node due at `at`; the bus waits until all of them have answered.
     fn wake(&mut self, at: BusTime, ctx: &mut Context<Self>) {
         self.now = at;
-        let mut calls = Vec::new();
+        self.round += 1;
+        self.crashed_in_round = false;
+        let me = self
+            .me
+            .get_or_insert_with(|| std::sync::Arc::new(ctx.address().recipient()))
+            .clone();
         for i in 0..self.slots.len() {
             if self.slots[i].due() != Some(at) {
                 continue;
@@ -279,41 +290,29 @@ impl Hub {
             slot.next_timeout = None;
             let events = std::mem::take(&mut slot.events);
             if let Some(node) = &slot.node {
-                calls.push((
-                    i,
-                    node.send(Wake {
-                        now: at,
-                        frames,
-                        events,
-                    }),
-                ));
+                self.waiting += 1;
+                self.wakes += 1;
+                // A node whose actor is gone answers at once: its reply is dropped with the wake.
+                node.do_send(Wake {
+                    now: at,
+                    frames,
+                    events,
+                    reply: Reply::new(me.clone(), i, self.round),
+                });
             }
         }
-        self.wakes += calls.len() as u64;
-        self.waiting = true;
-        let all = join_all(calls.into_iter().map(|(i, call)| async move { (i, call.await) }));
-        ctx.spawn(all.into_actor(self).map(|answers, hub, ctx| {
-            hub.waiting = false;
-            for (i, answer) in answers {
-                hub.answer(i, answer);
-            }
-            hub.pump(ctx);
-        }));
+        if self.waiting == 0 {
+            self.pump(ctx);
+        }
     }
 
-    fn answer(&mut self, i: usize, answer: Result<Report, MailboxError>) {
+    /// Takes a node's answer; true when the node crashed.
+    fn answer(&mut self, i: usize, report: Report) -> bool {
         let now = self.now;
-        let report = match answer {
-            Ok(r) => r,
-            Err(e) => Report {
-                crashed: Some(format!("node actor gone: {e}")),
-                ..Report::default()
-            },
-        };
         if let Some(message) = report.crashed {
             tracing::warn!(node = %self.slots[i].name, %message, "node crashed");
             self.slots[i].crashed = Some(message);
-            return;
+            return true;
         }
         for frame in report.transmit {
             match self.bus.submit(NodeId(i as u16), frame, now) {
@@ -326,6 +325,7 @@ impl Hub {
         self.slots[i].next_timeout = report
             .next_timeout
             .map(|t| if t <= now { now + 1_000_000 } else { t });
+        false
     }
 
     fn finish(&mut self, at: BusTime) {
@@ -340,6 +340,26 @@ impl Hub {
         self.stop_at = None;
         for tx in self.on_stop.drain(..) {
             let _ = tx.send(at);
+        }
+    }
+}
+
+impl Handler<Answer> for Hub {
+    type Result = ();
+    fn handle(&mut self, msg: Answer, ctx: &mut Context<Self>) {
+        if msg.round != self.round || self.waiting == 0 || msg.slot >= self.slots.len() {
+            return;
+        }
+        self.crashed_in_round |= self.answer(msg.slot, msg.report);
+        self.waiting -= 1;
+        if self.waiting > 0 {
+            return;
+        }
+        if self.crashed_in_round && self.stop_at.is_some() {
+            // The run stops here so that whoever supervises hears of it at once.
+            self.finish(self.now);
+        } else {
+            self.pump(ctx);
         }
     }
 }
@@ -392,7 +412,8 @@ impl Handler<Attach> for Hub {
     }
 }
 
-/// Runs the bus until bus time `0` and answers with the time reached.
+/// Runs the bus until bus time `0` and answers with the time reached: that time, or the moment a
+/// node crashed, if one did on the way (so that a supervisor can act at once).
 #[derive(Message)]
 #[rtype(result = "Result<BusTime, Error>")]
 pub struct RunUntil(pub BusTime);

@@ -14,6 +14,7 @@ use crate::fault::ErrorState;
 use crate::time::BusTime;
 use actix::prelude::*;
 use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::sync::Arc;
 
 /// What a node's controller tells it besides received frames.
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
@@ -51,9 +52,10 @@ pub trait NodeLogic {
     }
 }
 
-/// The hub wakes a node: inputs since the last wake, all at or before `now`.
+/// The hub wakes a node: inputs since the last wake, all at or before `now`. The node answers
+/// through `reply`.
 #[derive(Message, Debug)]
-#[rtype(result = "Report")]
+#[rtype(result = "()")]
 pub struct Wake {
     /// Bus time of the wake.
     pub now: BusTime,
@@ -61,10 +63,73 @@ pub struct Wake {
     pub frames: Vec<Received>,
     /// Controller notifications, oldest first.
     pub events: Vec<(BusTime, ControllerEvent)>,
+    /// Where the [`Report`] goes.
+    pub reply: Reply,
+}
+
+/// A node's answer on its way back to the hub.
+#[derive(Message, Debug)]
+#[rtype(result = "()")]
+pub struct Answer {
+    /// The node's slot on the hub.
+    pub slot: usize,
+    /// The hub's wake round it answers.
+    pub round: u64,
+    /// What the node did.
+    pub report: Report,
+}
+
+/// The way back for one wake's [`Report`]. One-way messages both ways are the cheapest round
+/// trip actix offers (no response channel, no future per wake). A wake that is never answered,
+/// because the node's actor is gone, still answers when it is dropped: as a crash, so the hub
+/// never waits for ever.
+#[derive(Debug)]
+pub struct Reply {
+    // Shared: cloning an actix address allocates, an `Arc` does not.
+    to: Option<Arc<Recipient<Answer>>>,
+    slot: usize,
+    round: u64,
+}
+
+impl Reply {
+    /// A reply to `to` for the node in `slot`, wake round `round`.
+    pub fn new(to: Arc<Recipient<Answer>>, slot: usize, round: u64) -> Reply {
+        Reply {
+            to: Some(to),
+            slot,
+            round,
+        }
+    }
+
+    /// Sends the report.
+    pub fn send(mut self, report: Report) {
+        if let Some(to) = self.to.take() {
+            to.do_send(Answer {
+                slot: self.slot,
+                round: self.round,
+                report,
+            });
+        }
+    }
+}
+
+impl Drop for Reply {
+    fn drop(&mut self) {
+        if let Some(to) = self.to.take() {
+            to.do_send(Answer {
+                slot: self.slot,
+                round: self.round,
+                report: Report {
+                    crashed: Some("node actor gone".to_string()),
+                    ..Report::default()
+                },
+            });
+        }
+    }
 }
 
 /// A node's answer to a wake.
-#[derive(MessageResponse, Debug, Default, PartialEq)]
+#[derive(Debug, Default, PartialEq)]
 pub struct Report {
     /// Frames to submit, at the wake's time.
     pub transmit: Vec<Frame>,
@@ -81,8 +146,12 @@ const MAX_TRANSMIT_PER_WAKE: usize = 1024;
 
 /// Feeds one wake to a logic and collects its answer. This is all a driver does; it is a free
 /// function so that tests and other drivers can use it without actix.
-pub fn drive(logic: &mut dyn NodeLogic, wake: Wake) -> Report {
-    let Wake { now, frames, events } = wake;
+pub fn drive(
+    logic: &mut dyn NodeLogic,
+    now: BusTime,
+    frames: Vec<Received>,
+    events: Vec<(BusTime, ControllerEvent)>,
+) -> Report {
     let mut frames = frames.into_iter().peekable();
     let mut events = events.into_iter().peekable();
     let mut timeouts = 0;
@@ -145,20 +214,28 @@ impl Actor for NodeActor {
 }
 
 impl Handler<Wake> for NodeActor {
-    type Result = Report;
+    type Result = ();
 
-    fn handle(&mut self, wake: Wake, ctx: &mut Context<Self>) -> Report {
+    fn handle(&mut self, wake: Wake, ctx: &mut Context<Self>) {
+        let Wake {
+            now,
+            frames,
+            events,
+            reply,
+        } = wake;
         let _span = tracing::trace_span!("node", node = %self.name).entered();
         if std::mem::take(&mut self.crash_next) {
             // An injected crash behaves as a panic would, without the noise of one.
             tracing::info!(node = %self.name, "injected crash");
             ctx.stop();
-            return Report {
+            return reply.send(Report {
                 crashed: Some("injected crash".to_string()),
                 ..Report::default()
-            };
+            });
         }
-        match catch_unwind(AssertUnwindSafe(|| drive(self.logic.as_mut(), wake))) {
+        let report = match catch_unwind(AssertUnwindSafe(|| {
+            drive(self.logic.as_mut(), now, frames, events)
+        })) {
             Ok(report) => report,
             Err(panic) => {
                 let message = panic
@@ -173,7 +250,8 @@ impl Handler<Wake> for NodeActor {
                     ..Report::default()
                 }
             }
-        }
+        };
+        reply.send(report);
     }
 }
 
@@ -244,9 +322,10 @@ mod tests {
             next: Some(BusTime::from_millis(5)),
             ..Echo::default()
         };
-        let wake = Wake {
-            now: BusTime::from_millis(25),
-            frames: vec![
+        let report = drive(
+            &mut logic,
+            BusTime::from_millis(25),
+            vec![
                 Received {
                     at: BusTime::from_millis(1),
                     frame: f,
@@ -256,9 +335,8 @@ mod tests {
                     frame: f,
                 },
             ],
-            events: vec![(BusTime::from_millis(6), ControllerEvent::Overrun)],
-        };
-        let report = drive(&mut logic, wake);
+            vec![(BusTime::from_millis(6), ControllerEvent::Overrun)],
+        );
         let expected: Vec<String> = [
             ("frame", 1),
             ("timeout", 5),
@@ -290,14 +368,7 @@ mod tests {
 
     #[test]
     fn a_deadline_that_never_moves_cannot_hang_the_driver() {
-        let report = drive(
-            &mut Stuck,
-            Wake {
-                now: BusTime::from_millis(1),
-                frames: vec![],
-                events: vec![],
-            },
-        );
+        let report = drive(&mut Stuck, BusTime::from_millis(1), vec![], vec![]);
         assert_eq!(report.next_timeout, Some(BusTime::ZERO));
     }
 }

@@ -305,6 +305,11 @@ impl MessageDef {
         self.fields.iter().find(|f| f.name == name)
     }
 
+    /// The position of the field named `name` in `fields`.
+    pub fn field_index(&self, name: &str) -> Option<usize> {
+        self.fields.iter().position(|f| f.name == name)
+    }
+
     /// Decodes a payload of this message.
     pub fn decode(&'static self, data: &[u8]) -> Result<Vec<Value>, Error> {
         if data.len() != usize::from(self.dlc) {
@@ -334,17 +339,26 @@ impl MessageDef {
     /// Encodes a frame from node `node` (or to it), asking `value` for each field's physical
     /// value by name. Constant fields need no value; every other field must have a valid one.
     pub fn encode(&self, node: Address, value: impl Fn(&str) -> Option<f64>) -> Result<Frame, Error> {
+        self.encode_indexed(node, |i| self.fields.get(i).and_then(|f| value(f.name)))
+    }
+
+    /// As [`MessageDef::encode`], asking `value` by the field's position in `fields`: for callers
+    /// that resolved their names once and encode often.
+    pub fn encode_indexed(
+        &self,
+        node: Address,
+        value: impl Fn(usize) -> Option<f64>,
+    ) -> Result<Frame, Error> {
         if !self.nodes.contains(node) {
             return Err(self.error(format!("node {node} does not send or receive this message")));
         }
         let mut data = [0u8; 8];
         data[0] = self.number;
-        for field in self.fields {
+        for (i, field) in self.fields.iter().enumerate() {
             let raw = match field.constant {
                 Some(c) => i64::from(c),
                 None => {
-                    let v = value(field.name)
-                        .ok_or_else(|| self.error(format!("no value for {}", field.name)))?;
+                    let v = value(i).ok_or_else(|| self.error(format!("no value for {}", field.name)))?;
                     field.to_raw(v).ok_or_else(|| {
                         self.error(format!(
                             "{} = {v} is outside {}..={} {}",

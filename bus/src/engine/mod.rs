@@ -212,6 +212,7 @@ pub struct Bus {
     events: Vec<Event>,
     next_token: u64,
     late_submissions: u64,
+    transmitters: Vec<usize>,
 }
 
 impl Bus {
@@ -234,6 +235,7 @@ impl Bus {
             events: Vec::new(),
             next_token: 1,
             late_submissions: 0,
+            transmitters: Vec::new(),
         })
     }
 
@@ -518,8 +520,8 @@ impl Bus {
         }
         let pending = self.controllers[w].tx[0];
         let frame = pending.frame;
-        let encoded = bits::encode(&frame);
-        let stuffed_len = encoded.stuffed.len() as u64;
+        // The full bitstream is only needed when two different frames collide.
+        let stuffed_len = u64::from(bits::stuffed_len(&frame));
 
         // Two nodes sending the same identifier with different contents collide at the first
         // bit where their streams differ; identical frames simply go out together.
@@ -530,9 +532,10 @@ impl Bus {
             if other == frame {
                 same_frame_partners.push(i);
             } else {
+                let ours = bits::encode(&frame).stuffed;
                 let theirs = bits::encode(&other).stuffed;
-                let differ = (0..encoded.stuffed.len().max(theirs.len()))
-                    .find(|&b| encoded.stuffed.get(b) != theirs.get(b))
+                let differ = (0..ours.len().max(theirs.len()))
+                    .find(|&b| ours.get(b) != theirs.get(b))
                     .unwrap_or(0);
                 error_bit = Some((differ as u16, BusError::Bit));
             }
@@ -548,13 +551,15 @@ impl Bus {
                 error_bit = Some((b, BusError::Bit));
             }
         }
-        let transmitters: Vec<usize> = std::iter::once(w)
-            .chain(if error_bit.is_some() {
-                collision.clone()
-            } else {
-                same_frame_partners.clone()
-            })
-            .collect();
+        // A buffer kept across frames: one frame each is too often to allocate for.
+        let mut transmitters = std::mem::take(&mut self.transmitters);
+        transmitters.clear();
+        transmitters.push(w);
+        transmitters.extend_from_slice(if error_bit.is_some() {
+            &collision
+        } else {
+            &same_frame_partners
+        });
         let is_tx = |i: usize| transmitters.contains(&i);
         let ackers = self
             .controllers
@@ -566,9 +571,10 @@ impl Bus {
             error_bit = Some(((stuffed_len + 1) as u16, BusError::Ack));
         }
         match error_bit {
-            None => self.succeed(sof, w, &transmitters, frame, encoded.total_bits()),
+            None => self.succeed(sof, w, &transmitters, frame, stuffed_len as u32 + bits::TAIL_BITS),
             Some((b, error)) => self.fail(sof, w, &transmitters, frame, b, error),
         }
+        self.transmitters = transmitters;
     }
 
     fn succeed(&mut self, sof: BusTime, w: usize, transmitters: &[usize], frame: Frame, total_bits: u32) {

@@ -1,6 +1,6 @@
 //! Signal names: the one table that maps the names scripts use to what the plant holds.
 
-use std::collections::HashMap;
+use rustc_hash::FxHashMap;
 use std::sync::LazyLock;
 
 use super::{ROWS, UNITS};
@@ -177,8 +177,9 @@ fn table() -> Vec<(String, Signal)> {
     t
 }
 
-/// The table, built once: names are looked up on every sample.
-static TABLE: LazyLock<(Vec<String>, HashMap<String, Signal>)> = LazyLock::new(|| {
+/// The table, built once: names are looked up on every sample, so with a fast hash (the names
+/// are ours, not an attacker's).
+static TABLE: LazyLock<(Vec<String>, FxHashMap<String, Signal>)> = LazyLock::new(|| {
     let t = table();
     let names = t.iter().map(|(n, _)| n.clone()).collect();
     (names, t.into_iter().collect())

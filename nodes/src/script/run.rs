@@ -39,6 +39,22 @@ struct SendState {
     check_next: BusTime,
 }
 
+/// A frame spec resolved against the catalogue.
+struct Resolved {
+    def: &'static catalogue::MessageDef,
+    /// For each of the spec's fields, in its order, the position in `def.fields` (None for a
+    /// name the message does not have: validation reports it, the frame leaves it out).
+    slots: Rc<[Option<usize>]>,
+}
+
+impl Resolved {
+    fn of(spec: &FrameSpec) -> Option<Resolved> {
+        let def = catalogue::by_name(&spec.message)?;
+        let slots = spec.fields.keys().map(|name| def.field_index(name)).collect();
+        Some(Resolved { def, slots })
+    }
+}
+
 /// A sensor was read through a dropout fault: the message is not sent.
 struct Dropout;
 
@@ -46,8 +62,9 @@ struct Dropout;
 pub struct ScriptedNode {
     /// Shared so that building a frame can borrow its spec while the node changes.
     s: Rc<NodeScript>,
-    /// The catalogue entry of every frame of every send, looked up once.
-    defs: Vec<Vec<Option<&'static catalogue::MessageDef>>>,
+    /// The catalogue entry of every frame of every send, and the position in it of each of the
+    /// frame's fields (in the spec's order), looked up once.
+    defs: Vec<Vec<Option<Resolved>>>,
     address: Address,
     env: SharedEnv,
     boot_at: BusTime,
@@ -90,7 +107,7 @@ impl ScriptedNode {
             defs: script
                 .messages
                 .iter()
-                .map(|m| m.frames.iter().map(|f| catalogue::by_name(&f.message)).collect())
+                .map(|m| m.frames.iter().map(Resolved::of).collect())
                 .collect(),
             s: Rc::new(script),
             env,
@@ -222,18 +239,23 @@ impl ScriptedNode {
         let script = Rc::clone(&self.s);
         let specs = &script.messages[k].frames;
         let mut frames = Vec::with_capacity(specs.len());
-        let mut values: Vec<(&str, f64)> = Vec::with_capacity(8);
         for (j, spec) in specs.iter().enumerate() {
-            let def = self.defs[k][j]?;
-            values.clear();
-            for (name, e) in &spec.fields {
+            let (def, slots) = match &self.defs[k][j] {
+                Some(r) => (r.def, Rc::clone(&r.slots)),
+                None => return None,
+            };
+            let mut values = [None; 8];
+            for (e, slot) in spec.fields.values().zip(slots.iter()) {
                 let v = self.eval(e, frame).ok()?;
-                // A sensor saturates at the ends of what its message can carry.
-                let v = def.field(name).map_or(v, |f| v.clamp(f.min, f.max));
-                values.push((name.as_str(), v));
+                if let (Some(i), Some(f)) = (*slot, slot.and_then(|i| def.fields.get(i))) {
+                    // A sensor saturates at the ends of what its message can carry.
+                    if let Some(value) = values.get_mut(i) {
+                        *value = Some(v.clamp(f.min, f.max));
+                    }
+                }
             }
-            let value = |n: &str| values.iter().find(|(m, _)| *m == n).map(|&(_, v)| v);
-            frames.push(def.encode(self.address, value).ok()?);
+            let value = |i: usize| values.get(i).copied().flatten();
+            frames.push(def.encode_indexed(self.address, value).ok()?);
         }
         Some(frames)
     }
@@ -252,10 +274,20 @@ impl ScriptedNode {
             self.unacked += 1;
             let count = self.unacked;
             if let Some(v) = &ack.count_var {
-                self.vars.insert(v.clone(), f64::from(count));
+                self.set_var(v, f64::from(count));
             }
             if count >= ack.limit {
                 self.set_state(&ack.state);
+            }
+        }
+    }
+
+    /// Sets a variable without allocating its name again when it exists.
+    fn set_var(&mut self, name: &str, value: f64) {
+        match self.vars.get_mut(name) {
+            Some(v) => *v = value,
+            None => {
+                self.vars.insert(name.to_string(), value);
             }
         }
     }
@@ -281,14 +313,15 @@ impl ScriptedNode {
                 }
                 Action::Set(var, e) => {
                     if let Ok(v) = self.eval(e, frame) {
-                        self.vars.insert(var.clone(), v);
+                        self.set_var(var, v);
                     }
                 }
                 Action::Acknowledged => {
                     self.unacked = 0;
-                    for m in &self.s.messages {
-                        if let Some(v) = m.ack.as_ref().and_then(|a| a.count_var.clone()) {
-                            self.vars.insert(v, 0.0);
+                    let script = Rc::clone(&self.s);
+                    for m in &script.messages {
+                        if let Some(v) = m.ack.as_ref().and_then(|a| a.count_var.as_ref()) {
+                            self.set_var(v, 0.0);
                         }
                     }
                 }
@@ -325,8 +358,9 @@ impl NodeLogic for ScriptedNode {
             return;
         }
         self.env.borrow_mut().advance_to(now);
-        let reactions: Vec<Vec<Action>> = self
-            .s
+        let script = Rc::clone(&self.s);
+        // Which reactions apply is decided before any of them runs (one may change the state).
+        let matching: Vec<&Reaction> = script
             .reactions
             .iter()
             .filter(|r| r.message == d.message.name && self.active(&r.states))
@@ -335,10 +369,9 @@ impl NodeLogic for ScriptedNode {
                     .iter()
                     .all(|(f, v)| d.get(f).is_some_and(|x| x.raw as f64 == *v))
             })
-            .map(|r| r.actions.clone())
             .collect();
-        for actions in reactions {
-            self.run_actions(&actions, Some(&d));
+        for r in matching {
+            self.run_actions(&r.actions, Some(&d));
         }
     }
 
