@@ -15,8 +15,11 @@ use ratatui::crossterm::event::{self, Event};
 use std::io::IsTerminal;
 use std::time::{Duration, Instant};
 
-/// Bus time run between two looks at the keyboard (and at the wall clock for a redraw).
+/// Bus time run between two looks at the keyboard (and at the wall clock for a redraw), in real
+/// time and in virtual time: virtual time runs tens of times faster than the wall clock, and
+/// looking costs a little each time.
 const STEP_MS: u64 = 50;
+const FAST_STEP_MS: u64 = 500;
 /// Wall time between redraws.
 const REFRESH: Duration = Duration::from_millis(250);
 
@@ -77,7 +80,7 @@ pub async fn live(
     let clock = if fast { Clock::Virtual } else { Clock::RealTime };
     let mut rates = RateMeter::default();
     let mut last_draw: Option<Instant> = None;
-    let step = STEP_MS * 1_000_000;
+    let step = if fast { FAST_STEP_MS } else { STEP_MS } * 1_000_000;
     let ctrl_c = tokio::signal::ctrl_c();
     tokio::pin!(ctrl_c);
     while end.is_none_or(|e| running.now() < e) {
