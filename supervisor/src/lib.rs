@@ -9,6 +9,7 @@ pub mod inspect;
 pub mod run;
 pub mod scenario;
 pub mod scenarios_cli;
+pub mod tui;
 
 /// An error that the user caused: reported on one line, exit code 2.
 #[derive(Debug)]

@@ -37,6 +37,9 @@ pub struct Args {
     /// F5 is the monitor).
     #[arg(long, value_name = "NODE")]
     without: Vec<String>,
+    /// Show the cab monitor and the bus live in the terminal (q, Esc or Ctrl-C quits).
+    #[arg(long)]
+    tui: bool,
 }
 
 /// Parses `120s`, `10m`, `1h`, `500ms` or a plain number of seconds.
@@ -94,6 +97,9 @@ pub fn summary(s: &Snapshot, running: &harvester::Running) -> String {
 
 /// Runs `harvemu run`.
 pub fn run(args: &Args) -> anyhow::Result<()> {
+    if args.tui {
+        crate::tui::require_terminal()?;
+    }
     let mut h = Harvester::load(&args.config).map_err(harvester::bad)?;
     h.without(&args.without).map_err(harvester::bad)?;
     if args.fast && args.iface.is_some() {
@@ -128,6 +134,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         }
     );
     let fast = args.fast;
+    let (tui, machine) = (args.tui, h.config.name.clone());
     let socketcand = args.socketcand;
     if fast && socketcand.is_some() {
         eprintln!(
@@ -158,8 +165,14 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         };
         // Progress, the live summary and Ctrl-C are looked at once a second of bus time.
         let step = BusTime::from_millis(1000);
+        if tui {
+            crate::tui::live(&mut running, &machine, fast, end).await?;
+            for e in &running.events {
+                eprintln!("harvemu: {} {} {}", e.at, e.node, e.what);
+            }
+        }
         let bar = match (fast, end) {
-            (true, Some(end)) => {
+            (true, Some(end)) if !tui => {
                 let bar = ProgressBar::new(end.as_nanos() / 1_000_000_000);
                 bar.set_style(
                     ProgressStyle::with_template("{bar:40} {pos}/{len} s virtual time, {elapsed} wall {msg}")
@@ -173,6 +186,10 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         let ctrl_c = tokio::signal::ctrl_c();
         tokio::pin!(ctrl_c);
         loop {
+            // The live display had its own loop; this one prints a summary line instead.
+            if tui {
+                break;
+            }
             let next = BusTime((t.as_nanos() / step.as_nanos() + 1) * step.as_nanos());
             let next = end.map_or(next, |e| next.min(e));
             tokio::select! {

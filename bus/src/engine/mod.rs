@@ -592,7 +592,8 @@ impl Bus {
         } else {
             32
         };
-        self.stats.frame(kernel_can_id(&frame), priority, end, latency);
+        self.stats
+            .frame(kernel_can_id(&frame), frame.data(), priority, end, latency);
         self.events.push(Event::Frame {
             start: sof,
             end,

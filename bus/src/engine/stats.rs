@@ -30,10 +30,18 @@ pub struct IdStats {
     pub max_period_ns: u64,
     mean: f64,
     m2: f64,
+    /// Payload of the last frame (live views show it decoded); `last_len` bytes are valid.
+    last_data: [u8; 8],
+    last_len: u8,
 }
 
 impl IdStats {
-    fn record(&mut self, at: BusTime) {
+    fn record(&mut self, at: BusTime, payload: &[u8]) {
+        // A classic frame carries at most 8 bytes; anything past that cannot reach here.
+        let n = payload.len().min(8);
+        self.last_data = [0; 8];
+        self.last_data[..n].copy_from_slice(&payload[..n]);
+        self.last_len = n as u8;
         if self.count == 0 {
             self.first = at;
             self.min_period_ns = u64::MAX;
@@ -50,6 +58,10 @@ impl IdStats {
         }
         self.last = at;
         self.count += 1;
+    }
+    /// The payload of the last frame (empty for a remote frame or before the first frame).
+    pub fn last_payload(&self) -> &[u8] {
+        &self.last_data[..usize::from(self.last_len)]
     }
     /// Mean interval between frames, ns (None with fewer than two frames).
     pub fn mean_period_ns(&self) -> Option<f64> {
@@ -275,13 +287,20 @@ impl Stats {
         }
     }
 
-    pub(crate) fn frame(&mut self, kernel_id: u32, priority: usize, end: BusTime, latency_ns: u64) {
+    pub(crate) fn frame(
+        &mut self,
+        kernel_id: u32,
+        payload: &[u8],
+        priority: usize,
+        end: BusTime,
+        latency_ns: u64,
+    ) {
         self.frames += 1;
         self.latency[priority.min(32)].record(latency_ns);
         let tracked = self.per_id.len();
         match self.per_id.get_mut(&kernel_id) {
-            Some(s) => s.record(end),
-            None if tracked < MAX_IDS => self.per_id.entry(kernel_id).or_default().record(end),
+            Some(s) => s.record(end, payload),
+            None if tracked < MAX_IDS => self.per_id.entry(kernel_id).or_default().record(end, payload),
             None => self.untracked_frames += 1,
         }
     }
@@ -331,12 +350,26 @@ mod tests {
     fn id_stats_period_and_jitter() {
         let mut s = IdStats::default();
         for t in [0u64, 100, 210, 300, 400] {
-            s.record(BusTime(t));
+            s.record(BusTime(t), &[]);
         }
         // Intervals 100, 110, 90, 100: mean 100, sample std dev sqrt(200/3).
         assert_eq!(s.mean_period_ns(), Some(100.0));
         assert!((s.jitter_ns().unwrap() - (200.0f64 / 3.0).sqrt()).abs() < 1e-9);
         assert_eq!((s.min_period_ns, s.max_period_ns), (90, 110));
+    }
+
+    #[test]
+    fn id_stats_keep_the_last_payload_only() {
+        let mut s = IdStats::default();
+        assert_eq!(s.last_payload(), &[] as &[u8]);
+        s.record(BusTime(0), &[1, 2, 3, 4, 5, 6, 7, 8]);
+        assert_eq!(s.last_payload(), &[1, 2, 3, 4, 5, 6, 7, 8]);
+        // A shorter payload leaves nothing of the longer one behind.
+        s.record(BusTime(10), &[0xAA, 0xBB]);
+        assert_eq!(s.last_payload(), &[0xAA, 0xBB]);
+        s.record(BusTime(20), &[]);
+        assert_eq!(s.last_payload(), &[] as &[u8]);
+        assert_eq!(s.count, 3);
     }
 
     #[test]

@@ -128,6 +128,12 @@ fn bus_load_is_the_sum_of_exact_lengths() {
     let per = b.stats().per_id[&0x123]; // a base identifier: no EFF flag
     assert_eq!(per.count, 20);
     assert_eq!(per.mean_period_ns(), Some(5_000_000.0));
+    assert_eq!(per.last_payload(), [0xDE, 0xAD, 0xBE, 0xEF]);
+    // A remote frame carries no data.
+    assert_eq!(
+        b.stats().per_id[&(0x7FF | crate::filter::CAN_RTR_FLAG)].last_payload(),
+        [] as [u8; 0]
+    );
 }
 
 #[test]

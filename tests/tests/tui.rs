@@ -1,0 +1,126 @@
+//! The live display (`harvemu run --tui`) rendered from real virtual-time runs of the default
+//! harvester: what the screen shows is checked against the plant, the monitor's display model
+//! and the recorded trace, each formatted here.
+
+use bus::catalogue;
+use bus::time::BusTime;
+use harvemu_e2e::{Line, default_harvester, run_virtual};
+use ratatui::Terminal;
+use ratatui::backend::TestBackend;
+use supervisor::tui::{Clock, RateMeter, Sources, View, draw};
+
+/// Renders the running harvester as the live display would, into a 200x60 buffer.
+fn screen(running: &supervisor::harvester::Running, snap: &bus::hub::Snapshot) -> Vec<String> {
+    let mut rates = RateMeter::default();
+    rates.update(snap);
+    let display = running.display.as_ref().map(|d| d.borrow());
+    let plant = running.plant.borrow();
+    let view = View::build(&Sources {
+        machine: "4MZ-6A",
+        clock: Clock::Virtual,
+        finished: true,
+        snapshot: snap,
+        display: display.as_deref(),
+        plant: &plant,
+        rates: &rates,
+        events: &running.events,
+    });
+    let mut terminal = Terminal::new(TestBackend::new(200, 60)).unwrap();
+    terminal.draw(|f| draw(f, &view)).unwrap();
+    let buffer = terminal.backend().buffer();
+    buffer
+        .content()
+        .chunks(200)
+        .map(|row| row.iter().map(|c| c.symbol()).collect())
+        .collect()
+}
+
+fn line_with<'a>(screen: &'a [String], key: &str) -> &'a str {
+    let found: Vec<&String> = screen.iter().filter(|l| l.contains(key)).collect();
+    assert_eq!(found.len(), 1, "one line with {key:?} in:\n{}", screen.join("\n"));
+    found[0]
+}
+
+/// The monitor panel's part of a line (the bus panel is to its right).
+fn left(line: &str) -> String {
+    line.chars().take(58).collect()
+}
+
+#[test]
+fn a_30_s_run_shows_the_plant_the_monitor_and_the_bus() {
+    let until = BusTime::from_secs(30);
+    let (trace, (screen, speed, total_kg, load, frames)) = run_virtual(
+        default_harvester(),
+        until,
+        |_| {},
+        |running, snap| {
+            let speed = running.plant.borrow().signal("speed.actual").unwrap();
+            let total_kg = running.display.as_ref().unwrap().borrow().total_kg;
+            (
+                screen(running, snap),
+                speed,
+                total_kg,
+                snap.stats.total_load(),
+                snap.stats.frames,
+            )
+        },
+    );
+    assert!(speed > 1.0, "the harvester moves: {speed} km/h");
+    let speed_line = left(line_with(&screen, "travel speed"));
+    assert!(speed_line.contains(&format!(" {speed:.1} ")), "{speed_line}");
+    let total = left(line_with(&screen, "harvested"));
+    assert!(total.contains(&format!(" {total_kg:.1} ")), "{total}");
+    line_with(&screen, &format!("load {:.1} %", load * 100.0));
+    assert_eq!(frames as usize, trace.len(), "the trace holds every frame");
+    line_with(&screen, &format!("frames {frames} "));
+
+    // The speed controller's status: its last frame in the trace, decoded and formatted here.
+    let status: Vec<&Line> = trace.iter().filter(|l| l.frame.raw_id() == 0x0200F5E0).collect();
+    let last = status.last().unwrap().frame;
+    let row = line_with(&screen, "0200F5E0");
+    let hex: Vec<String> = last.data().iter().map(|b| format!("{b:02X}")).collect();
+    assert!(row.contains(&hex.join(" ")), "{row}");
+    let decoded = catalogue::decode(&last).unwrap().unwrap();
+    let actual = decoded.get("actual").unwrap().physical;
+    assert!(row.contains(&format!("actual={actual:.2} km/h")), "{row}");
+    assert!(row.contains("speed.status") && row.contains("E0>F5"), "{row}");
+    // With one snapshot the rate is the mean over the run: frames less one over their span.
+    let span = (status.last().unwrap().at - status[0].at) as f64 / 1e9;
+    let rate = (status.len() - 1) as f64 / span;
+    assert!(row.contains(&format!(" {rate:.1} ")), "{rate:.1} fr/s in {row}");
+    // Nothing went wrong: every node is error active with clean counters.
+    for name in ["F5", "E0", "D5"] {
+        line_with(&screen, &format!("{name} active 0/0"));
+    }
+    line_with(&screen, "no active alarm");
+}
+
+#[test]
+fn a_stopped_conveyor_belt_raises_an_alarm_on_screen() {
+    let (_, (screen, alarms)) = run_virtual(
+        default_harvester(),
+        BusTime::from_secs(10),
+        |running| {
+            running
+                .plant
+                .borrow_mut()
+                .set_input("fault.belt_stop", 1.0)
+                .unwrap();
+        },
+        |running, snap| {
+            let display = running.display.as_ref().unwrap().borrow();
+            let active: Vec<_> = display.active_alarms().cloned().collect();
+            drop(display);
+            (screen(running, snap), active)
+        },
+    );
+    let belt = alarms
+        .iter()
+        .find(|a| a.node == "C2" && a.name == "belt_stopped")
+        .expect("the monitor raised the alarm");
+    line_with(
+        &screen,
+        &format!("ALARM C2 belt_stopped since {:.1} s", belt.raised.as_secs_f64()),
+    );
+    assert!(line_with(&screen, "0400F5C2").contains("belt_stopped=on"));
+}
