@@ -29,3 +29,22 @@ pub fn create(path: &Path) -> anyhow::Result<Box<dyn Write>> {
         Ok(Box::new(file))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_name_picks_the_format() {
+        for (name, asc) in [
+            ("run.asc", true),
+            ("RUN.ASC", true),
+            ("dir.asc/run.log", false),
+            ("run.log", false),
+            ("asc", false),
+            ("run.asc.log", false),
+        ] {
+            assert_eq!(is_asc(Path::new(name)), asc, "{name}");
+        }
+    }
+}

@@ -48,9 +48,12 @@ fn source(id: &str) -> Option<&str> {
     (id.len() == 8).then(|| &id[6..])
 }
 
+/// A trace file and its lines.
+type Recorded = (String, Vec<(u64, String, String)>);
+
 /// 6 s of the default harvester, recorded once for every test here.
-fn recorded() -> &'static (String, Vec<(u64, String, String)>) {
-    static TRACE: OnceLock<(String, Vec<(u64, String, String)>)> = OnceLock::new();
+fn recorded() -> &'static Recorded {
+    static TRACE: OnceLock<Recorded> = OnceLock::new();
     TRACE.get_or_init(|| {
         let log = path("full.log");
         ok(harvemu(&["run", "--fast", "--for", "6s", "--record", &log]));
