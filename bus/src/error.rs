@@ -26,6 +26,14 @@ pub enum Error {
     /// Text in the `ID#DATA` notation could not be read.
     #[error("{0}")]
     Syntax(String),
+    /// A line of a trace file (candump log, Vector ASC) that could not be read.
+    #[error("line {line}: {reason}")]
+    TraceLine {
+        /// 1-based line number.
+        line: usize,
+        /// What is wrong.
+        reason: String,
+    },
     /// A payload does not match the catalogue's layout for its message.
     #[error("message {message}: {reason}")]
     Payload {

@@ -533,6 +533,29 @@ impl Handler<Submit> for Hub {
     }
 }
 
+/// Hands a frame to a node's controller from outside at a given bus time (a replayed trace): the
+/// sender runs the hub to `at` first, so the frame keeps its place in time whatever the clock; a
+/// time already committed becomes the present and counts as a late submission.
+#[derive(Message)]
+#[rtype(result = "Result<bool, Error>")]
+pub struct SubmitAt {
+    /// The node whose controller sends it.
+    pub node: NodeId,
+    /// The frame.
+    pub frame: Frame,
+    /// When the node hands it over.
+    pub at: BusTime,
+}
+
+impl Handler<SubmitAt> for Hub {
+    type Result = Result<bool, Error>;
+    fn handle(&mut self, msg: SubmitAt, ctx: &mut Context<Self>) -> Self::Result {
+        let queued = self.bus.submit(msg.node, msg.frame, msg.at)?.is_some();
+        self.pump(ctx);
+        Ok(queued)
+    }
+}
+
 /// One node as the hub sees it.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct NodeSnapshot {

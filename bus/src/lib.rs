@@ -14,6 +14,7 @@
 //! - [`catalogue`] is the one list of every harvester message; decoding, the monitor and the DBC
 //!   export all read it.
 //! - [`candump`] reads and writes the `ID#DATA` frame notation of can-utils.
+//! - [`tracefile`] reads candump logs and Vector ASC traces, and writes ASC.
 //!
 //! Nothing here does I/O, reads a clock or panics on input; fallible input gives [`Error`].
 #![warn(missing_docs)]
@@ -33,6 +34,7 @@ pub mod ident;
 pub mod node;
 pub mod time;
 pub mod trace;
+pub mod tracefile;
 
 pub use embedded_can::{ExtendedId, Id, StandardId};
 pub use error::Error;

@@ -6,6 +6,8 @@
 pub mod bench;
 pub mod harvester;
 pub mod inspect;
+pub mod record;
+pub mod replay;
 pub mod run;
 pub mod scenario;
 pub mod scenarios_cli;

@@ -4,7 +4,7 @@
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
-use supervisor::{BadInput, bench, inspect, run, scenarios_cli};
+use supervisor::{BadInput, bench, inspect, replay, run, scenarios_cli};
 
 #[derive(Parser)]
 #[command(
@@ -21,6 +21,8 @@ struct Cli {
 enum Command {
     /// Run the emulated harvester on the virtual hub.
     Run(run::Args),
+    /// Play a candump log or Vector ASC trace onto the emulated harvester's bus.
+    Replay(replay::Args),
     /// Run scenarios in virtual time and give verdicts (exit code 1 if any expectation fails).
     Scenario(scenarios_cli::ScenarioArgs),
     /// Check harvester configs, node scripts and scenarios without running anything.
@@ -55,6 +57,7 @@ fn main() -> ExitCode {
         .init();
     let result = match cli.command {
         Command::Run(args) => run::run(&args),
+        Command::Replay(args) => replay::run(&args),
         Command::Validate(args) => scenarios_cli::validate(&args),
         Command::Scenario(args) => match scenarios_cli::run(&args) {
             Ok(true) => Ok(()),

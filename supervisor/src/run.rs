@@ -6,7 +6,7 @@ use actix::prelude::*;
 use bus::hub::{GetSnapshot, RunUntil, Snapshot, runtime};
 use bus::time::BusTime;
 use indicatif::{ProgressBar, ProgressStyle};
-use std::io::{BufWriter, Write};
+use std::io::Write;
 use std::path::PathBuf;
 use std::time::Duration;
 
@@ -22,7 +22,8 @@ pub struct Args {
     /// Stop after this much emulated time (e.g. 120s, 10m, 1h, 500ms).
     #[arg(long = "for", value_parser = parse_duration)]
     duration: Option<Duration>,
-    /// Write every frame on the bus to this candump log.
+    /// Write every frame on the bus to this file: Vector ASC when it ends in .asc, else a candump
+    /// log.
     #[arg(long)]
     record: Option<PathBuf>,
     /// Serve the bus to socketcand clients (python-can's `socketcand` interface, ...) on this
@@ -113,11 +114,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         return Err(BadInput("--fast needs --for: virtual time would otherwise run for ever".into()).into());
     }
     let trace: Option<Box<dyn Write>> = match &args.record {
-        Some(path) => {
-            let file = std::fs::File::create(path)
-                .map_err(|e| BadInput(format!("cannot create {}: {e}", path.display())))?;
-            Some(Box::new(BufWriter::new(file)))
-        }
+        Some(path) => Some(crate::record::create(path)?),
         None => None,
     };
     let end = args.duration.map(BusTime::from_duration);

@@ -5,7 +5,7 @@ use crate::harvester::{self, Harvester};
 use crate::scenario::{self, Loaded, junit};
 use indicatif::{ProgressBar, ProgressStyle};
 use nodes::Error;
-use std::io::{BufWriter, Write};
+use std::io::Write;
 use std::path::PathBuf;
 
 /// Arguments of `harvemu scenario`.
@@ -20,7 +20,8 @@ pub struct ScenarioArgs {
     /// Write a JUnit XML report here.
     #[arg(long)]
     junit: Option<PathBuf>,
-    /// Write the candump trace here (with several files, the last one's).
+    /// Write the trace here (with several files, the last one's): Vector ASC when the name ends
+    /// in .asc, else a candump log.
     #[arg(long)]
     record: Option<PathBuf>,
 }
@@ -94,9 +95,7 @@ pub fn run(args: &ScenarioArgs) -> anyhow::Result<bool> {
 
 fn run_one(l: &Loaded, record: Option<&PathBuf>) -> anyhow::Result<scenario::Outcome> {
     let trace: Option<Box<dyn Write>> = match record {
-        Some(p) => Some(Box::new(BufWriter::new(
-            std::fs::File::create(p).map_err(|e| BadInput(format!("cannot create {}: {e}", p.display())))?,
-        ))),
+        Some(p) => Some(crate::record::create(p)?),
         None => None,
     };
     let bar = ProgressBar::new(l.scenario.duration_s.ceil() as u64);

@@ -1,0 +1,56 @@
+//! One line of a candump log: `(secs.usecs) iface ID#DATA`, as `candump -L` and the hub's trace
+//! write it. A trailing direction flag (` R`, ` T`, which python-can and newer can-utils add) is
+//! accepted. An 8-digit identifier with `CAN_ERR_FLAG` set is a SocketCAN error frame.
+
+use super::{Entry, parse_time};
+use crate::candump::{parse_frame, parse_hex_bytes};
+use crate::filter::CAN_ERR_FLAG;
+use crate::time::BusTime;
+use crate::trace::ErrorFrame;
+
+/// Parses one line (already trimmed, not blank).
+pub(super) fn parse_line(line: &str) -> Result<(BusTime, Entry), String> {
+    let (time, rest) = line
+        .strip_prefix('(')
+        .and_then(|l| l.split_once(')'))
+        .ok_or_else(|| format!("'{line}' is not a candump log line: (secs.usecs) iface ID#DATA"))?;
+    let at = parse_time(time)?;
+    let mut fields = rest.split_whitespace();
+    let (Some(_iface), Some(frame)) = (fields.next(), fields.next()) else {
+        return Err(format!("'{line}' lacks the interface or the frame"));
+    };
+    match fields.next() {
+        None | Some("R" | "T" | "r" | "t") if fields.next().is_none() => {}
+        _ => return Err(format!("'{line}' has text after the frame")),
+    }
+    if frame.contains("##") {
+        return Err(format!(
+            "'{frame}' is a CAN FD frame: only classic CAN is supported"
+        ));
+    }
+    if let Some(error) = error_frame(frame)? {
+        return Ok((at, Entry::Error(Some(error))));
+    }
+    let frame = parse_frame(frame).map_err(|e| format!("frame '{frame}': {e}"))?;
+    Ok((at, Entry::Frame(frame)))
+}
+
+/// An error frame, when the identifier has `CAN_ERR_FLAG` set.
+fn error_frame(text: &str) -> Result<Option<ErrorFrame>, String> {
+    let Some((id, data)) = text.split_once('#') else {
+        return Ok(None);
+    };
+    let can_id = match u32::from_str_radix(id, 16) {
+        Ok(v) if id.len() == 8 && v & CAN_ERR_FLAG != 0 => v,
+        _ => return Ok(None),
+    };
+    if can_id > CAN_ERR_FLAG | 0x1FFF_FFFF {
+        return Err(format!(
+            "error frame identifier {id} has flags other than CAN_ERR_FLAG"
+        ));
+    }
+    let bytes = parse_hex_bytes(data).map_err(|e| format!("error frame '{text}': {e}"))?;
+    let mut data = [0u8; 8];
+    data[..bytes.len()].copy_from_slice(&bytes);
+    Ok(Some(ErrorFrame { can_id, data }))
+}

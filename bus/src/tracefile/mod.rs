@@ -1,0 +1,181 @@
+//! Trace files: one reader for candump logs and Vector ASC traces, and an ASC writer.
+//!
+//! Contract:
+//! - [`Reader`] takes a trace one line at a time and gives back timestamped [`Record`]s with
+//!   their line numbers. The format is decided by the first line that is not blank: a candump
+//!   log line starts with `(`, anything else is read as ASC. Lines of the other format later on
+//!   are errors, never guesses.
+//! - Error frames are kept or skipped as the caller says ([`ErrorFrames`]); nothing is dropped
+//!   silently except what the format defines as not being a frame (ASC header, comment and event
+//!   lines such as `Start of measurement`, statistics or chip status).
+//! - Every bad line gives [`Error::TraceLine`] with its 1-based line number; nothing panics.
+//! - Timestamps are kept exactly to the nanosecond as written (`1708620903.978650` in a candump
+//!   log is seconds since 1970, an ASC time is seconds since the start of the measurement); no
+//!   floating point is involved.
+//! - [`asc`] formats ASC lines; [`AscWriter`] turns the candump log that the hub writes into an
+//!   ASC file as it is written.
+
+pub mod asc;
+mod candump_log;
+mod convert;
+#[cfg(test)]
+mod tests;
+
+pub use convert::AscWriter;
+
+use crate::time::BusTime;
+use crate::trace::ErrorFrame;
+use crate::{Error, Frame};
+use std::io::BufRead;
+
+/// The two formats a [`Reader`] understands.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    /// `(1708620903.978650) can0 0601F5D0#200D0002FFBFFF00` (`candump -L`).
+    Candump,
+    /// Vector ASC (CANalyzer, CANoe, python-can's `ASCWriter`).
+    Asc,
+}
+
+/// What to do with error frames.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ErrorFrames {
+    /// Give them back as [`Entry::Error`].
+    Keep,
+    /// Leave them out.
+    Skip,
+}
+
+/// What one line of a trace holds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Entry {
+    /// A data or remote frame.
+    Frame(Frame),
+    /// An error frame: with SocketCAN's class bits and data when the format carries them
+    /// (candump), without when it does not (ASC's `ErrorFrame`).
+    Error(Option<ErrorFrame>),
+}
+
+/// One timestamped entry of a trace.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Record {
+    /// The time written on the line, in nanoseconds.
+    pub at: BusTime,
+    /// 1-based line number.
+    pub line: usize,
+    /// The frame or error frame.
+    pub entry: Entry,
+}
+
+/// Reads a trace line by line.
+#[derive(Debug)]
+pub struct Reader {
+    errors: ErrorFrames,
+    format: Option<Format>,
+    asc: asc::ReadState,
+    line: usize,
+}
+
+impl Reader {
+    /// A reader that has seen no line yet.
+    pub fn new(errors: ErrorFrames) -> Reader {
+        Reader {
+            errors,
+            format: None,
+            asc: asc::ReadState::default(),
+            line: 0,
+        }
+    }
+
+    /// The format, once a line that is not blank has been seen.
+    pub fn format(&self) -> Option<Format> {
+        self.format
+    }
+
+    /// Lines taken so far.
+    pub fn lines(&self) -> usize {
+        self.line
+    }
+
+    /// Takes the next line (without its line break); gives the record it holds, if any.
+    pub fn line(&mut self, text: &str) -> Result<Option<Record>, Error> {
+        self.line += 1;
+        let line = self.line;
+        let trimmed = text.trim();
+        if trimmed.is_empty() {
+            return Ok(None);
+        }
+        let format = *self.format.get_or_insert(if trimmed.starts_with('(') {
+            Format::Candump
+        } else {
+            Format::Asc
+        });
+        let parsed = match format {
+            Format::Candump => candump_log::parse_line(trimmed).map(Some),
+            Format::Asc => self.asc.parse_line(trimmed),
+        };
+        let entry = parsed.map_err(|reason| Error::TraceLine { line, reason })?;
+        Ok(entry.and_then(|(at, entry)| match (entry, self.errors) {
+            (Entry::Error(_), ErrorFrames::Skip) => None,
+            _ => Some(Record { at, line, entry }),
+        }))
+    }
+}
+
+/// Reads every record of a trace from `input`; a line that cannot be read (bad text, not UTF-8,
+/// an I/O error) ends it with an error naming the line.
+pub fn read(input: impl BufRead, errors: ErrorFrames) -> impl Iterator<Item = Result<Record, Error>> {
+    let mut reader = Reader::new(errors);
+    let mut lines = input.lines();
+    let mut failed = false;
+    std::iter::from_fn(move || {
+        while !failed {
+            let text = match lines.next()? {
+                Ok(text) => text,
+                Err(e) => {
+                    failed = true;
+                    return Some(Err(Error::TraceLine {
+                        line: reader.lines() + 1,
+                        reason: format!("cannot read: {e}"),
+                    }));
+                }
+            };
+            match reader.line(&text) {
+                Ok(Some(record)) => return Some(Ok(record)),
+                Ok(None) => {}
+                Err(e) => {
+                    failed = true;
+                    return Some(Err(e));
+                }
+            }
+        }
+        None
+    })
+}
+
+/// Reads every record of a trace held in memory.
+pub fn read_str(text: &str, errors: ErrorFrames) -> Result<Vec<Record>, Error> {
+    read(text.as_bytes(), errors).collect()
+}
+
+/// Reads `secs.fraction` exactly (up to 9 fraction digits; more are cut off).
+fn parse_time(text: &str) -> Result<BusTime, String> {
+    let bad = || format!("'{text}' is not a time in seconds (e.g. 1.234567)");
+    let (secs, fraction) = text.split_once('.').unwrap_or((text, ""));
+    if secs.is_empty()
+        || !secs.bytes().all(|b| b.is_ascii_digit())
+        || !fraction.bytes().all(|b| b.is_ascii_digit())
+    {
+        return Err(bad());
+    }
+    let secs: u64 = secs.parse().map_err(|_| bad())?;
+    let mut nanos = 0u64;
+    for i in 0..9 {
+        let digit = fraction.as_bytes().get(i).map_or(0, |b| u64::from(b - b'0'));
+        nanos = nanos * 10 + digit;
+    }
+    secs.checked_mul(1_000_000_000)
+        .and_then(|s| s.checked_add(nanos))
+        .map(BusTime)
+        .ok_or_else(|| format!("time '{text}' is too large"))
+}

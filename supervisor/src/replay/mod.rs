@@ -1,0 +1,256 @@
+//! `harvemu replay FILE`: a candump log or Vector ASC trace played onto the bus of the emulated
+//! harvester.
+//!
+//! Contract: the whole trace is read and checked before anything starts (a bad line is bad input
+//! naming `file:line`). The replay is one more controller on the hub, with no receive filter
+//! match, so its frames arbitrate with the emulated nodes' and reach them through their filters.
+//! Each frame is handed to that controller at the start of the replay plus its offset
+//! ([`schedule`]), in virtual time (`--fast`) or in real time; the bus is run up to that moment
+//! first, so timing is the same under both clocks. A frame the controller's queue cannot take is
+//! counted as refused. After the last frame the bus runs on for [`TAIL`] (or to `--for`), and a
+//! summary goes to stderr.
+
+pub mod schedule;
+
+use crate::BadInput;
+use crate::harvester::{self, Harvester, Running};
+use crate::run::parse_duration;
+use actix::prelude::*;
+use bus::engine::{ControllerConfig, Filter, NodeId};
+use bus::hub::{Attach, GetSnapshot, RunUntil, SubmitAt, runtime};
+use bus::ident::Address;
+use bus::time::BusTime;
+use bus::tracefile::{self, ErrorFrames, Record};
+use schedule::{Passes, Schedule};
+use std::collections::BTreeSet;
+use std::io::BufReader;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+/// How long the bus runs on after the last frame: the frame goes out, the nodes answer.
+pub const TAIL: Duration = Duration::from_millis(100);
+
+/// Arguments of `harvemu replay`.
+#[derive(clap::Args)]
+pub struct Args {
+    /// The trace: a candump log or a Vector ASC file (the format is read from the file).
+    file: PathBuf,
+    /// Harvester config: the emulated nodes that run alongside the replay.
+    #[arg(long, default_value = "configs/harvester.ron")]
+    config: PathBuf,
+    /// Leave a node out of the emulation (repeatable; F5 is the monitor).
+    #[arg(long, value_name = "NODE")]
+    without: Vec<String>,
+    /// Leave out frames whose source address belongs to an emulated node, so that a trace of the
+    /// whole machine stands in only for the nodes left out.
+    #[arg(long)]
+    skip_emulated: bool,
+    /// Virtual time, as fast as the machine allows; by default the trace plays in real time.
+    #[arg(long)]
+    fast: bool,
+    /// Play the trace again after its end, for ever or N times in all; each pass is shifted so
+    /// that times keep increasing.
+    #[arg(long = "loop", value_name = "N", num_args = 0..=1)]
+    passes: Option<Option<u32>>,
+    /// Stop this long after the replay starts (e.g. 30s, 10m).
+    #[arg(long = "for", value_parser = parse_duration)]
+    duration: Option<Duration>,
+    /// Record the resulting bus: Vector ASC when the name ends in .asc, else a candump log.
+    #[arg(long)]
+    record: Option<PathBuf>,
+    /// Bridge the bus, replayed frames included, to this SocketCAN interface. Real time only.
+    #[arg(long)]
+    iface: Option<String>,
+}
+
+/// What a replay did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Played {
+    /// Frames handed to the replay's controller.
+    pub replayed: u64,
+    /// Frames its full transmit queue refused.
+    pub refused: u64,
+}
+
+/// Reads a whole trace; a bad line is bad input naming `file:line`.
+pub fn load(path: &Path) -> anyhow::Result<Vec<Record>> {
+    let file =
+        std::fs::File::open(path).map_err(|e| BadInput(format!("cannot open {}: {e}", path.display())))?;
+    tracefile::read(BufReader::new(file), ErrorFrames::Keep)
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| match e {
+            bus::Error::TraceLine { line, reason } => {
+                BadInput(format!("{}:{line}: {reason}", path.display()))
+            }
+            other => BadInput(format!("{}: {other}", path.display())),
+        })
+        .map_err(Into::into)
+}
+
+/// The addresses of the nodes the harvester emulates.
+pub fn emulated(h: &Harvester) -> BTreeSet<Address> {
+    let mut set: BTreeSet<Address> = h.scripts.iter().map(|s| Address(s.address)).collect();
+    if h.config.monitor.enabled {
+        set.insert(Address::MONITOR);
+    }
+    set
+}
+
+/// Attaches the replay's controller to the hub of `running`.
+pub async fn attach(running: &Running) -> anyhow::Result<NodeId> {
+    let controller = ControllerConfig {
+        tx_queue_len: 256,
+        ..ControllerConfig::named("replay")
+    }
+    .with_filter(Filter::Nothing);
+    Ok(running
+        .hub
+        .send(Attach {
+            controller,
+            node: None,
+            reaction: Duration::ZERO,
+        })
+        .await?)
+}
+
+/// Sends the frames of `schedule` from `node`, the replay starting at bus time `start`, until
+/// the schedule ends or `end`. Counts go to `played` as they happen, so an interrupted replay
+/// still reports them.
+pub async fn play(
+    running: &mut Running,
+    node: NodeId,
+    schedule: &mut Schedule,
+    start: BusTime,
+    end: Option<BusTime>,
+    played: &mut Played,
+) -> anyhow::Result<()> {
+    for due in schedule.by_ref() {
+        let at = start + due.offset;
+        if end.is_some_and(|e| at >= e) {
+            break;
+        }
+        running.run_until(at).await?;
+        let queued = running
+            .hub
+            .send(SubmitAt {
+                node,
+                frame: due.frame,
+                at,
+            })
+            .await??;
+        if queued {
+            played.replayed += 1;
+        } else {
+            played.refused += 1;
+        }
+    }
+    Ok(())
+}
+
+/// Runs `harvemu replay`.
+pub fn run(args: &Args) -> anyhow::Result<()> {
+    let mut h = Harvester::load(&args.config).map_err(harvester::bad)?;
+    h.without(&args.without).map_err(harvester::bad)?;
+    let passes = match args.passes {
+        None => Passes::Times(1),
+        Some(None) => Passes::Forever,
+        Some(Some(0)) => {
+            return Err(BadInput("--loop N: N is the number of passes, at least 1".into()).into());
+        }
+        Some(Some(n)) => Passes::Times(n),
+    };
+    if args.fast && args.iface.is_some() {
+        return Err(BadInput("--iface runs in real time: leave out --fast".into()).into());
+    }
+    if args.fast && passes == Passes::Forever && args.duration.is_none() {
+        return Err(
+            BadInput("--fast --loop needs --for: virtual time would otherwise run for ever".into()).into(),
+        );
+    }
+    if let Some(name) = &args.iface {
+        bus::backend::socketcan::check(name).map_err(|e| BadInput(e.to_string()))?;
+    }
+    let records = load(&args.file)?;
+    if records.is_empty() {
+        return Err(BadInput(format!("{}: no frames in this trace", args.file.display())).into());
+    }
+    let skip = if args.skip_emulated {
+        emulated(&h)
+    } else {
+        BTreeSet::new()
+    };
+    let mut schedule = Schedule::new(&records, &skip, passes);
+    let counts = schedule.counts();
+    let trace = match &args.record {
+        Some(path) => Some(crate::record::create(path)?),
+        None => None,
+    };
+    eprintln!(
+        "harvemu: replaying {} ({} records, {} to send per pass) onto {} from {}, {}",
+        args.file.display(),
+        counts.read,
+        counts.per_pass,
+        h.config.name,
+        h.path.display(),
+        if args.fast {
+            "virtual time"
+        } else {
+            "real time (Ctrl-C stops)"
+        }
+    );
+    let fast = args.fast;
+    let iface = args.iface.clone();
+    let duration = args.duration;
+    let system = System::with_tokio_rt(move || runtime(fast).expect("a tokio runtime"));
+    system.block_on(async move {
+        let mut running = harvester::start(&h, trace).await?;
+        let _bridge = match &iface {
+            Some(name) => Some(
+                bus::backend::socketcan::bridge(running.hub.clone(), name)
+                    .await
+                    .map_err(|e| BadInput(e.to_string()))?,
+            ),
+            None => None,
+        };
+        let node = attach(&running).await?;
+        let start = running.now();
+        let end = duration.map(|d| start.after(d));
+        let mut played = Played::default();
+        let ctrl_c = tokio::signal::ctrl_c();
+        tokio::pin!(ctrl_c);
+        let mut interrupted = false;
+        tokio::select! {
+            r = play(&mut running, node, &mut schedule, start, end, &mut played) => r?,
+            _ = &mut ctrl_c => interrupted = true,
+        }
+        if !interrupted {
+            let last = schedule.end().map_or(start, |e| start + e);
+            let until = end.unwrap_or(last.after(TAIL));
+            tokio::select! {
+                r = running.run_until(until) => r?,
+                _ = &mut ctrl_c => interrupted = true,
+            }
+        }
+        if interrupted {
+            eprintln!("\nharvemu: interrupted");
+        }
+        // Pausing the hub at the present flushes the trace.
+        let now = running.hub.send(GetSnapshot).await?.now;
+        let _ = running.hub.send(RunUntil(now)).await;
+        let snap = running.hub.send(GetSnapshot).await?;
+        eprintln!("{}", crate::run::summary(&snap, &running));
+        eprintln!(
+            "harvemu: replay: {} records read, {} error frames (not replayable), {} frames skipped (emulated sources), {} replayed, {} refused (queue full), {} pass(es)",
+            counts.read,
+            counts.error_frames,
+            counts.skipped,
+            played.replayed,
+            played.refused,
+            schedule.passes_begun()
+        );
+        if let Some(e) = &snap.trace_error {
+            return Err(anyhow::anyhow!("the trace could not be written: {e}"));
+        }
+        anyhow::Ok(())
+    })
+}

@@ -1,0 +1,286 @@
+//! `harvemu replay` and `--record FILE.asc` as a user runs them: the skip filter, loops, the ASC
+//! recording of a run against its candump recording, an interrupted recording, and bad input.
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::sync::OnceLock;
+
+fn harvemu(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_harvemu"))
+        .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
+        .args(args)
+        .output()
+        .expect("run harvemu")
+}
+
+fn ok(out: Output) -> String {
+    let err = String::from_utf8_lossy(&out.stderr).to_string();
+    assert!(out.status.success(), "{err}");
+    err
+}
+
+fn dir() -> PathBuf {
+    let d = std::env::temp_dir().join(format!("harvemu-cli-replay-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn path(name: &str) -> String {
+    dir().join(name).to_str().unwrap().to_string()
+}
+
+/// One frame of a candump log, read here without the crate's reader: (µs, id digits, data).
+fn lines(text: &str) -> Vec<(u64, String, String)> {
+    text.lines()
+        .map(|l| {
+            let (time, rest) = l.strip_prefix('(').unwrap().split_once(") harv0 ").unwrap();
+            let (secs, us) = time.split_once('.').unwrap();
+            let (id, data) = rest.split_once('#').unwrap();
+            let at = secs.parse::<u64>().unwrap() * 1_000_000 + us.parse::<u64>().unwrap();
+            (at, id.to_string(), data.to_string())
+        })
+        .collect()
+}
+
+/// The source address of a frame (low byte of an extended identifier).
+fn source(id: &str) -> Option<&str> {
+    (id.len() == 8).then(|| &id[6..])
+}
+
+/// A trace file and its lines.
+type Recorded = (String, Vec<(u64, String, String)>);
+
+/// 6 s of the default harvester, recorded once for every test here.
+fn recorded() -> &'static Recorded {
+    static TRACE: OnceLock<Recorded> = OnceLock::new();
+    TRACE.get_or_init(|| {
+        let log = path("full.log");
+        ok(harvemu(&["run", "--fast", "--for", "6s", "--record", &log]));
+        let text = std::fs::read_to_string(&log).unwrap();
+        let parsed = lines(&text);
+        (log, parsed)
+    })
+}
+
+fn count(err: &str, what: &str) -> u64 {
+    // "... 5984 frames skipped (emulated sources), 716 replayed, ..."
+    let at = err.find(what).unwrap_or_else(|| panic!("no '{what}' in {err}"));
+    err[..at].split_whitespace().last().unwrap().parse().unwrap()
+}
+
+#[test]
+fn the_skip_filter_drops_exactly_the_emulated_sources() {
+    let (log, original) = recorded();
+    let out = path("skip.log");
+    let err = ok(harvemu(&[
+        "replay",
+        log,
+        "--fast",
+        "--without",
+        "B3",
+        "--without",
+        "D3",
+        "--skip-emulated",
+        "--record",
+        &out,
+    ]));
+    let missing = ["B3", "D3"];
+    let kept: Vec<&(u64, String, String)> = original
+        .iter()
+        .filter(|(_, id, _)| source(id).is_none_or(|s| missing.contains(&s)))
+        .collect();
+    assert!(kept.len() > 300, "{}", kept.len());
+    assert_eq!(count(&err, "replayed"), kept.len() as u64, "{err}");
+    assert_eq!(
+        count(&err, "frames skipped"),
+        (original.len() - kept.len()) as u64,
+        "{err}"
+    );
+    let again = lines(&std::fs::read_to_string(&out).unwrap());
+    let from_missing = |l: &[(u64, String, String)]| -> Vec<(String, String)> {
+        l.iter()
+            .filter(|(_, id, _)| source(id).is_some_and(|s| missing.contains(&s)))
+            .map(|(_, id, data)| (id.clone(), data.clone()))
+            .collect()
+    };
+    let want: Vec<(String, String)> = kept.iter().map(|(_, id, d)| (id.clone(), d.clone())).collect();
+    assert_eq!(
+        from_missing(&again),
+        want,
+        "B3's and D3's frames, as recorded, in order"
+    );
+}
+
+#[test]
+fn loops_multiply_the_frames_and_keep_time_going_forward() {
+    let (log, original) = recorded();
+    let out = path("loop.log");
+    let err = ok(harvemu(&[
+        "replay",
+        log,
+        "--fast",
+        "--without",
+        "D3",
+        "--skip-emulated",
+        "--loop",
+        "3",
+        "--record",
+        &out,
+    ]));
+    let d3 = |l: &[(u64, String, String)]| -> Vec<(u64, String)> {
+        l.iter()
+            .filter(|(_, id, _)| source(id) == Some("D3"))
+            .map(|(t, _, d)| (*t, d.clone()))
+            .collect()
+    };
+    let once = d3(original);
+    let thrice = d3(&lines(&std::fs::read_to_string(&out).unwrap()));
+    assert_eq!(thrice.len(), 3 * once.len());
+    assert_eq!(count(&err, "replayed"), 3 * once.len() as u64);
+    assert!(err.contains("3 pass(es)"), "{err}");
+    for pass in thrice.chunks(once.len()) {
+        let payloads: Vec<&String> = pass.iter().map(|(_, d)| d).collect();
+        assert_eq!(payloads, once.iter().map(|(_, d)| d).collect::<Vec<_>>());
+    }
+    assert!(
+        thrice.windows(2).all(|w| w[0].0 < w[1].0),
+        "times keep increasing"
+    );
+}
+
+#[test]
+fn an_asc_recording_holds_the_same_frames_as_a_candump_recording() {
+    let (_, original) = recorded();
+    let asc = path("full.asc");
+    ok(harvemu(&["run", "--fast", "--for", "6s", "--record", &asc]));
+    let text = std::fs::read_to_string(&asc).unwrap();
+    let all: Vec<&str> = text.lines().collect();
+    assert!(all[0].starts_with("date "), "{}", all[0]);
+    assert_eq!(all[1], "base hex  timestamps absolute");
+    assert_eq!(*all.last().unwrap(), "End TriggerBlock");
+    // Frame lines, read here: "   0.551520 1  0200F5E0x       Rx   d 7 10 78 00 F4 01 00 00".
+    let frames: Vec<(u64, String, String)> = all
+        .iter()
+        .filter(|l| l.contains(" Rx "))
+        .map(|l| {
+            let f: Vec<&str> = l.split_whitespace().collect();
+            let (secs, us) = f[0].split_once('.').unwrap();
+            let id = f[2].trim_end_matches('x').to_string();
+            let data: String = f[6..].concat();
+            (
+                secs.parse::<u64>().unwrap() * 1_000_000 + us.parse::<u64>().unwrap(),
+                id,
+                data,
+            )
+        })
+        .collect();
+    assert_eq!(
+        &frames, original,
+        "the same run, the same frames at the same times"
+    );
+}
+
+#[test]
+fn replaying_an_asc_trace_works_as_replaying_its_candump_twin() {
+    let (log, _) = recorded();
+    let asc = path("twin.asc");
+    ok(harvemu(&["run", "--fast", "--for", "6s", "--record", &asc]));
+    let (a, b) = (path("from-log.log"), path("from-asc.log"));
+    let args = ["--fast", "--without", "D3", "--skip-emulated", "--record"];
+    let e1 = ok(harvemu(
+        &[&["replay", log.as_str()], &args[..], &[a.as_str()]].concat(),
+    ));
+    let e2 = ok(harvemu(
+        &[&["replay", asc.as_str()], &args[..], &[b.as_str()]].concat(),
+    ));
+    assert_eq!(count(&e1, "replayed"), count(&e2, "replayed"));
+    // The same run in either format: the same timing, the same bus.
+    assert_eq!(
+        std::fs::read_to_string(a).unwrap(),
+        std::fs::read_to_string(b).unwrap()
+    );
+}
+
+#[test]
+fn an_interrupted_asc_recording_is_complete() {
+    let asc = path("interrupted.asc");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_harvemu"))
+        .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
+        .args(["run", "--record", &asc])
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // The live summary line comes once a second of bus time, after the trace was flushed.
+    let mut err = BufReader::new(child.stderr.take().unwrap());
+    let mut buf = Vec::new();
+    loop {
+        buf.clear();
+        let n = err.read_until(b'\r', &mut buf).unwrap();
+        assert!(n > 0, "harvemu ended early");
+        if String::from_utf8_lossy(&buf).contains("frames") {
+            break;
+        }
+    }
+    let kill = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    let mut rest = String::new();
+    std::io::Read::read_to_string(&mut err, &mut rest).unwrap();
+    assert!(child.wait().unwrap().success(), "{rest}");
+    assert!(rest.contains("interrupted"), "{rest}");
+    let text = std::fs::read_to_string(&asc).unwrap();
+    assert!(text.ends_with("End TriggerBlock\n"), "{text}");
+    let records = bus::tracefile::read_str(&text, bus::tracefile::ErrorFrames::Keep).unwrap();
+    assert!(records.len() > 100, "{} frames", records.len());
+}
+
+#[test]
+fn bad_input_is_one_line_and_exit_code_2() {
+    let bad = path("bad.log");
+    std::fs::write(&bad, "(1.000000) can0 123#00\n(1.5) can0 123#0G\n").unwrap();
+    let asc = path("bad.asc");
+    std::fs::write(
+        &asc,
+        "date Wed Jun 12 02:47:38.610 pm 2024\nbase hex  timestamps absolute\n1.0 1 123 Rx d 3 01\n",
+    )
+    .unwrap();
+    let empty = path("empty.log");
+    std::fs::write(&empty, "\n").unwrap();
+    let missing = path("missing.log");
+    let (log, _) = recorded();
+    for (args, words) in [
+        (vec!["replay", &bad, "--fast"], format!("{bad}:2: frame '123#0G'")),
+        (vec!["replay", &asc, "--fast"], format!("{asc}:3: ")),
+        (vec!["replay", &empty, "--fast"], "no frames".to_string()),
+        (
+            vec!["replay", &missing, "--fast"],
+            format!("cannot open {missing}"),
+        ),
+        (
+            vec!["replay", log, "--fast", "--loop", "0"],
+            "at least 1".to_string(),
+        ),
+        (vec!["replay", log, "--fast", "--loop"], "needs --for".to_string()),
+        (
+            vec!["replay", log, "--iface", "harvemu-none"],
+            "cannot open CAN interface harvemu-none".to_string(),
+        ),
+        (
+            vec!["replay", log, "--fast", "--iface", "vcan0"],
+            "real time".to_string(),
+        ),
+        (vec!["replay", log, "--without", "Z9"], "no such node".to_string()),
+    ] {
+        let out = harvemu(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(&words), "{args:?}: {err}");
+        if !args.contains(&"Z9") {
+            // Config problems are listed one a line; everything else is one line.
+            assert_eq!(err.trim_end().lines().count(), 1, "{args:?}: {err}");
+        }
+    }
+}

@@ -1,0 +1,213 @@
+//! python-can as the external parser: it reads the candump logs and ASC files harvemu writes,
+//! and harvemu reads the ASC files python-can writes. Without python-can the tests fail when
+//! `CI` is set and say they were skipped otherwise (install: `python3 -m pip install python-can`).
+
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// Prints every message of a trace as one JSON object a line.
+const DUMP: &str = r#"
+import json, sys, can
+path = sys.argv[1]
+reader = can.ASCReader(path) if path.endswith(".asc") else can.CanutilsLogReader(path)
+for m in reader:
+    print(json.dumps({
+        "t_us": round(m.timestamp * 1e6), "error": m.is_error_frame,
+        "id": m.arbitration_id, "ext": m.is_extended_id, "remote": m.is_remote_frame,
+        "dlc": m.dlc, "data": m.data.hex() if not m.is_remote_frame else "",
+    }))
+"#;
+
+/// Writes an ASC file with python-can and prints what it wrote, as DUMP does.
+const WRITE: &str = r#"
+import json, sys, can
+msgs = [
+    can.Message(timestamp=100.0, arbitration_id=0x0300A0F5, is_extended_id=True, data=[1, 1]),
+    can.Message(timestamp=100.000250, arbitration_id=0x123, is_extended_id=False, data=[]),
+    can.Message(timestamp=100.5, arbitration_id=0x7FF, is_extended_id=False, is_remote_frame=True, dlc=8),
+    can.Message(timestamp=101.25, arbitration_id=0x5, is_extended_id=True, is_remote_frame=True, dlc=0),
+    can.Message(timestamp=101.5, is_error_frame=True),
+    can.Message(timestamp=102.000001, arbitration_id=0x1FFFFFFF, is_extended_id=True, data=range(0xF8, 0x100)),
+]
+w = can.ASCWriter(sys.argv[1])
+for m in msgs:
+    w.on_message_received(m)
+w.stop()
+for m in msgs:
+    print(json.dumps({
+        "t_us": round((m.timestamp - 100.0) * 1e6), "error": m.is_error_frame,
+        "id": m.arbitration_id, "ext": m.is_extended_id, "remote": m.is_remote_frame,
+        "dlc": m.dlc, "data": bytes(m.data).hex() if not m.is_remote_frame else "",
+    }))
+"#;
+
+/// True when python-can is there; otherwise a failure under CI, a skip message elsewhere.
+fn python_can() -> bool {
+    let there = Command::new("python3")
+        .args(["-c", "import can"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !there {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "python-can is missing: install it with `python3 -m pip install python-can`"
+        );
+        eprintln!("SKIPPED: python-can is not installed (python3 -m pip install python-can)");
+    }
+    there
+}
+
+fn python(script: &str, arg: &Path) -> Vec<Value> {
+    let out = Command::new("python3")
+        .args(["-c", script])
+        .arg(arg)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    String::from_utf8(out.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect()
+}
+
+fn dir() -> PathBuf {
+    let d = std::env::temp_dir().join(format!("harvemu-python-can-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// The frames of a candump log as the JSON DUMP prints, read here by hand.
+fn expected(log: &str) -> Vec<Value> {
+    log.lines()
+        .map(|l| {
+            let (time, rest) = l.strip_prefix('(').unwrap().split_once(") harv0 ").unwrap();
+            let (secs, us) = time.split_once('.').unwrap();
+            let (id, data) = rest.split_once('#').unwrap();
+            let (remote, dlc, data) = match data.strip_prefix('R') {
+                Some(d) => (true, d.parse().unwrap_or(0), String::new()),
+                None => (false, data.len() / 2, data.to_lowercase()),
+            };
+            serde_json::json!({
+                "t_us": secs.parse::<u64>().unwrap() * 1_000_000 + us.parse::<u64>().unwrap(),
+                "error": false, "id": u32::from_str_radix(id, 16).unwrap(), "ext": id.len() == 8,
+                "remote": remote, "dlc": dlc, "data": data,
+            })
+        })
+        .collect()
+}
+
+#[test]
+fn python_can_reads_what_harvemu_writes() {
+    if !python_can() {
+        return;
+    }
+    let d = dir();
+    let run = |file: &Path| {
+        let out = Command::new(env!("CARGO_BIN_EXE_harvemu"))
+            .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
+            .args(["run", "--fast", "--for", "3s", "--record"])
+            .arg(file)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    };
+    let (log, asc) = (d.join("run.log"), d.join("run.asc"));
+    run(&log);
+    run(&asc);
+    let want = expected(&std::fs::read_to_string(&log).unwrap());
+    assert!(want.len() > 1000, "{} frames", want.len());
+    assert_eq!(python(DUMP, &log), want, "candump log");
+    assert_eq!(python(DUMP, &asc), want, "ASC (the same run)");
+}
+
+#[test]
+fn python_can_reads_error_frames_and_remote_frames_harvemu_writes() {
+    if !python_can() {
+        return;
+    }
+    let d = dir();
+    // A candump log with a bus error frame (as the hub writes it) and remote frames, converted to
+    // ASC by the same writer `--record FILE.asc` uses.
+    let log = "(0.500000) harv0 0300A0F5#0101\n\
+               (0.600000) harv0 200002A8#0000801900000800\n\
+               (0.700000) harv0 7FF#R8\n\
+               (0.800000) harv0 00000005#R\n";
+    let asc_path = d.join("errors.asc");
+    {
+        use std::io::Write;
+        let file = std::fs::File::create(&asc_path).unwrap();
+        let mut w = bus::tracefile::AscWriter::new(file, std::time::SystemTime::now()).unwrap();
+        w.write_all(log.as_bytes()).unwrap();
+        w.finish().unwrap();
+    }
+    let log_path = d.join("errors.log");
+    std::fs::write(&log_path, log).unwrap();
+    for path in [&log_path, &asc_path] {
+        let got = python(DUMP, path);
+        let shape: Vec<(u64, bool, bool, u64)> = got
+            .iter()
+            .map(|m| {
+                (
+                    m["t_us"].as_u64().unwrap(),
+                    m["error"].as_bool().unwrap(),
+                    m["remote"].as_bool().unwrap(),
+                    m["dlc"].as_u64().unwrap(),
+                )
+            })
+            .collect();
+        assert_eq!(
+            shape[1..3],
+            [(600_000, true, false, 0), (700_000, false, true, 8)],
+            "{path:?}"
+        );
+        assert_eq!(shape[3], (800_000, false, true, 0), "{path:?}");
+        assert_eq!(
+            (got[3]["id"].as_u64(), got[3]["ext"].as_bool()),
+            (Some(5), Some(true))
+        );
+    }
+}
+
+#[test]
+fn harvemu_reads_what_python_can_writes() {
+    if !python_can() {
+        return;
+    }
+    let path = dir().join("python.asc");
+    let written = python(WRITE, &path);
+    let text = std::fs::read_to_string(&path).unwrap();
+    let records = bus::tracefile::read_str(&text, bus::tracefile::ErrorFrames::Keep).unwrap();
+    let got: Vec<Value> = records
+        .iter()
+        .map(|r| {
+            let t_us = r.at.as_nanos() / 1000;
+            match r.entry {
+                bus::tracefile::Entry::Error(_) => serde_json::json!({
+                    "t_us": t_us, "error": true, "id": 0, "ext": true, "remote": false, "dlc": 0, "data": "",
+                }),
+                bus::tracefile::Entry::Frame(f) => serde_json::json!({
+                    "t_us": t_us, "error": false, "id": f.raw_id(), "ext": f.is_extended(),
+                    "remote": f.is_remote(), "dlc": f.dlc(),
+                    "data": f.data().iter().map(|b| format!("{b:02x}")).collect::<String>(),
+                }),
+            }
+        })
+        .collect();
+    assert_eq!(got, written, "{text}");
+    // And the command line plays it.
+    let out = Command::new(env!("CARGO_BIN_EXE_harvemu"))
+        .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
+        .arg("replay")
+        .arg(&path)
+        .arg("--fast")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains("1 error frames (not replayable)") && err.contains(" 5 replayed"),
+        "{err}"
+    );
+}
