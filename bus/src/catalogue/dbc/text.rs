@@ -43,13 +43,13 @@ const NEW_SYMBOLS: &[&str] = &[
 
 /// A factor or offset: Rust's shortest round-trip form, so that the parsed value is the
 /// catalogue's exactly (never an exponent: `{}` on f64 writes plain digits).
-fn exact(x: f64) -> String {
+pub(super) fn exact(x: f64) -> String {
     if x == 0.0 { "0".to_string() } else { format!("{x}") }
 }
 
 /// A range bound: nine decimals at most, so that float noise from scaling
 /// (655.3500000000001) does not show.
-fn bound(x: f64) -> String {
+pub(super) fn bound(x: f64) -> String {
     let s = format!("{x:.9}");
     let s = s.trim_end_matches('0').trim_end_matches('.');
     if s == "-0" { "0".to_string() } else { s.to_string() }
@@ -57,7 +57,7 @@ fn bound(x: f64) -> String {
 
 /// A DBC string: no double quotes or backslashes inside, and plain ASCII because DBC tools
 /// read files as Windows-1252.
-fn string(text: &str) -> String {
+pub(super) fn string(text: &str) -> String {
     text.chars()
         .map(|c| match c {
             '"' => '\'',
