@@ -211,9 +211,11 @@ fn message(id: AppId, node: Address, groups: &[Group], network: &Network) -> Mes
         } else {
             Mux::Plain
         };
-        let base = g.messages[0];
+        let Some((&base, rest)) = g.messages.split_first() else {
+            continue;
+        };
         let mut alike = vec![base];
-        for m in &g.messages[1..] {
+        for m in rest {
             if same_layout(base, m) {
                 alike.push(m);
             } else {
@@ -232,7 +234,7 @@ fn message(id: AppId, node: Address, groups: &[Group], network: &Network) -> Mes
                 let Some((byte, value)) = m.selector else { continue };
                 if let Some(s) = signals[first..]
                     .iter_mut()
-                    .find(|s| s.start_bit == byte * 8 && s.bits == 8)
+                    .find(|s| u16::from(s.start_bit) == u16::from(byte) * 8 && s.bits == 8)
                     && !s.values.iter().any(|(v, _)| *v == u32::from(value))
                 {
                     s.values.push((u32::from(value), m.name.to_string()));
