@@ -4,6 +4,7 @@
 //! never panics on it.
 
 pub mod bench;
+pub mod dbc;
 pub mod harvester;
 pub mod inspect;
 pub mod record;

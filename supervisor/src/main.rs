@@ -4,7 +4,7 @@
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
-use supervisor::{BadInput, bench, inspect, replay, run, scenarios_cli};
+use supervisor::{BadInput, bench, dbc, inspect, replay, run, scenarios_cli};
 
 #[derive(Parser)]
 #[command(
@@ -31,6 +31,8 @@ enum Command {
     Inspect(inspect::Args),
     /// Measure how fast the emulator runs (saturated bus; many buses in one process).
     Bench(bench::Args),
+    /// Write a DBC of the whole harvester (catalogue messages, cycle times from the node scripts).
+    Dbc(dbc::Args),
     /// Print the message catalogue (`--markdown`: the generated part of docs/PROTOCOL.md).
     Protocol {
         /// Print the Markdown tables of docs/PROTOCOL.md.
@@ -66,6 +68,7 @@ fn main() -> ExitCode {
         },
         Command::Inspect(args) => inspect::run(&args),
         Command::Bench(args) => bench::run(&args),
+        Command::Dbc(args) => dbc::run(&args),
         Command::Protocol { markdown } => {
             if markdown {
                 println!("{}", bus::catalogue::doc::markdown());

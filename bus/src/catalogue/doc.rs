@@ -17,7 +17,7 @@ fn nodes(n: Nodes) -> String {
     }
 }
 
-fn trigger(t: Trigger) -> String {
+pub(super) fn trigger(t: Trigger) -> String {
     match t {
         Trigger::Periodic { period_ms } => format!("every {period_ms} ms"),
         Trigger::OnChange { heartbeat_ms } => format!("on change, at least every {heartbeat_ms} ms"),

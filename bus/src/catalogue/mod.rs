@@ -10,6 +10,7 @@
 //! byte × 8 + bit). The decoder, the reference monitor, the behaviour scripts and the DBC export
 //! all read this table; `docs/PROTOCOL.md` describes it.
 
+pub mod dbc;
 pub mod doc;
 mod messages;
 

@@ -1,0 +1,69 @@
+//! `harvemu dbc`: a DBC of the whole harvester, from the message catalogue and the cycle times of
+//! the harvester config's node scripts.
+
+use crate::BadInput;
+use crate::harvester::{self, Harvester};
+use bus::catalogue::dbc::{self, Network};
+use bus::catalogue::{MESSAGES, Trigger};
+use bus::ident::Address;
+use nodes::script::When;
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::PathBuf;
+
+/// Arguments of `harvemu dbc`.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Write the DBC to this file instead of standard output.
+    #[arg(short, long, value_name = "FILE")]
+    output: Option<PathBuf>,
+    /// Harvester config whose node scripts give the cycle times.
+    #[arg(long, value_name = "FILE", default_value = "configs/harvester.ron")]
+    config: PathBuf,
+}
+
+/// The network `h` describes: each scripted node's periodic and on-change messages, with the
+/// shortest cycle when a script sends a message from more than one entry.
+pub fn network(h: &Harvester) -> Network {
+    let mut scripted: BTreeMap<Address, BTreeMap<String, Trigger>> = BTreeMap::new();
+    for script in &h.scripts {
+        let sends = scripted.entry(Address(script.address)).or_default();
+        for send in &script.messages {
+            let trigger = match send.when {
+                When::Periodic { period_ms, .. } => Trigger::Periodic {
+                    period_ms: u32::try_from(period_ms).unwrap_or(u32::MAX),
+                },
+                When::OnChange { heartbeat_ms, .. } => Trigger::OnChange {
+                    heartbeat_ms: u32::try_from(heartbeat_ms).unwrap_or(u32::MAX),
+                },
+                When::OnRequest => continue,
+            };
+            for frame in &send.frames {
+                let shorter = match sends.get(&frame.message).and_then(|t| t.cycle_ms()) {
+                    Some(known) => trigger.cycle_ms().is_some_and(|new| new < known),
+                    None => true,
+                };
+                if shorter {
+                    sends.insert(frame.message.clone(), trigger);
+                }
+            }
+        }
+    }
+    Network {
+        name: h.config.name.clone(),
+        bitrate: h.config.bitrate,
+        scripted,
+    }
+}
+
+/// Runs `harvemu dbc`.
+pub fn run(args: &Args) -> anyhow::Result<()> {
+    let h = Harvester::load(&args.config).map_err(harvester::bad)?;
+    let text = dbc::generate(MESSAGES, &network(&h));
+    match &args.output {
+        Some(path) => std::fs::write(path, text)
+            .map_err(|e| BadInput(format!("cannot write {}: {e}", path.display())))?,
+        None => std::io::stdout().lock().write_all(text.as_bytes())?,
+    }
+    Ok(())
+}
