@@ -6,6 +6,7 @@
 pub mod bench;
 pub mod harvester;
 pub mod inspect;
+pub mod report;
 pub mod run;
 pub mod scenario;
 pub mod scenarios_cli;
