@@ -12,7 +12,7 @@ mod plots;
 pub use plots::{COUNTERS, LATENCY, LOAD, SPEED, YIELD};
 
 use crate::scenario::junit::escape;
-use crate::scenario::{Outcome, Scenario};
+use crate::scenario::{Outcome, Scenario, Series};
 use std::fmt::Write;
 
 const STYLE: &str = "
@@ -141,10 +141,13 @@ fn events(out: &mut String, o: &Outcome) {
     out.push_str("</tbody>\n</table>\n");
 }
 
+/// Draws one plot of a run's series as an SVG document.
+type Plot = fn(&Series) -> Result<String, String>;
+
 fn plots(out: &mut String, n: usize, o: &Outcome) {
     let s = &o.series;
     out.push_str("<h3>Over time</h3>\n");
-    let figures: [(&str, &str, fn(&crate::scenario::Series) -> Result<String, String>); 5] = [
+    let figures: [(&str, &str, Plot); 5] = [
         ("load", plots::LOAD, plots::load),
         ("latency", plots::LATENCY, plots::latency),
         ("counters", plots::COUNTERS, plots::counters),
@@ -152,7 +155,7 @@ fn plots(out: &mut String, n: usize, o: &Outcome) {
         ("speed", plots::SPEED, plots::speed),
     ];
     for (id, title, draw) in figures {
-        let _ = write!(out, "<figure id=\"plot-{id}-{n}\" class=\"plot-{id}\">\n");
+        let _ = writeln!(out, "<figure id=\"plot-{id}-{n}\" class=\"plot-{id}\">");
         match draw(s) {
             Ok(svg) => out.push_str(&svg),
             Err(e) => {
@@ -171,7 +174,7 @@ fn plots(out: &mut String, n: usize, o: &Outcome) {
     }
 }
 
-fn latency_table(out: &mut String, s: &crate::scenario::Series) {
+fn latency_table(out: &mut String, s: &Series) {
     out.push_str("<table class=\"latency\">\n<thead><tr><th>class</th><th>frames</th><th>mean [µs]</th><th>p99 [µs]</th><th>max [µs]</th></tr></thead>\n<tbody>\n");
     for c in &s.latency {
         let _ = writeln!(
@@ -185,4 +188,64 @@ fn latency_table(out: &mut String, s: &crate::scenario::Series) {
         );
     }
     out.push_str("</tbody>\n</table>\n");
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::harvester::SupervisorEvent;
+    use crate::scenario::Verdict;
+    use bus::time::BusTime;
+
+    fn scenario(name: &str) -> Scenario {
+        Scenario {
+            name: name.into(),
+            description: String::new(),
+            config: "../harvester.ron".into(),
+            seed: None,
+            duration_s: 30.0,
+            cruise_start_s: None,
+            timeline: Vec::new(),
+            expect: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn the_command_survives_a_shell() {
+        let c = reproduce("my runs/it's <1>.ron", 7);
+        assert_eq!(
+            shlex::split(&c).unwrap(),
+            ["harvemu", "scenario", "my runs/it's <1>.ron", "--seed", "7"]
+        );
+    }
+
+    #[test]
+    fn a_run_stopped_at_once_still_gets_a_page_with_every_plot() {
+        // Interrupted before the first sample: empty series, one failed verdict, one event.
+        let outcome = Outcome {
+            verdicts: vec![Verdict {
+                expectation: "the run completes".into(),
+                passed: false,
+                at: Some(BusTime(500_000_000)),
+                observed: "interrupted (Ctrl-C)".into(),
+            }],
+            seed: 3,
+            events: vec![SupervisorEvent {
+                at: BusTime(400_000_000),
+                node: "D3".into(),
+                what: "crashed: <boom> & gone".into(),
+            }],
+            wall_seconds: 0.1,
+            interrupted: true,
+            series: Series::default(),
+        };
+        let s = scenario("short");
+        let page = html(&[("a.ron".into(), &s, &outcome)]);
+        assert_eq!(page.matches("<svg").count(), 5);
+        assert!(!page.contains("cannot draw"));
+        assert!(page.contains("(interrupted)"));
+        assert!(page.contains("FAIL: 1 of 1 expectations failed"));
+        assert!(page.contains("<td>crashed: &lt;boom&gt; &amp; gone</td>"));
+        assert!(page.contains("no error counter rose above zero"));
+    }
 }

@@ -116,6 +116,9 @@ pub fn load(s: &Series) -> Result<String> {
     })
 }
 
+/// One kind of bar of the latency plot: label, colour, half width, value in µs.
+type Bar = (&'static str, RGBColor, f64, fn(&ClassLatency) -> f64);
+
 /// Mean, 99th percentile and maximum latency (submit to end of frame) of each priority class,
 /// as nested bars.
 pub fn latency(s: &Series) -> Result<String> {
@@ -146,7 +149,7 @@ pub fn latency(s: &Series) -> Result<String> {
             .draw()
             .map_err(err)?;
         // Widest first, so that each narrower bar stays visible on top of the one behind it.
-        let bars: [(&str, RGBColor, f64, fn(&ClassLatency) -> f64); 3] = [
+        let bars: [Bar; 3] = [
             ("max", RGBColor(190, 200, 235), 0.4, |c| c.max_us),
             ("p99", RGBColor(90, 120, 210), 0.27, |c| c.p99_us),
             ("mean", RGBColor(20, 40, 120), 0.14, |c| c.mean_us),
@@ -217,7 +220,7 @@ pub fn counters(s: &Series) -> Result<String> {
         if s.counters.is_empty() {
             upper
                 .draw(&Text::new(
-                    "no node's counters rose above zero",
+                    "no error counter rose above zero",
                     (80, 40),
                     (FONT, 14),
                 ))
