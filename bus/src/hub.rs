@@ -624,6 +624,25 @@ impl Handler<GetCrashed> for Hub {
     }
 }
 
+/// Asks for every node's (TEC, REC), by node index: cheap enough to ask once per bus second
+/// (the statistics keep counters only at errors, so a sampler sees them decay with this).
+#[derive(Message)]
+#[rtype(result = "Vec<(u16, u16)>")]
+pub struct GetErrorCounters;
+
+impl Handler<GetErrorCounters> for Hub {
+    type Result = MessageResult<GetErrorCounters>;
+    fn handle(&mut self, _: GetErrorCounters, _: &mut Context<Self>) -> Self::Result {
+        MessageResult(
+            self.bus
+                .controllers()
+                .iter()
+                .map(|c| (c.fault().tec(), c.fault().rec()))
+                .collect(),
+        )
+    }
+}
+
 /// Asks for a [`Snapshot`].
 #[derive(Message)]
 #[rtype(result = "Snapshot")]

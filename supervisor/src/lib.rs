@@ -9,6 +9,7 @@ pub mod harvester;
 pub mod inspect;
 pub mod record;
 pub mod replay;
+pub mod report;
 pub mod run;
 pub mod scenario;
 pub mod scenarios_cli;

@@ -2,6 +2,7 @@
 
 use crate::BadInput;
 use crate::harvester::{self, Harvester};
+use crate::report;
 use crate::scenario::{self, Loaded, junit};
 use indicatif::{ProgressBar, ProgressStyle};
 use nodes::Error;
@@ -24,6 +25,10 @@ pub struct ScenarioArgs {
     /// in .asc, else a candump log.
     #[arg(long)]
     record: Option<PathBuf>,
+    /// Write an HTML report here: one page, a section per scenario, plots inline (written also
+    /// when expectations fail or the run is interrupted).
+    #[arg(long)]
+    report: Option<PathBuf>,
 }
 
 /// Runs `harvemu scenario`: exit code 0 only when every expectation of every scenario passed.
@@ -41,9 +46,20 @@ pub fn run(args: &ScenarioArgs) -> anyhow::Result<bool> {
     if !problems.is_empty() {
         return Err(harvester::bad(Error::Invalid(problems)));
     }
+    // Opened before anything runs: a bad path should not cost a whole run.
+    let report = match &args.report {
+        Some(p) => Some((p, create(p)?)),
+        None => None,
+    };
     let mut outcomes = Vec::new();
     for l in &loaded {
-        outcomes.push(run_one(l, args.record.as_ref())?);
+        let outcome = run_one(l, args.record.as_ref())?;
+        let interrupted = outcome.interrupted;
+        outcomes.push(outcome);
+        if interrupted {
+            // Ctrl-C stops the batch: what ran is reported below.
+            break;
+        }
     }
     let mut all_passed = true;
     for (l, o) in loaded.iter().zip(&outcomes) {
@@ -81,16 +97,28 @@ pub fn run(args: &ScenarioArgs) -> anyhow::Result<bool> {
         .map(|o| o.verdicts.iter().filter(|v| !v.passed).count())
         .sum();
     println!("{passed} passed, {failed} failed");
+    let runs: Vec<(String, &scenario::Scenario, &scenario::Outcome)> = loaded
+        .iter()
+        .zip(&outcomes)
+        .map(|(l, o)| (l.path.display().to_string(), &l.scenario, o))
+        .collect();
     if let Some(path) = &args.junit {
-        let runs: Vec<(String, &scenario::Scenario, &scenario::Outcome)> = loaded
-            .iter()
-            .zip(&outcomes)
-            .map(|(l, o)| (l.path.display().to_string(), &l.scenario, o))
-            .collect();
         std::fs::write(path, junit::xml(&runs))
             .map_err(|e| BadInput(format!("cannot write {}: {e}", path.display())))?;
     }
+    if let Some((path, mut file)) = report {
+        file.write_all(report::html(&runs).as_bytes())
+            .and_then(|()| file.flush())
+            .map_err(|e| BadInput(format!("cannot write {}: {e}", path.display())))?;
+    }
     Ok(all_passed)
+}
+
+/// Creates the report file.
+fn create(p: &PathBuf) -> anyhow::Result<std::io::BufWriter<std::fs::File>> {
+    let file =
+        std::fs::File::create(p).map_err(|e| BadInput(format!("cannot create {}: {e}", p.display())))?;
+    Ok(std::io::BufWriter::new(file))
 }
 
 fn run_one(l: &Loaded, record: Option<&PathBuf>) -> anyhow::Result<scenario::Outcome> {

@@ -2,7 +2,8 @@
 
 use super::{Outcome, Scenario};
 
-fn escape(s: &str) -> String {
+/// Escapes text for XML and HTML (element content and double-quoted attributes).
+pub(crate) fn escape(s: &str) -> String {
     s.replace('&', "&amp;")
         .replace('<', "&lt;")
         .replace('>', "&gt;")

@@ -5,16 +5,18 @@
 mod check;
 pub mod junit;
 mod model;
+pub mod series;
 
 pub use check::Verdict;
 pub use model::*;
+pub use series::Series;
 
 use crate::BadInput;
 use crate::harvester::{self, Harvester, Running};
 use actix::prelude::*;
 use bus::candump::parse_frame;
 use bus::engine::{BitPosition, ControllerConfig, Filter, Rule, Schedule};
-use bus::hub::{Attach, Control, GetSnapshot, Submit, runtime};
+use bus::hub::{Attach, Control, GetErrorCounters, GetSnapshot, Submit, runtime};
 use bus::node::{Apply, NodeActor, NodeLogic};
 use bus::time::BusTime;
 use nodes::plant::Plant;
@@ -282,6 +284,10 @@ pub struct Outcome {
     pub events: Vec<harvester::SupervisorEvent>,
     /// Wall-clock seconds.
     pub wall_seconds: f64,
+    /// Stopped by Ctrl-C before the end.
+    pub interrupted: bool,
+    /// What the run looked like over time (for the report).
+    pub series: Series,
 }
 
 impl Outcome {
@@ -333,11 +339,27 @@ pub fn run(
         // Ctrl-C stops the run where it is; verdicts, trace and report are still written.
         let mut ctrl_c = Box::pin(tokio::signal::ctrl_c());
         let mut interrupted = false;
+        let mut series = Series::default();
+        // Runs to a time, stopping at each whole second on the way to sample the series.
         macro_rules! run_to {
             ($t:expr) => {
-                tokio::select! {
-                    r = running.run_until($t) => r?,
-                    _ = &mut ctrl_c => interrupted = true,
+                let target = $t;
+                loop {
+                    let stop = series.next_stop(running.now(), target);
+                    tokio::select! {
+                        r = running.run_until(stop) => r?,
+                        _ = &mut ctrl_c => interrupted = true,
+                    }
+                    if interrupted {
+                        break;
+                    }
+                    if series.is_due(running.now()) {
+                        let sample = sample(&running).await?;
+                        series.record(running.now(), sample);
+                    }
+                    if running.now() >= target {
+                        break;
+                    }
                 }
             };
         }
@@ -381,13 +403,33 @@ pub fn run(
                 observed: "interrupted (Ctrl-C)".into(),
             });
         }
-        anyhow::Ok((verdicts, running.events.clone()))
+        series.finish(&snap);
+        anyhow::Ok((verdicts, running.events.clone(), interrupted, series))
     })?;
     Ok(Outcome {
         verdicts: result.0,
         seed,
         events: result.1,
         wall_seconds: started.elapsed().as_secs_f64(),
+        interrupted: result.2,
+        series: result.3,
+    })
+}
+
+/// Reads the plant, the monitor's display and the error counters, without moving anything on.
+async fn sample(running: &Running) -> anyhow::Result<series::Sample> {
+    let counters = running.hub.send(GetErrorCounters).await?;
+    // The plant is read as of its last step (nodes advance it as they run): advancing it here
+    // could change when a node's input takes effect.
+    let plant = running.plant.borrow();
+    let display = running.display.as_ref().map(|d| d.borrow());
+    Ok(series::Sample {
+        t_s: 0.0,
+        speed_kmh: plant.signal("speed.actual").unwrap_or(f64::NAN),
+        harvested_kg: plant.signal("harvested.total").unwrap_or(f64::NAN),
+        monitor_speed_kmh: display.as_ref().and_then(|d| d.speed_kmh),
+        monitor_kg: display.as_ref().map(|d| d.total_kg),
+        counters,
     })
 }
 
