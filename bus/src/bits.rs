@@ -177,45 +177,76 @@ pub fn frame_bits(frame: &Frame) -> u32 {
     stuffed_len(frame) + TAIL_BITS
 }
 
-/// Length of the stuffed bitstream (SOF through the last CRC bit), as [`encode`] gives it, counted
-/// a run of equal bits at a time instead of a bit at a time: what the bus needs for every frame
-/// that goes through without an error.
+/// Length of the stuffed bitstream (SOF through the last CRC bit), as [`encode`] gives it,
+/// stuffed a byte at a time through [`STUFF_TABLE`] instead of a bit at a time: what the bus
+/// needs for every frame that goes through without an error.
 pub fn stuffed_len(frame: &Frame) -> u32 {
     let (head, head_len) = unstuffed_head(frame);
     let crc = crc15(head, head_len);
     let all = (head << 15) | u128::from(crc);
     let len = head_len + 15;
-    let mut stuff_bits = 0;
-    // The bit value of the run in the stuffed stream so far, and its length (a stuff bit starts a
-    // run of its own value).
-    let mut last = false;
-    let mut run = 0u32;
-    let mut p = len; // bits left, the next one at index p - 1
-    while p > 0 {
-        let bit = (all >> (p - 1)) & 1 == 1;
-        // Equal bits from p - 1 down: the leading zeros of the bits that differ from `bit`.
-        let differ = if bit { !all } else { all };
-        let equal = (differ << (128 - p)).leading_zeros().min(p);
-        let before = if bit == last { run } else { 0 };
-        let to_first = 5 - before;
-        if equal >= to_first {
-            let after = equal - to_first;
-            stuff_bits += 1 + after / 5;
-            if after % 5 == 0 {
-                last = !bit;
-                run = 1;
-            } else {
-                last = bit;
-                run = after % 5;
-            }
-        } else {
-            last = bit;
-            run = before + equal;
-        }
-        p -= equal;
+    let mut state = 0usize;
+    let mut stuff_bits = 0u32;
+    // The first len % 8 bits one at a time, then whole bytes.
+    let lead = len % 8;
+    for i in (len - lead..len).rev() {
+        let (next, stuffed) = stuff_bit(state, (all >> i) & 1 == 1);
+        state = next;
+        stuff_bits += stuffed;
+    }
+    for k in (0..(len - lead) / 8).rev() {
+        let entry = STUFF_TABLE[state][((all >> (8 * k)) & 0xFF) as usize];
+        state = usize::from(entry & 0xFF);
+        stuff_bits += u32::from(entry >> 8);
     }
     len + stuff_bits
 }
+
+/// Stuffing state: the last bit of the stuffed stream (recessive or not) and the length of its
+/// run, 0..=4 (0 only before the first bit; a run reaching 5 is cut by a stuff bit, which starts
+/// a run of 1 of its own value), as `last * 5 + run`.
+const STUFF_STATES: usize = 10;
+
+/// One unstuffed bit through the stuffer: the next state and whether a stuff bit followed it.
+const fn stuff_bit(state: usize, bit: bool) -> (usize, u32) {
+    let last = state >= 5;
+    let run = state % 5;
+    let (last, run) = if run > 0 && bit == last {
+        (last, run + 1)
+    } else {
+        (bit, 1)
+    };
+    if run == 5 {
+        (if last { 1 } else { 6 }, 1)
+    } else {
+        (if last { 5 + run } else { run }, 0)
+    }
+}
+
+/// For each state and byte (most significant bit first): the next state in the low byte and the
+/// stuff bits inserted in the high byte.
+static STUFF_TABLE: [[u16; 256]; STUFF_STATES] = {
+    let mut table = [[0u16; 256]; STUFF_STATES];
+    let mut state = 0;
+    while state < STUFF_STATES {
+        let mut byte = 0;
+        while byte < 256 {
+            let mut s = state;
+            let mut stuffed = 0;
+            let mut i = 8;
+            while i > 0 {
+                i -= 1;
+                let (next, n) = stuff_bit(s, (byte >> i) & 1 == 1);
+                s = next;
+                stuffed += n;
+            }
+            table[state][byte] = (s as u16) | ((stuffed as u16) << 8);
+            byte += 1;
+        }
+        state += 1;
+    }
+    table
+};
 
 /// Data bytes that count for the can-utils estimates: none for a remote frame.
 fn data_len(frame: &Frame) -> u32 {

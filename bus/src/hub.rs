@@ -67,6 +67,12 @@ struct Slot {
     next_timeout: Option<BusTime>,
     pending_since: Option<BusTime>,
     events: Vec<(BusTime, ControllerEvent)>,
+    /// An input that needs the logic itself (an error-state change, an overrun) is pending.
+    event_wake: bool,
+    /// The logic said its frames can wait for its next deadline ([`Report::frames_can_wait`]).
+    frames_can_wait: bool,
+    /// Frames taken from the FIFO at the reaction time, for the next wake.
+    buffered: Vec<crate::engine::Received>,
     hung: bool,
     crashed: Option<String>,
 }
@@ -89,6 +95,16 @@ impl Slot {
         if wakes && self.pending_since.is_none() {
             self.pending_since = Some(at);
         }
+        self.event_wake |= wakes && event.is_some();
+    }
+
+    /// Forgets what the old logic left unread (a new logic starts with an empty FIFO too).
+    fn clear(&mut self) {
+        self.events.clear();
+        self.buffered.clear();
+        self.event_wake = false;
+        self.frames_can_wait = false;
+        self.pending_since = None;
     }
 }
 
@@ -195,23 +211,31 @@ impl Hub {
         if let Some(h) = self.timer.take() {
             ctx.cancel_future(h);
         }
+        // Nodes become due only by being woken (recomputed then) or by new inputs (which
+        // `dispatch` reports), so the earliest due time is kept up to date, not rescanned.
+        let mut due = self.next_due();
         loop {
-            let due = self.next_due();
             let stop = self.stop_at.unwrap_or(BusTime::NEVER);
-            let bus_next = self.bus.next_event_time().filter(|&t| due.is_none_or(|d| t < d));
-            match (bus_next, due) {
-                (Some(t), _) if t < stop => {
-                    if !self.reached(t) {
-                        return self.arm(t, ctx);
-                    }
-                    self.bus.step();
-                    self.dispatch();
+            let limit = due.map_or(stop, |d| d.min(stop));
+            if let Some((t, next)) = self.bus.next_event().filter(|&(t, _)| t < limit) {
+                if !self.reached(t) {
+                    return self.arm(t, ctx);
                 }
-                (None, Some(d)) if d < stop => {
+                self.bus.commit(next);
+                if let Some(d) = self.dispatch() {
+                    due = Some(due.map_or(d, |x| x.min(d)));
+                }
+                continue;
+            }
+            match due {
+                Some(d) if d < stop => {
                     if !self.reached(d) {
                         return self.arm(d, ctx);
                     }
-                    return self.wake(d, ctx);
+                    if self.wake(d, ctx) {
+                        return;
+                    }
+                    due = self.next_due();
                 }
                 _ if stop < BusTime::NEVER => {
                     if !self.reached(stop) {
@@ -224,8 +248,10 @@ impl Hub {
         }
     }
 
-    /// Routes the engine's events to traces and to the nodes' pending inputs.
-    fn dispatch(&mut self) {
+    /// Routes the engine's events to traces and to the nodes' pending inputs. Returns the
+    /// earliest due time among the nodes that got inputs.
+    fn dispatch(&mut self) -> Option<BusTime> {
+        let mut due: Option<BusTime> = None;
         self.scratch.extend(self.bus.take_events());
         for event in self.scratch.drain(..) {
             if let Some(out) = self.trace.as_mut() {
@@ -264,12 +290,18 @@ impl Hub {
             };
             if let Some(slot) = self.slots.get_mut(node.index()) {
                 slot.input(at, input, wakes);
+                if let Some(d) = slot.due() {
+                    due = Some(due.map_or(d, |x| x.min(d)));
+                }
             }
         }
+        due
     }
 
-    /// Wakes every node due at `at`; the bus waits until all of them have answered.
-    fn wake(&mut self, at: BusTime, ctx: &mut Context<Self>) {
+    /// Wakes every node due at `at`; the bus waits until all of them have answered. Returns false
+    /// when no node needed its logic woken (frames that can wait were only taken from their
+    /// FIFOs): the bus goes on at once.
+    fn wake(&mut self, at: BusTime, ctx: &mut Context<Self>) -> bool {
         self.now = at;
         self.round += 1;
         self.crashed_in_round = false;
@@ -281,13 +313,30 @@ impl Hub {
             if self.slots[i].due() != Some(at) {
                 continue;
             }
-            let frames = match self.bus.drain_rx(NodeId(i as u16)) {
+            let drained = match self.bus.drain_rx(NodeId(i as u16), at) {
                 Ok((frames, _overrun)) => frames,
                 Err(_) => Vec::new(),
             };
+            let still_arriving = self.bus.rx_front(NodeId(i as u16));
             let slot = &mut self.slots[i];
-            slot.pending_since = None;
+            // A frame still on the wire is the next input, from its end.
+            slot.pending_since = still_arriving;
+            let timeout_due = slot.next_timeout.is_some_and(|t| t <= at);
+            if slot.frames_can_wait && !timeout_due && !slot.event_wake {
+                // What the node's receive interrupt does: the frames leave the FIFO now (so it
+                // does not overrun), and the logic gets them, in order, at its next deadline.
+                slot.buffered.extend(drained);
+                continue;
+            }
+            let frames = if slot.buffered.is_empty() {
+                drained
+            } else {
+                let mut frames = std::mem::take(&mut slot.buffered);
+                frames.extend(drained);
+                frames
+            };
             slot.next_timeout = None;
+            slot.event_wake = false;
             let events = std::mem::take(&mut slot.events);
             if let Some(node) = &slot.node {
                 self.waiting += 1;
@@ -301,9 +350,7 @@ impl Hub {
                 });
             }
         }
-        if self.waiting == 0 {
-            self.pump(ctx);
-        }
+        self.waiting > 0
     }
 
     /// Takes a node's answer; true when the node crashed.
@@ -325,6 +372,7 @@ impl Hub {
         self.slots[i].next_timeout = report
             .next_timeout
             .map(|t| if t <= now { now + 1_000_000 } else { t });
+        self.slots[i].frames_can_wait = report.frames_can_wait;
         false
     }
 
@@ -404,6 +452,9 @@ impl Handler<Attach> for Hub {
             next_timeout: Some(now),
             pending_since: None,
             events: Vec::new(),
+            event_wake: false,
+            frames_can_wait: false,
+            buffered: Vec::new(),
             hung: false,
             crashed: None,
         });
@@ -504,8 +555,7 @@ impl Handler<Replace> for Hub {
         slot.node = Some(msg.actor);
         slot.crashed = None;
         slot.hung = false;
-        slot.events.clear();
-        slot.pending_since = None;
+        slot.clear();
         slot.next_timeout = Some(now);
         self.dispatch();
         self.pump(ctx);

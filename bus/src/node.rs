@@ -45,6 +45,14 @@ pub trait NodeLogic {
     fn poll_transmit(&mut self) -> Option<Frame>;
     /// When `handle_timeout` is next due.
     fn poll_timeout(&self) -> Option<BusTime>;
+    /// True when `handle_frame` only stores frames for `handle_timeout` to work through (a
+    /// receive interrupt feeding a main loop): it transmits nothing and moves no deadline. The
+    /// hub then takes such a node's frames from its FIFO a reaction time after they arrive, as the
+    /// interrupt would, and hands them over at the next deadline instead of waking the logic for
+    /// each: the logic sees the same calls in the same order, for a fraction of the wakes.
+    fn frames_can_wait(&self) -> bool {
+        false
+    }
     /// The concrete logic, for fault injection that is specific to it (a script's sensor
     /// faults); `None` for logics that offer none.
     fn as_any_mut(&mut self) -> Option<&mut dyn std::any::Any> {
@@ -137,6 +145,8 @@ pub struct Report {
     pub next_timeout: Option<BusTime>,
     /// Set when the logic panicked: the message, and the node takes no further part.
     pub crashed: Option<String>,
+    /// [`NodeLogic::frames_can_wait`], as of this wake.
+    pub frames_can_wait: bool,
 }
 
 /// Most timeouts handled in one wake, so a logic whose deadline never moves cannot hang the bus.
@@ -187,6 +197,7 @@ pub fn drive(
         transmit,
         next_timeout: logic.poll_timeout(),
         crashed: None,
+        frames_can_wait: logic.frames_can_wait(),
     }
 }
 

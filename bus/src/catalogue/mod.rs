@@ -213,19 +213,17 @@ impl Field {
 
     /// Writes a raw value into a payload; the caller has checked the range.
     fn insert(&self, data: &mut [u8], raw: i64) {
-        let mask = (1u64 << self.bits) - 1;
-        let value = (raw as u64) & mask;
-        for bit in 0..self.bits {
-            let pos = usize::from(self.start_bit + bit);
-            if let Some(byte) = data.get_mut(pos / 8) {
-                let m = 1u8 << (pos % 8);
-                if value >> bit & 1 == 1 {
-                    *byte |= m
-                } else {
-                    *byte &= !m
-                }
-            }
-        }
+        // The payload as one little-endian word (bit n of the payload is bit n of the word);
+        // bits past its end are dropped.
+        let n = data.len().min(8);
+        let mut word = [0u8; 8];
+        word[..n].copy_from_slice(&data[..n]);
+        let mut word = u64::from_le_bytes(word);
+        let shift = u32::from(self.start_bit);
+        let mask = ((1u64 << self.bits) - 1).checked_shl(shift).unwrap_or(0);
+        let value = ((raw as u64) << shift.min(63)) & mask;
+        word = (word & !mask) | value;
+        data[..n].copy_from_slice(&word.to_le_bytes()[..n]);
     }
 
     /// The physical value of a raw value.

@@ -232,11 +232,20 @@ impl Controller {
         true
     }
 
-    /// Releases every frame in the receive FIFO (RRB until empty) and clears the overrun flag
-    /// (CDO).
-    pub(crate) fn drain(&mut self) -> (Vec<Received>, bool) {
-        self.rx_bytes = 0;
+    /// Releases the frames in the receive FIFO that had ended by `until` (RRB while there is
+    /// one) and clears the overrun flag (CDO). A frame the engine committed ahead, still on the
+    /// wire at `until`, stays.
+    pub(crate) fn drain(&mut self, until: BusTime) -> (Vec<Received>, bool) {
         let overrun = std::mem::take(&mut self.overrun_flag);
-        (self.rx.drain(..).collect(), overrun)
+        let n = self.rx.iter().take_while(|r| r.at <= until).count();
+        let frames: Vec<Received> = self.rx.drain(..n).collect();
+        let released: usize = frames.iter().map(|r| fifo_bytes(&r.frame)).sum();
+        self.rx_bytes = self.rx_bytes.saturating_sub(released);
+        (frames, overrun)
+    }
+
+    /// End of the oldest frame still in the receive FIFO.
+    pub(crate) fn rx_front(&self) -> Option<BusTime> {
+        self.rx.front().map(|r| r.at)
     }
 }

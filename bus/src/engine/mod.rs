@@ -197,6 +197,15 @@ pub enum Event {
     },
 }
 
+/// What the bus does next (from [`Bus::next_event`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum NextEvent {
+    /// The controller at this index recovers from bus off at this time.
+    Recovery(usize, BusTime),
+    /// Frames pending at this start of frame are arbitrated.
+    Frame(BusTime),
+}
+
 /// One CAN bus.
 #[derive(Debug)]
 pub struct Bus {
@@ -315,10 +324,16 @@ impl Bus {
         Ok(Some(token))
     }
 
-    /// Empties a node's receive FIFO: the frames, and whether an overrun happened since the last
-    /// drain.
-    pub fn drain_rx(&mut self, node: NodeId) -> Result<(Vec<Received>, bool), Error> {
-        Ok(self.get_mut(node)?.drain())
+    /// Takes from a node's receive FIFO the frames that had ended by `until`: the frames, and
+    /// whether an overrun happened since the last drain. Frames committed ahead of `until`
+    /// (the engine commits a whole frame at its start) stay until they have ended.
+    pub fn drain_rx(&mut self, node: NodeId, until: BusTime) -> Result<(Vec<Received>, bool), Error> {
+        Ok(self.get_mut(node)?.drain(until))
+    }
+
+    /// End of the oldest frame waiting in a node's receive FIFO.
+    pub fn rx_front(&self, node: NodeId) -> Option<BusTime> {
+        self.controllers.get(node.index()).and_then(Controller::rx_front)
     }
 
     /// Makes a node acknowledge frames or not.
@@ -344,7 +359,7 @@ impl Bus {
         let c = self.get_mut(node)?;
         c.fault.reset();
         c.tx.clear();
-        c.drain();
+        c.drain(BusTime::NEVER);
         c.recessive_since = at;
         c.suspended_until = c.suspended_until.max(at);
         self.events.push(Event::Restarted { node, at });
@@ -384,26 +399,35 @@ impl Bus {
 
     /// When the bus next acts on its own: a frame starting or a node recovering from bus off.
     pub fn next_event_time(&self) -> Option<BusTime> {
+        self.next_event().map(|(t, _)| t)
+    }
+
+    /// The next event the bus would commit, and when: pass it to [`Bus::commit`] (before
+    /// anything else changes the bus) to commit it without looking for it again.
+    pub fn next_event(&self) -> Option<(BusTime, NextEvent)> {
         match (self.next_sof(), self.next_recovery()) {
-            (Some(s), Some((r, _))) => Some(s.min(r)),
-            (s, r) => s.or(r.map(|(t, _)| t)),
+            (sof, Some((r, i))) if sof.is_none_or(|s| r <= s) => Some((r, NextEvent::Recovery(i, r))),
+            (Some(s), _) => Some((s, NextEvent::Frame(s))),
+            _ => None,
+        }
+    }
+
+    /// Commits an event found by [`Bus::next_event`].
+    pub fn commit(&mut self, event: NextEvent) {
+        match event {
+            NextEvent::Recovery(i, at) => self.recover(i, at),
+            NextEvent::Frame(sof) => self.attempt(sof),
         }
     }
 
     /// Commits the next event. Returns false when there is nothing to do.
     pub fn step(&mut self) -> bool {
-        let sof = self.next_sof();
-        let recovery = self.next_recovery();
-        match (sof, recovery) {
-            (_, Some((r, i))) if sof.is_none_or(|s| r <= s) => {
-                self.recover(i, r);
+        match self.next_event() {
+            Some((_, event)) => {
+                self.commit(event);
                 true
             }
-            (Some(s), _) => {
-                self.attempt(s);
-                true
-            }
-            _ => false,
+            None => false,
         }
     }
 
@@ -433,6 +457,9 @@ impl Bus {
     }
 
     fn note_events(&mut self, node: NodeId, at: BusTime, changes: Changes) {
+        if changes.is_empty() {
+            return;
+        }
         let c = &self.controllers[node.index()];
         let (tec, rec) = (c.fault.tec(), c.fault.rec());
         if let Some(t) = changes.transition {

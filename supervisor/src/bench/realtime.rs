@@ -201,3 +201,41 @@ pub fn measure(h: &Harvester, seconds: f64) -> Result<Measurement, String> {
         jitter: Some(jitter),
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const MS: u64 = 1_000_000;
+
+    #[test]
+    fn jitter_is_measured_on_periodic_identifiers_against_their_bus_period() {
+        let mut s = Sightings::default();
+        // A 100 ms identifier whose wall-clock periods deviate by 0, 2, 0 and 1 ms.
+        let walls = [0, 100, 202, 302, 403];
+        for (i, w) in walls.iter().enumerate() {
+            s.add(0x100, BusTime(i as u64 * 100 * MS), w * MS);
+        }
+        // An event-driven identifier (bus gaps 10, 500, 30 ms) is not periodic: left out.
+        for (bus, wall) in [(0, 0), (10, 10), (510, 900), (540, 950)] {
+            s.add(0x200, BusTime(bus * MS), wall * MS);
+        }
+        let j = s.jitter();
+        assert_eq!(j.periodic_ids, 1);
+        assert_eq!(j.periods, 4);
+        // |100-100|, |102-100|, |100-100|, |101-100| sorted: 0, 0, 1, 2 ms.
+        assert_eq!(j.max_ms, 2.0);
+        assert_eq!(j.p50_ms, 0.0);
+        assert_eq!(j.p99_ms, 2.0);
+        assert_eq!(s.count(), 9);
+    }
+
+    #[test]
+    fn nearest_rank_percentiles() {
+        let v: Vec<u64> = (1..=200).collect();
+        assert_eq!(percentile(&v, 50), 100);
+        assert_eq!(percentile(&v, 99), 198);
+        assert_eq!(percentile(&[], 99), 0);
+        assert_eq!(percentile(&[7], 1), 7);
+    }
+}
