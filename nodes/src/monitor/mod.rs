@@ -94,7 +94,8 @@ pub struct Monitor {
     /// Last frame time per node, for the silence check.
     heard: BTreeMap<Address, BusTime>,
     /// Active alarms by (node, name): index into `display.alarms`.
-    active: BTreeMap<(Address, String), BusTime>,
+    /// Raised alarms by node and name (names are the catalogue's or the monitor's own).
+    active: BTreeMap<(Address, &'static str), BusTime>,
     last_flow: BTreeMap<Address, BusTime>,
     last_ground: Option<(BusTime, f64)>,
     last_feed: Option<BusTime>,
@@ -166,8 +167,8 @@ impl Monitor {
         }
     }
 
-    fn raise(&mut self, node: Address, name: &str, at: BusTime) {
-        let key = (node, name.to_string());
+    fn raise(&mut self, node: Address, name: &'static str, at: BusTime) {
+        let key = (node, name);
         if self.active.contains_key(&key) {
             return;
         }
@@ -187,8 +188,8 @@ impl Monitor {
         }
     }
 
-    fn clear(&mut self, node: Address, name: &str, at: BusTime) {
-        if self.active.remove(&(node, name.to_string())).is_none() {
+    fn clear(&mut self, node: Address, name: &'static str, at: BusTime) {
+        if self.active.remove(&(node, name)).is_none() {
             return;
         }
         let mut d = self.display.borrow_mut();

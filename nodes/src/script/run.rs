@@ -78,6 +78,8 @@ pub struct ScriptedNode {
     /// stream, however many groups it is made of.
     unacked: u32,
     out: VecDeque<Frame>,
+    /// A frame buffer to build into (see `build`).
+    spare: Vec<Frame>,
     rng: ChaCha8Rng,
     now: BusTime,
     sent: u64,
@@ -117,6 +119,7 @@ impl ScriptedNode {
             faults,
             unacked: 0,
             out: VecDeque::new(),
+            spare: Vec::new(),
             rng: ChaCha8Rng::seed_from_u64(
                 seed ^ 0x5eed_0000_0000_0000 ^ u64::from(power_on.as_nanos() as u32),
             ),
@@ -238,7 +241,9 @@ impl ScriptedNode {
     fn build(&mut self, k: usize, frame: Option<&Decoded>) -> Option<Vec<Frame>> {
         let script = Rc::clone(&self.s);
         let specs = &script.messages[k].frames;
-        let mut frames = Vec::with_capacity(specs.len());
+        // The buffer of a build that was not sent: checks build far more often than they send.
+        let mut frames = std::mem::take(&mut self.spare);
+        frames.clear();
         for (j, spec) in specs.iter().enumerate() {
             let (def, slots) = match &self.defs[k][j] {
                 Some(r) => (r.def, Rc::clone(&r.slots)),
@@ -261,13 +266,19 @@ impl ScriptedNode {
     }
 
     fn emit(&mut self, k: usize, frame: Option<&Decoded>) {
-        let Some(frames) = self.build(k, frame) else {
+        let built = self.build(k, frame);
+        self.send(k, built);
+    }
+
+    /// Sends frames built for send `k` (None: the build was skipped).
+    fn send(&mut self, k: usize, built: Option<Vec<Frame>>) {
+        let Some(frames) = built else {
             self.skipped += 1;
             return;
         };
         self.sent += frames.len() as u64;
         self.out.extend(frames.iter().copied());
-        self.sends[k].last = frames;
+        self.spare = std::mem::replace(&mut self.sends[k].last, frames);
         self.sends[k].last_sent = Some(self.now);
         let script = Rc::clone(&self.s);
         if let Some(ack) = &script.messages[k].ack {
@@ -410,10 +421,16 @@ impl NodeLogic for ScriptedNode {
                         let stale = self.sends[k]
                             .last_sent
                             .is_none_or(|t| now - t >= heartbeat_ms * MS);
-                        let changed =
-                            checking && self.build(k, None).is_some_and(|f| f != self.sends[k].last);
+                        // What a check built is what goes out: the node sends the values it saw.
+                        let checked = if checking { self.build(k, None) } else { None };
+                        let changed = checked.as_ref().is_some_and(|f| *f != self.sends[k].last);
                         if stale || changed {
-                            self.emit(k, None);
+                            match checked {
+                                Some(frames) => self.send(k, Some(frames)),
+                                None => self.emit(k, None),
+                            }
+                        } else if let Some(frames) = checked {
+                            self.spare = frames;
                         }
                     }
                     // The heartbeat is kept exactly, not rounded up to the next check.
