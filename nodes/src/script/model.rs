@@ -149,6 +149,18 @@ pub enum Expr {
     Quantize(Box<Expr>, f64),
 }
 
+impl Expr {
+    /// True when the value depends only on the node itself (its state and variables): no plant
+    /// signal, no received frame.
+    pub fn is_internal(&self) -> bool {
+        match self {
+            Expr::Const(_) | Expr::Var(_) | Expr::StateCode => true,
+            Expr::Signal(_) | Expr::Field(_) => false,
+            Expr::Scaled(e, ..) | Expr::Clamp(e, ..) | Expr::Quantize(e, _) => e.is_internal(),
+        }
+    }
+}
+
 /// What a node does when a frame for it arrives.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

@@ -37,6 +37,12 @@ struct SendState {
     /// On-change entries look at their value on a grid of their own; `next` is the earlier of
     /// that and the heartbeat.
     check_next: BusTime,
+    /// An on-change entry that reads only the node's own state and variables.
+    internal: bool,
+    /// Such an entry whose last check found nothing new, and nothing of the node has changed
+    /// since: its checks would all find the same, so only its heartbeat is scheduled, and the
+    /// check grid resumes where it would be when the node changes (`touch`).
+    idle: bool,
 }
 
 /// A frame spec resolved against the catalogue.
@@ -80,6 +86,8 @@ pub struct ScriptedNode {
     out: VecDeque<Frame>,
     /// A frame buffer to build into (see `build`).
     spare: Vec<Frame>,
+    /// The send being handled in the sends pass of `handle_timeout`.
+    in_pass: Option<usize>,
     rng: ChaCha8Rng,
     now: BusTime,
     sent: u64,
@@ -103,6 +111,9 @@ impl ScriptedNode {
                     last: Vec::new(),
                     last_sent: None,
                     check_next: BusTime::NEVER,
+                    internal: matches!(m.when, When::OnChange { .. })
+                        && m.frames.iter().all(|f| f.fields.values().all(Expr::is_internal)),
+                    idle: false,
                 })
                 .collect(),
             timers: vec![None; script.timers.len()],
@@ -120,6 +131,7 @@ impl ScriptedNode {
             unacked: 0,
             out: VecDeque::new(),
             spare: Vec::new(),
+            in_pass: None,
             rng: ChaCha8Rng::seed_from_u64(
                 seed ^ 0x5eed_0000_0000_0000 ^ u64::from(power_on.as_nanos() as u32),
             ),
@@ -177,6 +189,7 @@ impl ScriptedNode {
             return;
         }
         self.state = i;
+        self.touch();
         tracing::debug!(node = %self.s.name, state = name, "state");
         // Timers restart on entering a state they run in, and stop outside their states.
         for (k, t) in self.s.timers.iter().enumerate() {
@@ -296,10 +309,36 @@ impl ScriptedNode {
     /// Sets a variable without allocating its name again when it exists.
     fn set_var(&mut self, name: &str, value: f64) {
         match self.vars.get_mut(name) {
+            Some(v) if v.to_bits() == value.to_bits() => return,
             Some(v) => *v = value,
             None => {
                 self.vars.insert(name.to_string(), value);
             }
+        }
+        self.touch();
+    }
+
+    /// Something of the node's own changed (state, a variable, a send switched on or off): idle
+    /// on-change entries check again from the grid point a check that never stopped would be
+    /// at. Within the sends pass at `now`, entries after the one being handled have their check
+    /// at `now` still ahead; every other check at `now` is behind.
+    fn touch(&mut self) {
+        let now = self.now;
+        for (j, st) in self.sends.iter_mut().enumerate() {
+            if !st.idle {
+                continue;
+            }
+            st.idle = false;
+            let When::OnChange { check_ms, .. } = self.s.messages[j].when else {
+                continue;
+            };
+            let from = if self.in_pass.is_some_and(|k| j > k) {
+                now
+            } else {
+                now + 1
+            };
+            st.check_next = grid_from(st.check_next, check_ms * MS, from);
+            st.next = st.next.min(st.check_next);
         }
     }
 
@@ -310,6 +349,7 @@ impl ScriptedNode {
                 Action::Start(m) | Action::Stop(m) => {
                     if let Some(k) = self.s.messages.iter().position(|d| &d.name == m) {
                         self.sends[k].enabled = matches!(a, Action::Start(_));
+                        self.touch();
                     }
                 }
                 Action::Send(m) => {
@@ -346,6 +386,15 @@ impl ScriptedNode {
             }
         }
     }
+}
+
+/// The first point of the grid `start + n × step` at or after `from`.
+fn grid_from(start: BusTime, step: u64, from: BusTime) -> BusTime {
+    if start >= from || step == 0 {
+        return start;
+    }
+    let n = (from.as_nanos() - start.as_nanos()).div_ceil(step);
+    BusTime(start.as_nanos() + n * step)
 }
 
 /// A standard normal deviate (Box–Muller) from a seeded generator.
@@ -400,6 +449,7 @@ impl NodeLogic for ScriptedNode {
             if self.sends[k].next > now {
                 continue;
             }
+            self.in_pass = Some(k);
             let m = &self.s.messages[k];
             let go = self.sends[k].enabled && self.active(&m.states);
             match m.when {
@@ -413,6 +463,13 @@ impl NodeLogic for ScriptedNode {
                     heartbeat_ms,
                     check_ms,
                 } => {
+                    let was_idle = self.sends[k].idle;
+                    if was_idle {
+                        // Woken for its heartbeat: the grid is where it would be by now.
+                        let st = &mut self.sends[k];
+                        st.idle = false;
+                        st.check_next = grid_from(st.check_next, check_ms * MS, now);
+                    }
                     let checking = self.sends[k].check_next <= now;
                     if checking {
                         self.sends[k].check_next = self.sends[k].check_next + check_ms * MS;
@@ -424,6 +481,11 @@ impl NodeLogic for ScriptedNode {
                         // What a check built is what goes out: the node sends the values it saw.
                         let checked = if checking { self.build(k, None) } else { None };
                         let changed = checked.as_ref().is_some_and(|f| *f != self.sends[k].last);
+                        // Set before sending: a send that changes the node (an acknowledgement
+                        // count) wakes it again through `touch`.
+                        // (Idle and not on the grid: nothing changed, so it stays idle.)
+                        self.sends[k].idle = self.sends[k].internal
+                            && (checked.is_some() && !changed || was_idle && checked.is_none());
                         if stale || changed {
                             match checked {
                                 Some(frames) => self.send(k, Some(frames)),
@@ -437,11 +499,17 @@ impl NodeLogic for ScriptedNode {
                     let heartbeat = self.sends[k]
                         .last_sent
                         .map_or(BusTime::NEVER, |t| t + heartbeat_ms * MS);
-                    self.sends[k].next = self.sends[k].check_next.min(heartbeat);
+                    let st = &mut self.sends[k];
+                    st.next = if st.idle {
+                        heartbeat
+                    } else {
+                        st.check_next.min(heartbeat)
+                    };
                 }
                 When::OnRequest => self.sends[k].next = BusTime::NEVER,
             }
         }
+        self.in_pass = None;
         for k in 0..self.timers.len() {
             if self.timers[k].is_some_and(|t| t <= now) {
                 self.timers[k] = Some(now + self.s.timers[k].after_ms * MS);

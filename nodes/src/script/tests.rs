@@ -339,3 +339,64 @@ fn on_change_sends_changes_within_a_check_and_keeps_an_exact_heartbeat() {
     assert_eq!(d.get("row1_clutch_slip").unwrap().raw, 1);
     assert_eq!(d.get("clutch_pressure").unwrap().physical, 3500.0);
 }
+
+const STATUS: &str = r#"
+NodeScript(
+    address: 0xD1, name: "D1", kind: FlowSensor, boot_delay_ms: 10,
+    states: [(name: "waiting", code: 0), (name: "running", code: 1)],
+    initial: "waiting",
+    vars: {"missed": 0},
+    messages: [(name: "status", frames: [(message: "flow.status", fields: {
+        "state": StateCode, "firmware": Const(3), "missed_acks": Var("missed")})],
+        when: OnChange(heartbeat_ms: 250, check_ms: 20))],
+    reactions: [(message: "flow.calibrate", when: {"command": 2}, actions: [SetState("running")])],
+)"#;
+
+/// An on-change entry that reads only the node's own state is not polled while nothing of the
+/// node changes, yet goes out at the same check-grid point as if it had been.
+#[test]
+fn internal_on_change_entries_sleep_until_the_node_changes() {
+    let (mut n, _) = node(STATUS, &[]);
+    let ms = BusTime::from_millis;
+    let accept = parse_frame("0601D1F5#1002000001").unwrap(); // flow.calibrate "accept and run"
+    let mut sent = Vec::new();
+    let mut timeouts_before_accept = 0;
+    let mut inbox = vec![(ms(1013), accept)].into_iter().peekable();
+    loop {
+        let t = n.poll_timeout().unwrap_or(BusTime::NEVER);
+        let f = inbox.peek().map_or(BusTime::NEVER, |(t, _)| *t);
+        let now = t.min(f);
+        if now > ms(1600) {
+            break;
+        }
+        if f <= t {
+            let (at, frame) = inbox.next().unwrap();
+            n.handle_frame(at, &frame);
+        } else {
+            n.handle_timeout(now);
+            if now < ms(1013) {
+                timeouts_before_accept += 1;
+            }
+        }
+        while let Some(frame) = n.poll_transmit() {
+            let d = catalogue::decode(&frame).unwrap().unwrap();
+            sent.push((now.as_nanos() / 1_000_000, d.get("state").unwrap().raw));
+        }
+    }
+    // Power on at 500 ms, boot at 510: the check grid is 510 + 20 k ms. The state changes at
+    // 1013 ms; the first grid point after it is 510 + 20 × ceil(503 / 20) = 1030 ms.
+    let change = 510 + 20 * (1013u64 - 510).div_ceil(20);
+    assert_eq!(change, 1030);
+    let expected = [
+        (510, 0),
+        (760, 0),
+        (1010, 0),
+        (change, 1),
+        (change + 250, 1),
+        (change + 500, 1),
+    ];
+    assert_eq!(sent, expected);
+    // Boot at 510, the check at 530 that finds nothing new, the heartbeats at 760 and 1010: not
+    // the 26 checks of the grid in between.
+    assert_eq!(timeouts_before_accept, 4);
+}
