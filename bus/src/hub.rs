@@ -10,8 +10,9 @@
 //! submit frames), and goes on.
 //!
 //! Paced (real time, [`HubConfig::paced`]): before committing anything at bus time `t` the hub
-//! waits until the runtime's clock has reached `t` less a slack of one millisecond (one timer
-//! tick). Unpaced (virtual time): nothing but the nodes holds the bus back, and bus time runs as
+//! waits until the wall clock has reached `t` (less an optional slack), on a timer thread of its
+//! own that wakes within tens of microseconds where tokio's timers would round to milliseconds
+//! (`wall_timer`). Unpaced (virtual time): nothing but the nodes holds the bus back, and bus time runs as
 //! fast as they answer; the runtime's clock is not consulted at all, so a run costs no timers and
 //! is deterministic. Runtimes made by [`runtime`] tell hubs made on their thread which to be.
 //!
@@ -42,7 +43,8 @@ pub struct HubConfig {
     pub bus: BusConfig,
     /// Interface name in traces.
     pub iface: String,
-    /// How far bus time may run ahead of the runtime's clock.
+    /// How far bus time may run ahead of the wall clock when paced (a frame goes out this much
+    /// before its time at most; none by default).
     pub slack: Duration,
     /// Keep bus time in step with the runtime's clock (real time); when false, run as fast as
     /// the nodes answer (virtual time). Defaults to what [`runtime`] made on this thread.
@@ -54,7 +56,7 @@ impl Default for HubConfig {
         HubConfig {
             bus: BusConfig::default(),
             iface: "harv0".to_string(),
-            slack: Duration::from_millis(1),
+            slack: Duration::ZERO,
             paced: !VIRTUAL_TIME.get(),
         }
     }
@@ -124,6 +126,10 @@ pub struct Hub {
     crashed_in_round: bool,
     paused: bool,
     timer: Option<SpawnHandle>,
+    /// Paced hubs wait on a wall-clock timer thread (`wall_timer`), with the wall-clock start.
+    wall: Option<(crate::wall_timer::WallTimer, std::time::Instant)>,
+    /// The id of the deadline the wall timer is armed for; others are stale.
+    armed: u64,
     stop_at: Option<BusTime>,
     on_stop: Vec<oneshot::Sender<BusTime>>,
     trace: Option<Box<dyn Write>>,
@@ -167,6 +173,8 @@ impl Hub {
             crashed_in_round: false,
             paused: true,
             timer: None,
+            wall: None,
+            armed: 0,
             stop_at: None,
             on_stop: Vec::new(),
             trace,
@@ -189,6 +197,13 @@ impl Hub {
     }
 
     fn arm(&mut self, t: BusTime, ctx: &mut Context<Self>) {
+        if let Some((timer, start)) = &self.wall {
+            self.armed += 1;
+            let at = *start + Duration::from_nanos(t.as_nanos().saturating_sub(self.slack_ns));
+            if timer.set(self.armed, at) {
+                return;
+            }
+        }
         let wait = t
             .as_nanos()
             .saturating_sub(self.slack_ns)
@@ -211,6 +226,8 @@ impl Hub {
         if let Some(h) = self.timer.take() {
             ctx.cancel_future(h);
         }
+        // A wall-timer deadline set before is stale from here on.
+        self.armed += 1;
         // Nodes become due only by being woken (recomputed then) or by new inputs (which
         // `dispatch` reports), so the earliest due time is kept up to date, not rescanned.
         let mut due = self.next_due();
@@ -415,13 +432,34 @@ impl Handler<Answer> for Hub {
 impl Actor for Hub {
     type Context = Context<Self>;
 
-    fn started(&mut self, _ctx: &mut Context<Self>) {
+    fn started(&mut self, ctx: &mut Context<Self>) {
         self.start = Some(tokio::time::Instant::now());
+        if self.paced {
+            let hub = ctx.address();
+            // Without the thread (it could not be started), tokio's timers pace the bus.
+            self.wall = crate::wall_timer::WallTimer::start(move |id| hub.do_send(WallTick(id)))
+                .ok()
+                .map(|timer| (timer, std::time::Instant::now()));
+        }
     }
 
     fn stopped(&mut self, _ctx: &mut Context<Self>) {
         if let Some(out) = self.trace.as_mut() {
             let _ = out.flush();
+        }
+    }
+}
+
+/// The wall timer's deadline `0` has passed.
+#[derive(Message)]
+#[rtype(result = "()")]
+struct WallTick(u64);
+
+impl Handler<WallTick> for Hub {
+    type Result = ();
+    fn handle(&mut self, WallTick(id): WallTick, ctx: &mut Context<Self>) {
+        if id == self.armed {
+            self.pump(ctx);
         }
     }
 }

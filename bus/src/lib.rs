@@ -35,6 +35,7 @@ pub mod node;
 pub mod time;
 pub mod trace;
 pub mod tracefile;
+mod wall_timer;
 
 pub use embedded_can::{ExtendedId, Id, StandardId};
 pub use error::Error;
