@@ -63,12 +63,24 @@ impl Harvester {
     /// Reads and checks a harvester config and every script it names; every problem is
     /// reported at once.
     pub fn load(path: &Path) -> Result<Harvester, Error> {
-        let file = path.display().to_string();
         let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
-            path: file.clone(),
+            path: path.display().to_string(),
             source,
         })?;
-        let config: HarvesterConfig = nodes::parse_ron(&file, &text)?;
+        let signals = nodes::environment::PlantSignals;
+        Harvester::from_text(path, &text, |script| nodes::script::load(script, &signals))
+    }
+
+    /// As [`Harvester::load`] with the config's text already read: `path` is where it came from
+    /// (problems name it; node scripts are relative to its directory) and `script` reads, parses
+    /// and validates the node script at a path, as [`nodes::script::load`] does.
+    pub fn from_text(
+        path: &Path,
+        text: &str,
+        mut script: impl FnMut(&Path) -> Result<NodeScript, Error>,
+    ) -> Result<Harvester, Error> {
+        let file = path.display().to_string();
+        let config: HarvesterConfig = nodes::parse_ron(&file, text)?;
         let mut problems = Vec::new();
         if BitRate::new(config.bitrate)
             .and_then(|r| r.exact_bit_time_ns())
@@ -97,9 +109,8 @@ impl Harvester {
         );
         let dir = path.parent().unwrap_or(Path::new("."));
         let mut scripts = Vec::new();
-        let signals = nodes::environment::PlantSignals;
         for (i, rel) in config.nodes.iter().enumerate() {
-            match nodes::script::load(&dir.join(rel), &signals) {
+            match script(&dir.join(rel)) {
                 Ok(s) => scripts.push(s),
                 Err(Error::Invalid(p)) => problems.extend(p),
                 Err(Error::Io { path, source }) => problems.push(Problem::at(
