@@ -436,7 +436,7 @@ impl Running {
                         what,
                     });
                 } else {
-                    m.restart_at = Some(now + policy.backoff_ms * 1_000_000);
+                    m.restart_at = Some(now + policy.backoff_ms.saturating_mul(1_000_000));
                 }
             }
         }
@@ -501,7 +501,7 @@ impl Running {
             node: "*".into(),
             what: "power cycle".into(),
         });
-        let relay = now + self.harvester.config.time_relay_ms * 1_000_000;
+        let relay = now + self.harvester.config.time_relay_ms.saturating_mul(1_000_000);
         for i in 0..self.members.len() {
             let power_on = if matches!(self.members[i].spec, Spec::Monitor) {
                 now
@@ -512,5 +512,50 @@ impl Running {
             self.members[i].down = false;
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const CONFIG: &str = r#"Harvester(name: "x", bitrate: 250000, seed: 1, time_relay_ms: 500,
+        reaction_us: 200, nodes: ["nodes/d0.ron", "nodes/missing.ron"])"#;
+
+    fn real(path: &Path) -> Result<NodeScript, Error> {
+        let file = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../configs")
+            .join(path);
+        nodes::script::load(&file, &nodes::environment::PlantSignals)
+    }
+
+    #[test]
+    fn from_text_reads_scripts_beside_the_config_through_the_caller() {
+        let mut asked = Vec::new();
+        let result = Harvester::from_text(Path::new("cfg/harvester.ron"), CONFIG, |p| {
+            asked.push(p.to_path_buf());
+            real(p.strip_prefix("cfg").unwrap())
+        });
+        assert_eq!(
+            asked,
+            [Path::new("cfg/nodes/d0.ron"), Path::new("cfg/nodes/missing.ron")]
+        );
+        let Err(Error::Invalid(problems)) = result else {
+            panic!("a missing script is a problem");
+        };
+        assert_eq!(problems.len(), 1);
+        assert_eq!(problems[0].file, "cfg/harvester.ron");
+        assert_eq!(problems[0].field.as_deref(), Some("nodes[1]"));
+    }
+
+    /// A huge time relay loaded, then overflowed the bus clock when the run computed it.
+    #[test]
+    fn a_huge_time_relay_is_never_rather_than_an_overflow() {
+        let text = CONFIG
+            .replace("time_relay_ms: 500", "time_relay_ms: 18446744073709551615")
+            .replace(r#", "nodes/missing.ron""#, "");
+        let h = Harvester::from_text(Path::new("harvester.ron"), &text, real).unwrap();
+        assert_eq!(h.scripts.len(), 1);
+        assert_eq!(h.relay(), BusTime::NEVER);
     }
 }

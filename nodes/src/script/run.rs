@@ -87,7 +87,7 @@ pub struct ScriptedNode {
 impl ScriptedNode {
     /// A node that powers on at `power_on`; `seed` drives its noise faults.
     pub fn new(script: NodeScript, env: SharedEnv, power_on: BusTime, seed: u64) -> ScriptedNode {
-        let boot_at = power_on + script.boot_delay_ms * MS;
+        let boot_at = power_on + script.boot_delay_ms.saturating_mul(MS);
         let faults = script.faults.iter().map(|f| (f.clone(), power_on)).collect();
         ScriptedNode {
             address: Address(script.address),
@@ -178,7 +178,7 @@ impl ScriptedNode {
         // Timers restart on entering a state they run in, and stop outside their states.
         for (k, t) in self.s.timers.iter().enumerate() {
             let on = self.booted && (t.states.is_empty() || t.states.iter().any(|s| s == name));
-            self.timers[k] = on.then(|| self.now + t.after_ms * MS);
+            self.timers[k] = on.then(|| self.now + t.after_ms.saturating_mul(MS));
         }
     }
 
@@ -187,7 +187,7 @@ impl ScriptedNode {
         let b = self.boot_at;
         for (k, m) in self.s.messages.iter().enumerate() {
             self.sends[k].next = match m.when {
-                When::Periodic { phase_ms, .. } => b + phase_ms * MS,
+                When::Periodic { phase_ms, .. } => b + phase_ms.saturating_mul(MS),
                 When::OnChange { .. } => {
                     self.sends[k].check_next = b;
                     b
@@ -329,7 +329,7 @@ impl ScriptedNode {
                     if let Some(k) = self.s.timers.iter().position(|d| &d.name == t)
                         && self.timers[k].is_some()
                     {
-                        self.timers[k] = Some(self.now + self.s.timers[k].after_ms * MS);
+                        self.timers[k] = Some(self.now + self.s.timers[k].after_ms.saturating_mul(MS));
                     }
                 }
             }
@@ -393,7 +393,7 @@ impl NodeLogic for ScriptedNode {
             let go = self.sends[k].enabled && self.active(&m.states);
             match m.when {
                 When::Periodic { period_ms, .. } => {
-                    self.sends[k].next = self.sends[k].next + period_ms * MS;
+                    self.sends[k].next = self.sends[k].next + period_ms.saturating_mul(MS);
                     if go {
                         self.emit(k, None);
                     }
@@ -404,12 +404,12 @@ impl NodeLogic for ScriptedNode {
                 } => {
                     let checking = self.sends[k].check_next <= now;
                     if checking {
-                        self.sends[k].check_next = self.sends[k].check_next + check_ms * MS;
+                        self.sends[k].check_next = self.sends[k].check_next + check_ms.saturating_mul(MS);
                     }
                     if go {
                         let stale = self.sends[k]
                             .last_sent
-                            .is_none_or(|t| now - t >= heartbeat_ms * MS);
+                            .is_none_or(|t| now - t >= heartbeat_ms.saturating_mul(MS));
                         let changed =
                             checking && self.build(k, None).is_some_and(|f| f != self.sends[k].last);
                         if stale || changed {
@@ -419,7 +419,7 @@ impl NodeLogic for ScriptedNode {
                     // The heartbeat is kept exactly, not rounded up to the next check.
                     let heartbeat = self.sends[k]
                         .last_sent
-                        .map_or(BusTime::NEVER, |t| t + heartbeat_ms * MS);
+                        .map_or(BusTime::NEVER, |t| t + heartbeat_ms.saturating_mul(MS));
                     self.sends[k].next = self.sends[k].check_next.min(heartbeat);
                 }
                 When::OnRequest => self.sends[k].next = BusTime::NEVER,
@@ -427,7 +427,7 @@ impl NodeLogic for ScriptedNode {
         }
         for k in 0..self.timers.len() {
             if self.timers[k].is_some_and(|t| t <= now) {
-                self.timers[k] = Some(now + self.s.timers[k].after_ms * MS);
+                self.timers[k] = Some(now + self.s.timers[k].after_ms.saturating_mul(MS));
                 let script = Rc::clone(&self.s);
                 let actions = &script.timers[k].actions;
                 self.run_actions(actions, None);

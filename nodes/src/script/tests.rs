@@ -339,3 +339,23 @@ fn on_change_sends_changes_within_a_check_and_keeps_an_exact_heartbeat() {
     assert_eq!(d.get("row1_clutch_slip").unwrap().raw, 1);
     assert_eq!(d.get("clutch_pressure").unwrap().physical, 3500.0);
 }
+
+/// Times in scripts are `u64` milliseconds; huge ones mean "not within the run" instead of
+/// overflowing the nanosecond clock (the node script fuzz target found this).
+#[test]
+fn huge_times_never_come_instead_of_overflowing() {
+    let huge = B1.replace(
+        "period_ms: 100, phase_ms: 5",
+        "period_ms: 18446744073709551615, phase_ms: 5",
+    );
+    let (mut n, _) = node(&huge, &[("engine.rpm", 2150.0)]);
+    let sent = drive(&mut n, BusTime::from_millis(800), &[]);
+    // The first frame at 515 ms; the next one would be after the end of time.
+    assert_eq!(sent.len(), 1);
+    assert_eq!(sent[0].0, BusTime::from_millis(515));
+    assert_eq!(n.poll_timeout(), None, "nothing is due any more");
+
+    let late = B1.replace("boot_delay_ms: 10", "boot_delay_ms: 18446744073709551615");
+    let (mut n, _) = node(&late, &[("engine.rpm", 2150.0)]);
+    assert!(drive(&mut n, BusTime::from_millis(800), &[]).is_empty());
+}
