@@ -20,9 +20,9 @@ impl BusTime {
     /// Later than anything.
     pub const NEVER: BusTime = BusTime(u64::MAX);
 
-    /// From whole seconds.
+    /// From whole seconds, saturating at [`BusTime::NEVER`] (about 584 years).
     pub const fn from_secs(s: u64) -> BusTime {
-        BusTime(s * 1_000_000_000)
+        BusTime(s.saturating_mul(1_000_000_000))
     }
     /// From seconds, rounded to the nanosecond (negative and non-numbers give zero).
     pub fn from_secs_f64(s: f64) -> BusTime {
@@ -32,13 +32,14 @@ impl BusTime {
             0
         })
     }
-    /// From whole milliseconds.
+    /// From whole milliseconds, saturating at [`BusTime::NEVER`]: config and script times are
+    /// read as `u64`, and a huge one must mean "never", not overflow.
     pub const fn from_millis(ms: u64) -> BusTime {
-        BusTime(ms * 1_000_000)
+        BusTime(ms.saturating_mul(1_000_000))
     }
-    /// From whole microseconds.
+    /// From whole microseconds, saturating at [`BusTime::NEVER`].
     pub const fn from_micros(us: u64) -> BusTime {
-        BusTime(us * 1_000)
+        BusTime(us.saturating_mul(1_000))
     }
     /// From a duration since the start.
     pub fn from_duration(d: Duration) -> BusTime {
@@ -100,5 +101,27 @@ impl fmt::Display for BusTime {
 impl fmt::Debug for BusTime {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "{}.{:09}s", self.0 / 1_000_000_000, self.0 % 1_000_000_000)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn whole_units_convert_exactly_and_saturate() {
+        assert_eq!(BusTime::from_secs(3), BusTime(3_000_000_000));
+        assert_eq!(BusTime::from_millis(500), BusTime(500_000_000));
+        assert_eq!(BusTime::from_micros(200), BusTime(200_000));
+        // The largest values that still fit, then one more.
+        assert_eq!(
+            BusTime::from_millis(u64::MAX / 1_000_000),
+            BusTime(u64::MAX / 1_000_000 * 1_000_000)
+        );
+        assert_eq!(BusTime::from_millis(u64::MAX / 1_000_000 + 1), BusTime::NEVER);
+        // A harvester config with `time_relay_ms: 18446744073709551615` overflowed here.
+        assert_eq!(BusTime::from_millis(u64::MAX), BusTime::NEVER);
+        assert_eq!(BusTime::from_micros(u64::MAX), BusTime::NEVER);
+        assert_eq!(BusTime::from_secs(u64::MAX / 1_000_000_000 + 1), BusTime::NEVER);
     }
 }

@@ -63,12 +63,24 @@ impl Harvester {
     /// Reads and checks a harvester config and every script it names; every problem is
     /// reported at once.
     pub fn load(path: &Path) -> Result<Harvester, Error> {
-        let file = path.display().to_string();
         let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
-            path: file.clone(),
+            path: path.display().to_string(),
             source,
         })?;
-        let config: HarvesterConfig = nodes::parse_ron(&file, &text)?;
+        let signals = nodes::environment::PlantSignals;
+        Harvester::from_text(path, &text, |script| nodes::script::load(script, &signals))
+    }
+
+    /// As [`Harvester::load`] with the config's text already read: `path` is where it came from
+    /// (problems name it; node scripts are relative to its directory) and `script` reads, parses
+    /// and validates the node script at a path, as [`nodes::script::load`] does.
+    pub fn from_text(
+        path: &Path,
+        text: &str,
+        mut script: impl FnMut(&Path) -> Result<NodeScript, Error>,
+    ) -> Result<Harvester, Error> {
+        let file = path.display().to_string();
+        let config: HarvesterConfig = nodes::parse_ron(&file, text)?;
         let mut problems = Vec::new();
         if BitRate::new(config.bitrate)
             .and_then(|r| r.exact_bit_time_ns())
@@ -97,9 +109,8 @@ impl Harvester {
         );
         let dir = path.parent().unwrap_or(Path::new("."));
         let mut scripts = Vec::new();
-        let signals = nodes::environment::PlantSignals;
         for (i, rel) in config.nodes.iter().enumerate() {
-            match nodes::script::load(&dir.join(rel), &signals) {
+            match script(&dir.join(rel)) {
                 Ok(s) => scripts.push(s),
                 Err(Error::Invalid(p)) => problems.extend(p),
                 Err(Error::Io { path, source }) => problems.push(Problem::at(
@@ -425,7 +436,7 @@ impl Running {
                         what,
                     });
                 } else {
-                    m.restart_at = Some(now + policy.backoff_ms * 1_000_000);
+                    m.restart_at = Some(now + policy.backoff_ms.saturating_mul(1_000_000));
                 }
             }
         }
@@ -490,7 +501,7 @@ impl Running {
             node: "*".into(),
             what: "power cycle".into(),
         });
-        let relay = now + self.harvester.config.time_relay_ms * 1_000_000;
+        let relay = now + self.harvester.config.time_relay_ms.saturating_mul(1_000_000);
         for i in 0..self.members.len() {
             let power_on = if matches!(self.members[i].spec, Spec::Monitor) {
                 now
@@ -501,5 +512,50 @@ impl Running {
             self.members[i].down = false;
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const CONFIG: &str = r#"Harvester(name: "x", bitrate: 250000, seed: 1, time_relay_ms: 500,
+        reaction_us: 200, nodes: ["nodes/d0.ron", "nodes/missing.ron"])"#;
+
+    fn real(path: &Path) -> Result<NodeScript, Error> {
+        let file = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../configs")
+            .join(path);
+        nodes::script::load(&file, &nodes::environment::PlantSignals)
+    }
+
+    #[test]
+    fn from_text_reads_scripts_beside_the_config_through_the_caller() {
+        let mut asked = Vec::new();
+        let result = Harvester::from_text(Path::new("cfg/harvester.ron"), CONFIG, |p| {
+            asked.push(p.to_path_buf());
+            real(p.strip_prefix("cfg").unwrap())
+        });
+        assert_eq!(
+            asked,
+            [Path::new("cfg/nodes/d0.ron"), Path::new("cfg/nodes/missing.ron")]
+        );
+        let Err(Error::Invalid(problems)) = result else {
+            panic!("a missing script is a problem");
+        };
+        assert_eq!(problems.len(), 1);
+        assert_eq!(problems[0].file, "cfg/harvester.ron");
+        assert_eq!(problems[0].field.as_deref(), Some("nodes[1]"));
+    }
+
+    /// A huge time relay loaded, then overflowed the bus clock when the run computed it.
+    #[test]
+    fn a_huge_time_relay_is_never_rather_than_an_overflow() {
+        let text = CONFIG
+            .replace("time_relay_ms: 500", "time_relay_ms: 18446744073709551615")
+            .replace(r#", "nodes/missing.ron""#, "");
+        let h = Harvester::from_text(Path::new("harvester.ron"), &text, real).unwrap();
+        assert_eq!(h.scripts.len(), 1);
+        assert_eq!(h.relay(), BusTime::NEVER);
     }
 }

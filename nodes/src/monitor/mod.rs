@@ -352,7 +352,7 @@ impl Monitor {
 
     /// Nodes not heard for `silence_ms` raise an alarm.
     fn watch(&mut self, now: BusTime) {
-        let limit = self.config.silence_ms * MS;
+        let limit = self.config.silence_ms.saturating_mul(MS);
         let silent: Vec<Address> = self
             .heard
             .iter()
@@ -376,7 +376,7 @@ impl Monitor {
             self.send("speed.mode", Address::SPEED_CONTROL, &[("mode", 1.0)]);
             self.send("row.command", Address::ROW_ALIGNMENT, &[("command", 1.0)]);
             self.next_setpoint = now;
-            self.next_control = now + self.config.cruise.period_ms * MS;
+            self.next_control = now + self.config.cruise.period_ms.saturating_mul(MS);
             self.display.borrow_mut().cruise = true;
         }
         let Some(cruise) = self.cruise.as_mut() else {
@@ -385,7 +385,7 @@ impl Monitor {
         if now >= self.next_control {
             let feed = self.display.borrow().feed_kg_s;
             cruise.step(feed);
-            self.next_control = self.next_control + self.config.cruise.period_ms * MS;
+            self.next_control = self.next_control + self.config.cruise.period_ms.saturating_mul(MS);
         }
         let setpoint = cruise.setpoint;
         self.display.borrow_mut().cruise_setpoint_kmh = Some(setpoint);
@@ -422,7 +422,7 @@ impl NodeLogic for Monitor {
         self.watch(now);
         self.drive(now);
         self.display.borrow_mut().now = now;
-        self.next_tick = now + self.config.tick_ms.max(1) * MS;
+        self.next_tick = now + self.config.tick_ms.max(1).saturating_mul(MS);
     }
 
     fn poll_transmit(&mut self) -> Option<Frame> {

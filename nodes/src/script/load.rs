@@ -28,8 +28,14 @@ pub fn load(path: &Path, signals: &dyn Signals) -> Result<NodeScript, Error> {
         path: file.clone(),
         source,
     })?;
-    let script = parse(&file, &text)?;
-    let problems = validate(&file, &script, signals);
+    from_text(&file, &text, signals)
+}
+
+/// Parses and validates a script held in memory; `file` names it in problems. [`load`] is this
+/// after reading the file.
+pub fn from_text(file: &str, text: &str, signals: &dyn Signals) -> Result<NodeScript, Error> {
+    let script = parse(file, text)?;
+    let problems = validate(file, &script, signals);
     if problems.is_empty() {
         Ok(script)
     } else {

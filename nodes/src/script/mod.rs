@@ -14,7 +14,7 @@ mod load;
 mod model;
 mod run;
 
-pub use load::{Signals, load, parse, validate};
+pub use load::{Signals, from_text, load, parse, validate};
 pub use model::*;
 pub use run::{Environment, ScriptedNode, SharedEnv};
 

@@ -97,7 +97,7 @@ pub struct ScriptedNode {
 impl ScriptedNode {
     /// A node that powers on at `power_on`; `seed` drives its noise faults.
     pub fn new(script: NodeScript, env: SharedEnv, power_on: BusTime, seed: u64) -> ScriptedNode {
-        let boot_at = power_on + script.boot_delay_ms * MS;
+        let boot_at = power_on + script.boot_delay_ms.saturating_mul(MS);
         let faults = script.faults.iter().map(|f| (f.clone(), power_on)).collect();
         ScriptedNode {
             address: Address(script.address),
@@ -194,7 +194,7 @@ impl ScriptedNode {
         // Timers restart on entering a state they run in, and stop outside their states.
         for (k, t) in self.s.timers.iter().enumerate() {
             let on = self.booted && (t.states.is_empty() || t.states.iter().any(|s| s == name));
-            self.timers[k] = on.then(|| self.now + t.after_ms * MS);
+            self.timers[k] = on.then(|| self.now + t.after_ms.saturating_mul(MS));
         }
     }
 
@@ -203,7 +203,7 @@ impl ScriptedNode {
         let b = self.boot_at;
         for (k, m) in self.s.messages.iter().enumerate() {
             self.sends[k].next = match m.when {
-                When::Periodic { phase_ms, .. } => b + phase_ms * MS,
+                When::Periodic { phase_ms, .. } => b + phase_ms.saturating_mul(MS),
                 When::OnChange { .. } => {
                     self.sends[k].check_next = b;
                     b
@@ -337,7 +337,7 @@ impl ScriptedNode {
             } else {
                 now + 1
             };
-            st.check_next = grid_from(st.check_next, check_ms * MS, from);
+            st.check_next = grid_from(st.check_next, check_ms.saturating_mul(MS), from);
             st.next = st.next.min(st.check_next);
         }
     }
@@ -380,7 +380,7 @@ impl ScriptedNode {
                     if let Some(k) = self.s.timers.iter().position(|d| &d.name == t)
                         && self.timers[k].is_some()
                     {
-                        self.timers[k] = Some(self.now + self.s.timers[k].after_ms * MS);
+                        self.timers[k] = Some(self.now + self.s.timers[k].after_ms.saturating_mul(MS));
                     }
                 }
             }
@@ -394,7 +394,7 @@ fn grid_from(start: BusTime, step: u64, from: BusTime) -> BusTime {
         return start;
     }
     let n = (from.as_nanos() - start.as_nanos()).div_ceil(step);
-    BusTime(start.as_nanos() + n * step)
+    BusTime(start.as_nanos().saturating_add(n.saturating_mul(step)))
 }
 
 /// A standard normal deviate (Box–Muller) from a seeded generator.
@@ -454,7 +454,7 @@ impl NodeLogic for ScriptedNode {
             let go = self.sends[k].enabled && self.active(&m.states);
             match m.when {
                 When::Periodic { period_ms, .. } => {
-                    self.sends[k].next = self.sends[k].next + period_ms * MS;
+                    self.sends[k].next = self.sends[k].next + period_ms.saturating_mul(MS);
                     if go {
                         self.emit(k, None);
                     }
@@ -468,16 +468,16 @@ impl NodeLogic for ScriptedNode {
                         // Woken for its heartbeat: the grid is where it would be by now.
                         let st = &mut self.sends[k];
                         st.idle = false;
-                        st.check_next = grid_from(st.check_next, check_ms * MS, now);
+                        st.check_next = grid_from(st.check_next, check_ms.saturating_mul(MS), now);
                     }
                     let checking = self.sends[k].check_next <= now;
                     if checking {
-                        self.sends[k].check_next = self.sends[k].check_next + check_ms * MS;
+                        self.sends[k].check_next = self.sends[k].check_next + check_ms.saturating_mul(MS);
                     }
                     if go {
                         let stale = self.sends[k]
                             .last_sent
-                            .is_none_or(|t| now - t >= heartbeat_ms * MS);
+                            .is_none_or(|t| now - t >= heartbeat_ms.saturating_mul(MS));
                         // What a check built is what goes out: the node sends the values it saw.
                         let checked = if checking { self.build(k, None) } else { None };
                         let changed = checked.as_ref().is_some_and(|f| *f != self.sends[k].last);
@@ -498,7 +498,7 @@ impl NodeLogic for ScriptedNode {
                     // The heartbeat is kept exactly, not rounded up to the next check.
                     let heartbeat = self.sends[k]
                         .last_sent
-                        .map_or(BusTime::NEVER, |t| t + heartbeat_ms * MS);
+                        .map_or(BusTime::NEVER, |t| t + heartbeat_ms.saturating_mul(MS));
                     let st = &mut self.sends[k];
                     st.next = if st.idle {
                         heartbeat
@@ -512,7 +512,7 @@ impl NodeLogic for ScriptedNode {
         self.in_pass = None;
         for k in 0..self.timers.len() {
             if self.timers[k].is_some_and(|t| t <= now) {
-                self.timers[k] = Some(now + self.s.timers[k].after_ms * MS);
+                self.timers[k] = Some(now + self.s.timers[k].after_ms.saturating_mul(MS));
                 let script = Rc::clone(&self.s);
                 let actions = &script.timers[k].actions;
                 self.run_actions(actions, None);

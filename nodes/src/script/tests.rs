@@ -400,3 +400,23 @@ fn internal_on_change_entries_sleep_until_the_node_changes() {
     // the 26 checks of the grid in between.
     assert_eq!(timeouts_before_accept, 4);
 }
+
+/// Times in scripts are `u64` milliseconds; huge ones mean "not within the run" instead of
+/// overflowing the nanosecond clock (the node script fuzz target found this).
+#[test]
+fn huge_times_never_come_instead_of_overflowing() {
+    let huge = B1.replace(
+        "period_ms: 100, phase_ms: 5",
+        "period_ms: 18446744073709551615, phase_ms: 5",
+    );
+    let (mut n, _) = node(&huge, &[("engine.rpm", 2150.0)]);
+    let sent = drive(&mut n, BusTime::from_millis(800), &[]);
+    // The first frame at 515 ms; the next one would be after the end of time.
+    assert_eq!(sent.len(), 1);
+    assert_eq!(sent[0].0, BusTime::from_millis(515));
+    assert_eq!(n.poll_timeout(), None, "nothing is due any more");
+
+    let late = B1.replace("boot_delay_ms: 10", "boot_delay_ms: 18446744073709551615");
+    let (mut n, _) = node(&late, &[("engine.rpm", 2150.0)]);
+    assert!(drive(&mut n, BusTime::from_millis(800), &[]).is_empty());
+}

@@ -37,14 +37,26 @@ pub struct Loaded {
 
 /// Reads and checks a scenario and its harvester; every problem is listed.
 pub fn load(path: &Path, seed: Option<u64>) -> Result<Loaded, Error> {
-    let file = path.display().to_string();
     let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
-        path: file.clone(),
+        path: path.display().to_string(),
         source,
     })?;
-    let scenario: Scenario = nodes::parse_ron(&file, &text)?;
+    from_text(path, &text, seed, Harvester::load)
+}
+
+/// As [`load`] with the scenario's text already read: `path` is where it came from (problems
+/// name it; its config is relative to its directory) and `harvester` loads the harvester config
+/// at a path, as [`Harvester::load`] does.
+pub fn from_text(
+    path: &Path,
+    text: &str,
+    seed: Option<u64>,
+    harvester: impl FnOnce(&Path) -> Result<Harvester, Error>,
+) -> Result<Loaded, Error> {
+    let file = path.display().to_string();
+    let scenario: Scenario = nodes::parse_ron(&file, text)?;
     let config = path.parent().unwrap_or(Path::new(".")).join(&scenario.config);
-    let mut harvester = Harvester::load(&config)?;
+    let mut harvester = harvester(&config)?;
     let problems = validate(&file, &scenario, &harvester);
     if !problems.is_empty() {
         return Err(Error::Invalid(problems));

@@ -1,0 +1,108 @@
+//! Shared pieces of the fuzz targets: the real configs as in-memory inputs, and small reference
+//! implementations that the targets hold the code under test to.
+//!
+//! Contract: nothing here touches the file system after the first call (the real configs are
+//! read once, at start-up); the fuzzed inputs never name a file that gets opened.
+
+use bus::Frame;
+use nodes::environment::PlantSignals;
+use nodes::script::NodeScript;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+use supervisor::harvester::Harvester;
+
+/// The repository's `configs/` directory.
+pub fn configs_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs")
+}
+
+/// Where the fuzzed harvester config pretends to live: scripts resolve next to it.
+pub const HARVESTER_PATH: &str = "configs/harvester.ron";
+
+/// The real node scripts, parsed once, by the path a config at [`HARVESTER_PATH`] names them
+/// with (`configs/nodes/d0.ron`).
+pub fn scripts() -> &'static BTreeMap<PathBuf, NodeScript> {
+    static SCRIPTS: OnceLock<BTreeMap<PathBuf, NodeScript>> = OnceLock::new();
+    SCRIPTS.get_or_init(|| {
+        let dir = configs_dir().join("nodes");
+        let mut map = BTreeMap::new();
+        for entry in std::fs::read_dir(&dir).expect("configs/nodes is readable") {
+            let path = entry.expect("a directory entry").path();
+            let script = nodes::script::load(&path, &PlantSignals).expect("the real scripts are valid");
+            let name = path.file_name().expect("a file name");
+            map.insert(Path::new("configs/nodes").join(name), script);
+        }
+        map
+    })
+}
+
+/// Reads a node script from [`scripts`] instead of the disk; any other path is "not found".
+pub fn script(path: &Path) -> Result<NodeScript, nodes::Error> {
+    scripts().get(path).cloned().ok_or_else(|| nodes::Error::Io {
+        path: path.display().to_string(),
+        source: std::io::ErrorKind::NotFound.into(),
+    })
+}
+
+/// The real harvester, loaded once from `configs/harvester.ron`.
+pub fn harvester() -> &'static Harvester {
+    static HARVESTER: OnceLock<Harvester> = OnceLock::new();
+    HARVESTER.get_or_init(|| {
+        Harvester::load(&configs_dir().join("harvester.ron")).expect("the real harvester loads")
+    })
+}
+
+/// The value of a hex digit, by a table rather than arithmetic on the character.
+pub fn hex_digit(c: u8) -> Option<u8> {
+    b"0123456789abcdef"
+        .iter()
+        .position(|&d| d == c.to_ascii_lowercase())
+        .map(|v| v as u8)
+}
+
+/// Reference reading of the `ID#DATA` data bytes: hex pairs, dots allowed anywhere, at most 8.
+pub fn reference_hex_bytes(text: &str) -> Option<Vec<u8>> {
+    let digits: Vec<u8> = text
+        .bytes()
+        .filter(|&b| b != b'.')
+        .map(hex_digit)
+        .collect::<Option<_>>()?;
+    if !digits.len().is_multiple_of(2) || digits.len() > 16 {
+        return None;
+    }
+    Some(digits.chunks(2).map(|p| p[0] * 16 + p[1]).collect())
+}
+
+/// Reference reading of an `ID#DATA` identifier: (raw, extended).
+pub fn reference_id(text: &str) -> Option<(u32, bool)> {
+    if text.len() != 3 && text.len() != 8 {
+        return None;
+    }
+    let value = text
+        .bytes()
+        .try_fold(0u64, |acc, c| Some(acc * 16 + u64::from(hex_digit(c)?)))?;
+    match text.len() {
+        3 if value <= 0x7FF => Some((value as u32, false)),
+        8 if value <= 0x1FFF_FFFF => Some((value as u32, true)),
+        _ => None,
+    }
+}
+
+/// The payload bits a message's layout covers: Data0 and every field.
+pub fn covered_bits(message: &bus::catalogue::MessageDef) -> u64 {
+    let mut mask = 0xFFu64;
+    for f in message.fields {
+        for bit in f.start_bit..f.start_bit + f.bits {
+            mask |= 1 << bit;
+        }
+    }
+    mask
+}
+
+/// A payload as one little-endian word.
+pub fn word(frame: &Frame) -> u64 {
+    let mut w = [0u8; 8];
+    w[..frame.data().len()].copy_from_slice(frame.data());
+    u64::from_le_bytes(w)
+}
