@@ -2,13 +2,17 @@
 //! expectations checked against the monitor's display, the bus statistics and node states, each
 //! with a verdict.
 
+pub mod books;
 mod check;
 pub mod junit;
 mod model;
+pub mod random;
 pub mod series;
+pub mod trace_count;
 
 pub use check::Verdict;
 pub use model::*;
+pub use random::{RandomFault, RandomFaults};
 pub use series::Series;
 
 use crate::BadInput;
@@ -16,7 +20,7 @@ use crate::harvester::{self, Harvester, Running};
 use actix::prelude::*;
 use bus::candump::parse_frame;
 use bus::engine::{BitPosition, ControllerConfig, Filter, Rule, Schedule};
-use bus::hub::{Attach, Control, GetErrorCounters, GetSnapshot, Submit, runtime};
+use bus::hub::{Attach, Control, GetErrorCounters, GetSnapshot, Replace, Submit, runtime};
 use bus::node::{Apply, NodeActor, NodeLogic};
 use bus::time::BusTime;
 use nodes::plant::Plant;
@@ -42,7 +46,7 @@ pub fn load(path: &Path, seed: Option<u64>) -> Result<Loaded, Error> {
         path: file.clone(),
         source,
     })?;
-    let scenario: Scenario = nodes::parse_ron(&file, &text)?;
+    let mut scenario: Scenario = nodes::parse_ron(&file, &text)?;
     let config = path.parent().unwrap_or(Path::new(".")).join(&scenario.config);
     let mut harvester = Harvester::load(&config)?;
     let problems = validate(&file, &scenario, &harvester);
@@ -51,6 +55,12 @@ pub fn load(path: &Path, seed: Option<u64>) -> Result<Loaded, Error> {
     }
     if let Some(s) = seed.or(scenario.seed) {
         harvester.config.seed = s;
+    }
+    if let Some(r) = &scenario.random_faults {
+        // Ordinary steps from here on: the runner, the report and the checks see no difference.
+        let seed = r.seed.unwrap_or(harvester.config.seed);
+        let steps = random::expand(r, seed, scenario.duration_s, &node_names(&harvester));
+        scenario.timeline.extend(steps);
     }
     if let Some(s) = scenario.cruise_start_s {
         harvester.config.monitor.cruise.start_s = Some(s);
@@ -62,12 +72,23 @@ pub fn load(path: &Path, seed: Option<u64>) -> Result<Loaded, Error> {
     })
 }
 
+/// The names of a harvester's nodes, the monitor's ("F5") first when it is emulated.
+fn node_names(h: &Harvester) -> Vec<String> {
+    let monitor = h.config.monitor.enabled.then(|| "F5".to_string());
+    monitor
+        .into_iter()
+        .chain(h.scripts.iter().map(|s| s.name.clone()))
+        .collect()
+}
+
 /// Checks names, times and values of a scenario against its harvester.
 pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
     let mut p = Vec::new();
-    let mut names: Vec<String> = h.scripts.iter().map(|s| s.name.clone()).collect();
-    if h.config.monitor.enabled {
-        names.push("F5".into());
+    let names = node_names(h);
+    if let Some(r) = &s.random_faults {
+        for (field, message) in random::problems(r, s.duration_s, &names) {
+            p.push(Problem::at(file, field, message));
+        }
     }
     let node_ok = |p: &mut Vec<Problem>, field: String, n: &str| {
         if !names.iter().any(|x| x == n) {
@@ -236,6 +257,7 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
                 | Expect::NoAlarms
                 | Expect::YieldWithin(_)
                 | Expect::Display { .. }
+                | Expect::FramesAccounted
         );
         if needs_monitor && !h.config.monitor.enabled {
             p.push(Problem::at(
@@ -288,6 +310,8 @@ pub struct Outcome {
     pub interrupted: bool,
     /// What the run looked like over time (for the report).
     pub series: Series,
+    /// Where the frames went (the monitor's books, the trace's count).
+    pub books: books::Books,
 }
 
 impl Outcome {
@@ -331,11 +355,19 @@ pub fn run(
         }
     }
     todo.sort_by_key(|(t, i, _)| (*t, *i));
+    // Counting the trace costs a line per frame: only when it is written anyway or checked.
+    let count_trace = trace.is_some() || s.expect.iter().any(|e| matches!(e, Expect::TraceComplete));
+    let (trace, trace_tally) = if count_trace {
+        let (w, tally) = trace_count::CountingWriter::new(trace);
+        (Some(Box::new(w) as Box<dyn Write>), Some(tally))
+    } else {
+        (trace, None)
+    };
     let system = System::with_tokio_rt(|| runtime(true).expect("a tokio runtime"));
     let result = system.block_on(async move {
         let mut running = harvester::start(&h, trace).await?;
         let mut rules = std::collections::BTreeMap::new();
-        let mut babbler = None;
+        let mut babbler = Babblers::default();
         // Ctrl-C stops the run where it is; verdicts, trace and report are still written.
         let mut ctrl_c = Box::pin(tokio::signal::ctrl_c());
         let mut interrupted = false;
@@ -377,9 +409,10 @@ pub fn run(
                     }
                 }
                 Todo::EndBabble => {
-                    if let Some(id) = babbler.take() {
+                    if let Some(id) = babbler.active.take() {
                         running.hub.send(Control::SetConnected(id, false)).await??;
                         running.hub.send(Control::SetHung(id, true)).await??;
+                        babbler.parked.push(id);
                     }
                 }
             }
@@ -394,7 +427,12 @@ pub fn run(
         let now = running.hub.send(GetSnapshot).await?.now;
         running.hub.send(bus::hub::RunUntil(now)).await??;
         let snap = running.hub.send(GetSnapshot).await?;
-        let mut verdicts = check::all(&s, &running, &snap);
+        let monitor = running
+            .node("F5")
+            .zip(running.display.as_ref().map(|d| d.borrow().tally));
+        let trace = trace_tally.map(|t| *t.borrow());
+        let books = books::Books::gather(&snap, monitor, trace);
+        let mut verdicts = check::all(&s, &running, &snap, &books);
         if interrupted {
             verdicts.push(Verdict {
                 expectation: "the run completes".into(),
@@ -404,7 +442,7 @@ pub fn run(
             });
         }
         series.finish(&snap);
-        anyhow::Ok((verdicts, running.events.clone(), interrupted, series))
+        anyhow::Ok((verdicts, running.events.clone(), interrupted, series, books))
     })?;
     Ok(Outcome {
         verdicts: result.0,
@@ -413,6 +451,7 @@ pub fn run(
         wall_seconds: started.elapsed().as_secs_f64(),
         interrupted: result.2,
         series: result.3,
+        books: result.4,
     })
 }
 
@@ -433,12 +472,20 @@ async fn sample(running: &Running) -> anyhow::Result<series::Sample> {
     })
 }
 
+/// Babbling idiots: the one flooding now, and those parked (disconnected, hung) for the next
+/// flood, so that a long run with many floods does not grow the bus by a controller each time.
+#[derive(Default)]
+struct Babblers {
+    active: Option<bus::engine::NodeId>,
+    parked: Vec<bus::engine::NodeId>,
+}
+
 async fn act(
     running: &mut Running,
     index: usize,
     action: Action,
     rules: &mut std::collections::BTreeMap<usize, bus::engine::RuleId>,
-    babbler: &mut Option<bus::engine::NodeId>,
+    babbler: &mut Babblers,
 ) -> anyhow::Result<()> {
     let id = |n: &str| running.node(n).ok_or_else(|| anyhow::anyhow!("no node {n}"));
     match action {
@@ -486,20 +533,38 @@ async fn act(
                 owed: 0,
             };
             let actor = NodeActor::new("babbler", Box::new(babbler_logic)).start();
-            let controller = ControllerConfig {
-                tx_queue_len: BABBLER_QUEUE,
-                ..ControllerConfig::named("babbler")
+            let node = if let Some(node) = babbler.parked.pop() {
+                // A new logic behind a parked controller (reset), back on the bus.
+                running
+                    .hub
+                    .send(Replace {
+                        node,
+                        actor: actor.recipient(),
+                    })
+                    .await??;
+                running.hub.send(Control::SetConnected(node, true)).await??;
+                node
+            } else {
+                let controller = ControllerConfig {
+                    tx_queue_len: BABBLER_QUEUE,
+                    ..ControllerConfig::named("babbler")
+                }
+                .with_filter(Filter::Nothing);
+                running
+                    .hub
+                    .send(Attach {
+                        controller,
+                        node: Some(actor.recipient()),
+                        reaction: std::time::Duration::from_micros(50),
+                    })
+                    .await?
+            };
+            // Overlapping floods: the newer one takes over, and the first end stops it.
+            if let Some(old) = babbler.active.replace(node) {
+                running.hub.send(Control::SetConnected(old, false)).await??;
+                running.hub.send(Control::SetHung(old, true)).await??;
+                babbler.parked.push(old);
             }
-            .with_filter(Filter::Nothing);
-            let node = running
-                .hub
-                .send(Attach {
-                    controller,
-                    node: Some(actor.recipient()),
-                    reaction: std::time::Duration::from_micros(50),
-                })
-                .await?;
-            *babbler = Some(node);
         }
         Action::SendFrame { node, frame } => {
             let frame = parse_frame(&frame)?;

@@ -27,6 +27,9 @@ pub struct Scenario {
     /// What happens when.
     #[serde(default)]
     pub timeline: Vec<Step>,
+    /// Faults drawn from a seed, added to the timeline when the scenario is loaded.
+    #[serde(default)]
+    pub random_faults: Option<super::random::RandomFaults>,
     /// What must be true.
     pub expect: Vec<Expect>,
 }
@@ -215,4 +218,9 @@ pub enum Expect {
         /// Count.
         count: usize,
     },
+    /// Every frame addressed to the monitor that completed on the bus was processed by its main
+    /// loop or lost for a counted reason, and the counts add up exactly.
+    FramesAccounted,
+    /// Every frame that completed on the bus is a frame line of the trace.
+    TraceComplete,
 }
