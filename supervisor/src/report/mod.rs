@@ -240,6 +240,8 @@ mod tests {
             interrupted: true,
             series: Series::default(),
             books: Default::default(),
+            applied: Default::default(),
+            snapshot: None,
         };
         let s = scenario("short");
         let page = html(&[("a.ron".into(), &s, &outcome)]);

@@ -41,12 +41,21 @@ pub struct Loaded {
 
 /// Reads and checks a scenario and its harvester; every problem is listed.
 pub fn load(path: &Path, seed: Option<u64>) -> Result<Loaded, Error> {
+    load_with(path, seed, None)
+}
+
+/// [`load`], with the run's length replaced by `duration_s` when given (before the random
+/// faults are drawn, so that they cover the new length).
+pub fn load_with(path: &Path, seed: Option<u64>, duration_s: Option<f64>) -> Result<Loaded, Error> {
     let file = path.display().to_string();
     let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
         path: file.clone(),
         source,
     })?;
     let mut scenario: Scenario = nodes::parse_ron(&file, &text)?;
+    if let Some(d) = duration_s {
+        scenario.duration_s = d;
+    }
     let config = path.parent().unwrap_or(Path::new(".")).join(&scenario.config);
     let mut harvester = Harvester::load(&config)?;
     let problems = validate(&file, &scenario, &harvester);
@@ -312,6 +321,17 @@ pub struct Outcome {
     pub series: Series,
     /// Where the frames went (the monitor's books, the trace's count).
     pub books: books::Books,
+    /// Timeline actions carried out, by [`Action::name`].
+    pub applied: std::collections::BTreeMap<&'static str, u64>,
+    /// The hub at the end.
+    pub snapshot: Option<bus::hub::Snapshot>,
+}
+
+/// What the run leaves besides verdicts.
+struct End {
+    books: books::Books,
+    applied: std::collections::BTreeMap<&'static str, u64>,
+    snapshot: bus::hub::Snapshot,
 }
 
 impl Outcome {
@@ -368,6 +388,7 @@ pub fn run(
         let mut running = harvester::start(&h, trace).await?;
         let mut rules = std::collections::BTreeMap::new();
         let mut babbler = Babblers::default();
+        let mut applied = std::collections::BTreeMap::new();
         // Ctrl-C stops the run where it is; verdicts, trace and report are still written.
         let mut ctrl_c = Box::pin(tokio::signal::ctrl_c());
         let mut interrupted = false;
@@ -402,7 +423,11 @@ pub fn run(
             }
             progress(running.now().as_secs_f64());
             match what {
-                Todo::Act(i, action) => act(&mut running, i, action, &mut rules, &mut babbler).await?,
+                Todo::Act(i, action) => {
+                    let name = action.name();
+                    act(&mut running, i, action, &mut rules, &mut babbler).await?;
+                    *applied.entry(name).or_insert(0) += 1;
+                }
                 Todo::EndBitErrors(i) => {
                     if let Some(id) = rules.remove(&i) {
                         running.hub.send(Control::RemoveRule(id)).await??;
@@ -442,7 +467,12 @@ pub fn run(
             });
         }
         series.finish(&snap);
-        anyhow::Ok((verdicts, running.events.clone(), interrupted, series, books))
+        let end = End {
+            books,
+            applied,
+            snapshot: snap,
+        };
+        anyhow::Ok((verdicts, running.events.clone(), interrupted, series, end))
     })?;
     Ok(Outcome {
         verdicts: result.0,
@@ -451,7 +481,9 @@ pub fn run(
         wall_seconds: started.elapsed().as_secs_f64(),
         interrupted: result.2,
         series: result.3,
-        books: result.4,
+        books: result.4.books,
+        applied: result.4.applied,
+        snapshot: Some(result.4.snapshot),
     })
 }
 

@@ -142,6 +142,28 @@ pub enum Action {
     PowerCycle,
 }
 
+impl Action {
+    /// The variant's name, as written in scenarios ("Crash", "BitErrors", ...).
+    pub fn name(&self) -> &'static str {
+        match self {
+            Action::BitErrors { .. } => "BitErrors",
+            Action::AckFailure(_) => "AckFailure",
+            Action::AckRestored(_) => "AckRestored",
+            Action::Disconnect(_) => "Disconnect",
+            Action::Reconnect(_) => "Reconnect",
+            Action::Crash(_) => "Crash",
+            Action::Hang(_) => "Hang",
+            Action::Resume(_) => "Resume",
+            Action::Babble { .. } => "Babble",
+            Action::SendFrame { .. } => "SendFrame",
+            Action::SensorFault { .. } => "SensorFault",
+            Action::SensorRepaired { .. } => "SensorRepaired",
+            Action::Plant { .. } => "Plant",
+            Action::PowerCycle => "PowerCycle",
+        }
+    }
+}
+
 /// What must be true.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub enum Expect {

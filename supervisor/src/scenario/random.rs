@@ -100,6 +100,21 @@ impl RandomFault {
     }
 }
 
+/// The random kind a timeline action starts, if it starts one (undo steps start none).
+pub fn kind_of(action: &Action) -> Option<RandomFault> {
+    match action {
+        Action::BitErrors {
+            target: Target::Any, ..
+        } => Some(RandomFault::BitErrors),
+        Action::BitErrors { .. } => Some(RandomFault::ErrorPassive),
+        Action::Crash(_) => Some(RandomFault::Crash),
+        Action::Hang(_) => Some(RandomFault::Hang),
+        Action::Babble { .. } => Some(RandomFault::Babble),
+        Action::Disconnect(_) => Some(RandomFault::Disconnect),
+        _ => None,
+    }
+}
+
 /// Most faults one section may produce: more is a typo in `mean_interval_s`, not a soak.
 pub const MAX_FAULTS: f64 = 100_000.0;
 

@@ -21,19 +21,8 @@ fn section(mean: f64, kinds: &[RandomFault]) -> RandomFaults {
     }
 }
 
-/// The kind a step starts, if it starts a fault (undo steps start none).
 fn kind(a: &Action) -> Option<RandomFault> {
-    match a {
-        Action::BitErrors {
-            target: Target::Any, ..
-        } => Some(RandomFault::BitErrors),
-        Action::BitErrors { .. } => Some(RandomFault::ErrorPassive),
-        Action::Crash(_) => Some(RandomFault::Crash),
-        Action::Hang(_) => Some(RandomFault::Hang),
-        Action::Babble { .. } => Some(RandomFault::Babble),
-        Action::Disconnect(_) => Some(RandomFault::Disconnect),
-        _ => None,
-    }
+    kind_of(a)
 }
 
 fn text(steps: &[Step]) -> String {
