@@ -3,9 +3,25 @@
 //! read back independently, holds every frame.
 
 use bus::fault::ErrorState;
+use clap::Parser;
 use harvemu_e2e::{Shared, default_harvester, parse_trace, root};
 use std::collections::{BTreeMap, BTreeSet};
+use supervisor::BadInput;
 use supervisor::scenario::{self, Action, RandomFault, Target, random};
+use supervisor::soak;
+
+/// The command line as far as these tests need it.
+#[derive(Parser)]
+#[command(name = "harvemu")]
+enum Cli {
+    Soak(soak::Args),
+}
+
+/// Runs `harvemu soak` with `words` in-process: Ok(passed and flat) or the error.
+fn harvemu_soak(words: &[&str]) -> anyhow::Result<bool> {
+    let Cli::Soak(args) = Cli::try_parse_from(["harvemu", "soak"].iter().chain(words))?;
+    soak::run(&args)
+}
 
 const SCENARIO: &str = r#"Scenario(
     name: "short soak",
@@ -136,4 +152,41 @@ fn a_short_soak_with_dense_random_faults_balances_its_books() {
         assert!(recent.contains(&s.address), "{} silent at the end", s.name);
     }
     assert!(recent.contains(&0xF5), "the monitor is silent at the end");
+}
+
+#[test]
+fn bad_soak_input_is_named_and_nothing_runs() {
+    let shipped = root().join("configs/scenarios/soak_24h.ron");
+    let shipped = shipped.to_str().unwrap();
+    for (words, says) in [
+        (vec![shipped, "--hours=-1"], "--hours -1"),
+        (vec![shipped, "--hours", "0"], "--hours 0"),
+        (vec![shipped, "--hours", "NaN"], "--hours NaN"),
+        (vec!["no/such/soak.ron"], "no/such/soak.ron"),
+    ] {
+        let e = harvemu_soak(&words).unwrap_err();
+        assert!(e.downcast_ref::<BadInput>().is_some(), "{words:?}: {e}");
+        assert!(e.to_string().contains(says), "{words:?}: {e}");
+    }
+    let dir = std::env::temp_dir().join(format!("harvemu-soak-bad-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("bad.ron");
+    let config = root().join("configs/harvester.ron");
+    let text = SCENARIO
+        .replace("CONFIG", &config.display().to_string())
+        .replace("mean_interval_s: 5.0", "mean_interval_s: 0.0")
+        .replace("Hang, Babble", "Hang, Z9");
+    std::fs::write(&file, text.replace("Z9", "Babble")).unwrap();
+    let e = harvemu_soak(&[file.to_str().unwrap()]).unwrap_err();
+    std::fs::write(&file, text).unwrap();
+    let unknown = harvemu_soak(&[file.to_str().unwrap()]).unwrap_err();
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert!(e.downcast_ref::<BadInput>().is_some());
+    let e = e.to_string();
+    assert!(
+        e.contains("bad.ron") && e.contains("random_faults.mean_interval_s"),
+        "{e}"
+    );
+    let unknown = unknown.to_string();
+    assert!(unknown.contains("bad.ron") && unknown.contains("Z9"), "{unknown}");
 }
