@@ -75,6 +75,8 @@ struct Slot {
     frames_can_wait: bool,
     /// Frames taken from the FIFO at the reaction time, for the next wake.
     buffered: Vec<crate::engine::Received>,
+    /// What became of the frames taken from the FIFO (plain counters: no cost per frame).
+    handover: Handover,
     hung: bool,
     crashed: Option<String>,
 }
@@ -103,11 +105,30 @@ impl Slot {
     /// Forgets what the old logic left unread (a new logic starts with an empty FIFO too).
     fn clear(&mut self) {
         self.events.clear();
+        self.handover.dropped_at_replace += self.buffered.len() as u64;
         self.buffered.clear();
         self.event_wake = false;
         self.frames_can_wait = false;
         self.pending_since = None;
     }
+}
+
+/// What became of the frames the hub took out of one node's receive FIFO. Every frame taken
+/// (the controller's `rx_read`) is in exactly one of these:
+/// `rx_read = handled + crashed + dropped_at_replace + held + in_flight`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct Handover {
+    /// Handed to the logic's `handle_frame`.
+    pub handled: u64,
+    /// In wakes whose logic crashed (or whose actor was gone) before handling them.
+    pub crashed: u64,
+    /// Held for the logic's next deadline, and dropped when a new logic took over (restart,
+    /// power cycle).
+    pub dropped_at_replace: u64,
+    /// Held for the logic's next deadline now.
+    pub held: u64,
+    /// In a wake not answered yet (none while the hub is paused).
+    pub in_flight: u64,
 }
 
 /// The hub actor.
@@ -358,6 +379,7 @@ impl Hub {
             if let Some(node) = &slot.node {
                 self.waiting += 1;
                 self.wakes += 1;
+                slot.handover.in_flight += frames.len() as u64;
                 // A node whose actor is gone answers at once: its reply is dropped with the wake.
                 node.do_send(Wake {
                     now: at,
@@ -373,6 +395,11 @@ impl Hub {
     /// Takes a node's answer; true when the node crashed.
     fn answer(&mut self, i: usize, report: Report) -> bool {
         let now = self.now;
+        let h = &mut self.slots[i].handover;
+        let sent = std::mem::take(&mut h.in_flight);
+        let handled = report.frames_handled.min(sent);
+        h.handled += handled;
+        h.crashed += sent - handled;
         if let Some(message) = report.crashed {
             tracing::warn!(node = %self.slots[i].name, %message, "node crashed");
             self.slots[i].crashed = Some(message);
@@ -493,6 +520,7 @@ impl Handler<Attach> for Hub {
             event_wake: false,
             frames_can_wait: false,
             buffered: Vec::new(),
+            handover: Handover::default(),
             hung: false,
             crashed: None,
         });
@@ -657,6 +685,10 @@ pub struct NodeSnapshot {
     pub state: ErrorState,
     /// Controller counters.
     pub counters: ControllerCounters,
+    /// What became of the frames taken from its receive FIFO.
+    pub handover: Handover,
+    /// Frames in its receive FIFO now.
+    pub rx_queued: u64,
     /// Hung by fault injection.
     pub hung: bool,
     /// Why it crashed, if it did.
@@ -749,6 +781,11 @@ impl Handler<GetSnapshot> for Hub {
                 rec: c.fault().rec(),
                 state: c.fault().state(),
                 counters: *c.counters(),
+                handover: Handover {
+                    held: s.buffered.len() as u64,
+                    ..s.handover
+                },
+                rx_queued: c.rx_len() as u64,
                 hung: s.hung,
                 crashed: s.crashed.clone(),
             })

@@ -147,6 +147,9 @@ pub struct Report {
     pub crashed: Option<String>,
     /// [`NodeLogic::frames_can_wait`], as of this wake.
     pub frames_can_wait: bool,
+    /// How many of the wake's frames reached [`NodeLogic::handle_frame`]: all of them, unless
+    /// the logic crashed first (the hub counts the rest as lost).
+    pub frames_handled: u64,
 }
 
 /// Most timeouts handled in one wake, so a logic whose deadline never moves cannot hang the bus.
@@ -161,6 +164,18 @@ pub fn drive(
     now: BusTime,
     frames: Vec<Received>,
     events: Vec<(BusTime, ControllerEvent)>,
+) -> Report {
+    drive_counted(logic, now, frames, events, &mut 0)
+}
+
+/// [`drive`], counting in `handled` the frames handed to the logic as it goes, so that the count
+/// survives a panic in the logic.
+fn drive_counted(
+    logic: &mut dyn NodeLogic,
+    now: BusTime,
+    frames: Vec<Received>,
+    events: Vec<(BusTime, ControllerEvent)>,
+    handled: &mut u64,
 ) -> Report {
     let mut frames = frames.into_iter().peekable();
     let mut events = events.into_iter().peekable();
@@ -180,6 +195,7 @@ pub fn drive(
             logic.handle_timeout(next);
         } else if tf == Some(next) {
             if let Some(r) = frames.next() {
+                *handled += 1;
                 logic.handle_frame(r.at, &r.frame);
             }
         } else if let Some((t, e)) = events.next() {
@@ -198,6 +214,7 @@ pub fn drive(
         next_timeout: logic.poll_timeout(),
         crashed: None,
         frames_can_wait: logic.frames_can_wait(),
+        frames_handled: *handled,
     }
 }
 
@@ -244,8 +261,9 @@ impl Handler<Wake> for NodeActor {
                 ..Report::default()
             });
         }
+        let mut handled = 0;
         let report = match catch_unwind(AssertUnwindSafe(|| {
-            drive(self.logic.as_mut(), now, frames, events)
+            drive_counted(self.logic.as_mut(), now, frames, events, &mut handled)
         })) {
             Ok(report) => report,
             Err(panic) => {
@@ -258,6 +276,7 @@ impl Handler<Wake> for NodeActor {
                 ctx.stop();
                 Report {
                     crashed: Some(message),
+                    frames_handled: handled,
                     ..Report::default()
                 }
             }

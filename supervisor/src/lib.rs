@@ -13,6 +13,7 @@ pub mod report;
 pub mod run;
 pub mod scenario;
 pub mod scenarios_cli;
+pub mod soak;
 pub mod tui;
 
 /// An error that the user caused: reported on one line, exit code 2.

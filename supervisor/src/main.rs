@@ -4,7 +4,7 @@
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
-use supervisor::{BadInput, bench, dbc, inspect, replay, run, scenarios_cli};
+use supervisor::{BadInput, bench, dbc, inspect, replay, run, scenarios_cli, soak};
 
 #[derive(Parser)]
 #[command(
@@ -25,6 +25,8 @@ enum Command {
     Replay(replay::Args),
     /// Run scenarios in virtual time and give verdicts (exit code 1 if any expectation fails).
     Scenario(scenarios_cli::ScenarioArgs),
+    /// A long run with random faults (default: 24 h virtual): memory over time and the books.
+    Soak(soak::Args),
     /// Check harvester configs, node scripts and scenarios without running anything.
     Validate(scenarios_cli::ValidateArgs),
     /// Decode one frame: identifier fields, catalogue message, CRC, bit lengths, filters.
@@ -62,6 +64,11 @@ fn main() -> ExitCode {
         Command::Replay(args) => replay::run(&args),
         Command::Validate(args) => scenarios_cli::validate(&args),
         Command::Scenario(args) => match scenarios_cli::run(&args) {
+            Ok(true) => Ok(()),
+            Ok(false) => return ExitCode::from(1),
+            Err(e) => Err(e),
+        },
+        Command::Soak(args) => match soak::run(&args) {
             Ok(true) => Ok(()),
             Ok(false) => return ExitCode::from(1),
             Err(e) => Err(e),

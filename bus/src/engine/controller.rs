@@ -125,6 +125,14 @@ pub struct ControllerCounters {
     pub rx_frames: u64,
     /// Frames received correctly but rejected by the acceptance filter.
     pub rx_filtered: u64,
+    /// Frames its filter accepts that ended while it was off the bus (disconnected or bus off).
+    pub rx_missed: u64,
+    /// Frames it sent itself that its own filter accepts (a controller does not receive them).
+    pub rx_own: u64,
+    /// Frames the node took out of the receive FIFO.
+    pub rx_read: u64,
+    /// Frames dropped from the receive FIFO by a reset (restart, power cycle).
+    pub rx_cleared: u64,
     /// Frames lost because the receive FIFO was full (data overrun).
     pub rx_overruns: u64,
     /// Submissions refused because the transmit queue was full.
@@ -241,7 +249,16 @@ impl Controller {
         let frames: Vec<Received> = self.rx.drain(..n).collect();
         let released: usize = frames.iter().map(|r| fifo_bytes(&r.frame)).sum();
         self.rx_bytes = self.rx_bytes.saturating_sub(released);
+        self.counters.rx_read += frames.len() as u64;
         (frames, overrun)
+    }
+
+    /// Empties the receive FIFO at a reset: the frames in it are lost, and counted.
+    pub(crate) fn clear_rx(&mut self) {
+        self.overrun_flag = false;
+        self.counters.rx_cleared += self.rx.len() as u64;
+        self.rx.clear();
+        self.rx_bytes = 0;
     }
 
     /// End of the oldest frame still in the receive FIFO.

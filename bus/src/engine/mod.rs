@@ -359,7 +359,7 @@ impl Bus {
         let c = self.get_mut(node)?;
         c.fault.reset();
         c.tx.clear();
-        c.drain(BusTime::NEVER);
+        c.clear_rx();
         c.recessive_since = at;
         c.suspended_until = c.suspended_until.max(at);
         self.events.push(Event::Restarted { node, at });
@@ -632,6 +632,9 @@ impl Bus {
             let c = &mut self.controllers[t];
             let Some(p) = c.tx.pop_front() else { continue };
             c.counters.tx_frames += 1;
+            if c.config.filter.accepts(&frame) {
+                c.counters.rx_own += 1;
+            }
             let recovering = c.fault.tec() > 0;
             let changes = c.fault.transmit_success();
             self.events.push(Event::TxDone {
@@ -652,6 +655,10 @@ impl Bus {
             }
             let c = &mut self.controllers[i];
             if !c.on_bus() {
+                // Counted for the books: a frame addressed to it that it never saw.
+                if c.config.filter.accepts(&frame) {
+                    c.counters.rx_missed += 1;
+                }
                 continue;
             }
             let recovering = c.fault.rec() > 0;

@@ -534,3 +534,59 @@ fn error_counters_are_kept_over_time() {
         .collect();
     assert_eq!(rec, [1, 2, 3, 4, 3, 2, 1, 0]);
 }
+
+/// Every frame that completes is, for each other controller, in exactly one of: missed (off the
+/// bus), filtered, stored, overrun; and what is stored is read, cleared by a reset or still there.
+#[test]
+fn receive_books_place_every_frame() {
+    let mut b = bus();
+    let tx = b.attach(ControllerConfig::named("tx"));
+    let filter = Filter::SocketCan(crate::filter::SocketCanFilterSet(vec![
+        crate::filter::SocketCanFilter::new(
+            crate::filter::CAN_EFF_FLAG | 0xF500,
+            crate::filter::CAN_EFF_FLAG | 0xFF00,
+        ),
+    ]));
+    let rx = b.attach(ControllerConfig::named("rx").with_filter(filter.clone()));
+    // A third node that acknowledges while `rx` is away, so that frames still complete.
+    b.attach(ControllerConfig::named("ack").with_filter(Filter::Nothing));
+    let to_rx = f("0500F5B1#01");
+    let other = f("0500A0B1#02");
+    let mut t = 0;
+    let send = |b: &mut Bus, t: &mut u64, frame: Frame, n: usize| {
+        for _ in 0..n {
+            b.submit(tx, frame, BusTime(*t)).unwrap();
+            *t += 1_000_000;
+            b.run_until(BusTime(*t));
+        }
+    };
+    send(&mut b, &mut t, to_rx, 3); // stored
+    send(&mut b, &mut t, other, 2); // filtered
+    b.set_connected(rx, false, BusTime(t)).unwrap();
+    send(&mut b, &mut t, to_rx, 4); // missed
+    send(&mut b, &mut t, other, 1); // not addressed to it: not missed either
+    b.set_connected(rx, true, BusTime(t)).unwrap();
+    send(&mut b, &mut t, to_rx, 2); // stored
+    let (read, _) = b.drain_rx(rx, BusTime(t)).unwrap();
+    assert_eq!(read.len(), 5);
+    send(&mut b, &mut t, to_rx, 1); // stored, then cleared by the reset
+    b.reset_node(rx, BusTime(t)).unwrap();
+    send(&mut b, &mut t, to_rx, 1); // stored, still there
+    // The sender's own frames are not received, but its filter (All) accepts them.
+    let c = *b.controller(rx).unwrap().counters();
+    assert_eq!(
+        (
+            c.rx_frames,
+            c.rx_filtered,
+            c.rx_missed,
+            c.rx_read,
+            c.rx_cleared,
+            c.rx_overruns
+        ),
+        (7, 2, 4, 5, 1, 0)
+    );
+    assert_eq!(b.controller(rx).unwrap().rx_len(), 1);
+    let own = b.controller(tx).unwrap().counters();
+    assert_eq!((own.tx_frames, own.rx_own), (14, 14));
+    assert_eq!(b.stats().frames, 14);
+}

@@ -94,6 +94,32 @@ pub struct Display {
     pub lost: u64,
     /// Flow groups broken (a frame missing or out of order).
     pub broken_groups: u64,
+    /// What became of every frame the receive interrupt got, since the first power-up (kept
+    /// across restarts, unlike the rest of the screen).
+    pub tally: FrameTally,
+}
+
+/// The monitor's books on the frames its receive interrupt got. Every frame is in exactly one
+/// place: `received = queue_full + processed + queued + dropped_at_restart`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct FrameTally {
+    /// Frames handed to the receive interrupt.
+    pub received: u64,
+    /// Lost because the queue was full.
+    pub queue_full: u64,
+    /// Taken from the queue by the main loop.
+    pub processed: u64,
+    /// In the queue now (or when the last logic stopped for good).
+    pub queued: u64,
+    /// In the queue of a logic that a restart or power cycle replaced.
+    pub dropped_at_restart: u64,
+}
+
+impl FrameTally {
+    /// True when every received frame is accounted for.
+    pub fn balances(&self) -> bool {
+        self.queue_full + self.processed + self.queued + self.dropped_at_restart == self.received
+    }
 }
 
 impl Display {

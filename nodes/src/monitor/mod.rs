@@ -25,7 +25,7 @@ use bus::ident::{Address, NodeKind};
 use bus::node::NodeLogic;
 use bus::time::BusTime;
 use cruise::{Cruise, CruiseConfig};
-pub use display::{Alarm, Display, RowYield};
+pub use display::{Alarm, Display, FrameTally, RowYield};
 use flow::{Calibration, FlowSession, Group};
 use serde::{Deserialize, Serialize};
 use std::cell::RefCell;
@@ -117,10 +117,14 @@ impl Monitor {
             .filter(|a| a.kind() == Some(NodeKind::FlowSensor))
             .map(|a| (a, FlowSession::new(a)))
             .collect();
+        // The books carry on: whatever the previous logic still had queued is gone with it.
+        let mut tally = display.borrow().tally;
+        tally.dropped_at_restart += std::mem::take(&mut tally.queued);
         *display.borrow_mut() = Display {
             phase: "power-up".to_string(),
             rows: vec![RowYield::default(); sessions.len()],
             now: power_on,
+            tally,
             ..Display::default()
         };
         Monitor {
@@ -404,10 +408,14 @@ impl Monitor {
 impl NodeLogic for Monitor {
     /// The producer: the receive interrupt only queues.
     fn handle_frame(&mut self, now: BusTime, frame: &Frame) {
+        let mut d = self.display.borrow_mut();
+        d.tally.received += 1;
         if self.queue.len() < self.config.queue_capacity {
             self.queue.push_back((now, *frame));
+            d.tally.queued += 1;
         } else {
-            self.display.borrow_mut().lost += 1;
+            d.lost += 1;
+            d.tally.queue_full += 1;
         }
     }
 
@@ -417,6 +425,11 @@ impl NodeLogic for Monitor {
             let Some((at, frame)) = self.queue.pop_front() else {
                 break;
             };
+            {
+                let mut d = self.display.borrow_mut();
+                d.tally.processed += 1;
+                d.tally.queued -= 1;
+            }
             self.consume(at, frame);
         }
         self.watch(now);

@@ -91,3 +91,48 @@ fn flow_groups_become_yield_through_the_references() {
     // The first group stands for one nominal period of 100 ms: 0.1 g.
     assert!((d.rows[0].kg - 0.0001).abs() < 1e-12);
 }
+
+#[test]
+fn the_tally_places_every_frame_and_survives_a_restart() {
+    let mut m = Monitor::new(MonitorConfig {
+        queue_capacity: 4,
+        consume_per_tick: 3,
+        ..MonitorConfig::default()
+    });
+    let f = parse_frame("0500F5B1#218C08").unwrap();
+    for k in 0..6 {
+        m.handle_frame(BusTime::from_micros(k), &f);
+    }
+    // 4 queued, 2 did not fit; the main loop takes 3 of the 4.
+    m.handle_timeout(BusTime::from_millis(10));
+    let display = m.display();
+    let t = display.borrow().tally;
+    assert_eq!(
+        (
+            t.received,
+            t.queue_full,
+            t.processed,
+            t.queued,
+            t.dropped_at_restart
+        ),
+        (6, 2, 3, 1, 0)
+    );
+    assert!(t.balances());
+    // A new logic on the same screen: the frame the old one still held is lost with it.
+    let mut again = Monitor::with_display(MonitorConfig::default(), display.clone(), BusTime::from_secs(1));
+    again.handle_frame(BusTime::from_millis(1001), &f);
+    let t = display.borrow().tally;
+    assert_eq!(
+        (
+            t.received,
+            t.queue_full,
+            t.processed,
+            t.queued,
+            t.dropped_at_restart
+        ),
+        (7, 2, 3, 1, 1)
+    );
+    assert!(t.balances());
+    // The rest of the screen is blanked as before.
+    assert_eq!(display.borrow().lost, 0);
+}

@@ -206,6 +206,7 @@ mod tests {
             duration_s: 30.0,
             cruise_start_s: None,
             timeline: Vec::new(),
+            random_faults: None,
             expect: Vec::new(),
         }
     }
@@ -238,6 +239,9 @@ mod tests {
             wall_seconds: 0.1,
             interrupted: true,
             series: Series::default(),
+            books: Default::default(),
+            applied: Default::default(),
+            snapshot: None,
         };
         let s = scenario("short");
         let page = html(&[("a.ron".into(), &s, &outcome)]);

@@ -1,5 +1,6 @@
 //! Verdicts: each expectation against what the run produced.
 
+use super::books::Books;
 use super::{Expect, Scenario};
 use crate::harvester::Running;
 use bus::fault::ErrorState;
@@ -30,11 +31,11 @@ fn verdict(e: &Expect, passed: bool, at: Option<BusTime>, observed: String) -> V
 }
 
 /// Checks every expectation.
-pub fn all(s: &Scenario, r: &Running, snap: &Snapshot) -> Vec<Verdict> {
-    s.expect.iter().map(|e| one(e, r, snap)).collect()
+pub fn all(s: &Scenario, r: &Running, snap: &Snapshot, books: &Books) -> Vec<Verdict> {
+    s.expect.iter().map(|e| one(e, r, snap, books)).collect()
 }
 
-fn one(e: &Expect, r: &Running, snap: &Snapshot) -> Verdict {
+fn one(e: &Expect, r: &Running, snap: &Snapshot, books: &Books) -> Verdict {
     let display = r.display.as_ref().map(|d| d.borrow().clone()).unwrap_or_default();
     match e {
         Expect::AlarmRaised {
@@ -214,5 +215,38 @@ fn one(e: &Expect, r: &Running, snap: &Snapshot) -> Verdict {
             let at = r.events.iter().rev().find(|ev| &ev.node == node).map(|ev| ev.at);
             verdict(e, n == *count, at, format!("{n} restart(s)"))
         }
+        Expect::FramesAccounted => match &books.monitor {
+            Some(m) => {
+                let failed: Vec<&str> = m.checks().iter().filter(|c| !c.holds()).map(|c| c.what).collect();
+                let lost = m.on_bus - m.tally.processed.min(m.on_bus);
+                let observed = if failed.is_empty() {
+                    format!(
+                        "{} frame(s) to F5: {} processed, {lost} accounted as lost or pending",
+                        m.on_bus, m.tally.processed
+                    )
+                } else {
+                    format!(
+                        "{} frame(s) to F5, {} accounted; off: {}",
+                        m.on_bus,
+                        m.accounted(),
+                        failed.join("; ")
+                    )
+                };
+                verdict(e, failed.is_empty(), Some(snap.now), observed)
+            }
+            None => verdict(e, false, None, "no emulated monitor".into()),
+        },
+        Expect::TraceComplete => match (books.trace, books.trace_complete()) {
+            (Some(t), Some(ok)) => verdict(
+                e,
+                ok,
+                Some(snap.now),
+                format!(
+                    "{} frame(s) on the bus, {} frame line(s) in the trace ({} error frame(s), {} other line(s))",
+                    books.frames, t.frames, t.error_frames, t.other
+                ),
+            ),
+            _ => verdict(e, false, None, "the trace was not counted".into()),
+        },
     }
 }

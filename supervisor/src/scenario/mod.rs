@@ -2,13 +2,17 @@
 //! expectations checked against the monitor's display, the bus statistics and node states, each
 //! with a verdict.
 
+pub mod books;
 mod check;
 pub mod junit;
 mod model;
+pub mod random;
 pub mod series;
+pub mod trace_count;
 
 pub use check::Verdict;
 pub use model::*;
+pub use random::{RandomFault, RandomFaults};
 pub use series::Series;
 
 use crate::BadInput;
@@ -16,7 +20,7 @@ use crate::harvester::{self, Harvester, Running};
 use actix::prelude::*;
 use bus::candump::parse_frame;
 use bus::engine::{BitPosition, ControllerConfig, Filter, Rule, Schedule};
-use bus::hub::{Attach, Control, GetErrorCounters, GetSnapshot, Submit, runtime};
+use bus::hub::{Attach, Control, GetErrorCounters, GetSnapshot, Replace, Submit, runtime};
 use bus::node::{Apply, NodeActor, NodeLogic};
 use bus::time::BusTime;
 use nodes::plant::Plant;
@@ -37,11 +41,17 @@ pub struct Loaded {
 
 /// Reads and checks a scenario and its harvester; every problem is listed.
 pub fn load(path: &Path, seed: Option<u64>) -> Result<Loaded, Error> {
+    load_with(path, seed, None)
+}
+
+/// [`load`], with the run's length replaced by `duration_s` when given (before the random
+/// faults are drawn, so that they cover the new length).
+pub fn load_with(path: &Path, seed: Option<u64>, duration_s: Option<f64>) -> Result<Loaded, Error> {
     let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
         path: path.display().to_string(),
         source,
     })?;
-    from_text(path, &text, seed, Harvester::load)
+    parse(path, &text, seed, duration_s, Harvester::load)
 }
 
 /// As [`load`] with the scenario's text already read: `path` is where it came from (problems
@@ -53,8 +63,21 @@ pub fn from_text(
     seed: Option<u64>,
     harvester: impl FnOnce(&Path) -> Result<Harvester, Error>,
 ) -> Result<Loaded, Error> {
+    parse(path, text, seed, None, harvester)
+}
+
+fn parse(
+    path: &Path,
+    text: &str,
+    seed: Option<u64>,
+    duration_s: Option<f64>,
+    harvester: impl FnOnce(&Path) -> Result<Harvester, Error>,
+) -> Result<Loaded, Error> {
     let file = path.display().to_string();
-    let scenario: Scenario = nodes::parse_ron(&file, text)?;
+    let mut scenario: Scenario = nodes::parse_ron(&file, text)?;
+    if let Some(d) = duration_s {
+        scenario.duration_s = d;
+    }
     let config = path.parent().unwrap_or(Path::new(".")).join(&scenario.config);
     let mut harvester = harvester(&config)?;
     let problems = validate(&file, &scenario, &harvester);
@@ -63,6 +86,12 @@ pub fn from_text(
     }
     if let Some(s) = seed.or(scenario.seed) {
         harvester.config.seed = s;
+    }
+    if let Some(r) = &scenario.random_faults {
+        // Ordinary steps from here on: the runner, the report and the checks see no difference.
+        let seed = r.seed.unwrap_or(harvester.config.seed);
+        let steps = random::expand(r, seed, scenario.duration_s, &node_names(&harvester));
+        scenario.timeline.extend(steps);
     }
     if let Some(s) = scenario.cruise_start_s {
         harvester.config.monitor.cruise.start_s = Some(s);
@@ -74,12 +103,23 @@ pub fn from_text(
     })
 }
 
+/// The names of a harvester's nodes, the monitor's ("F5") first when it is emulated.
+fn node_names(h: &Harvester) -> Vec<String> {
+    let monitor = h.config.monitor.enabled.then(|| "F5".to_string());
+    monitor
+        .into_iter()
+        .chain(h.scripts.iter().map(|s| s.name.clone()))
+        .collect()
+}
+
 /// Checks names, times and values of a scenario against its harvester.
 pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
     let mut p = Vec::new();
-    let mut names: Vec<String> = h.scripts.iter().map(|s| s.name.clone()).collect();
-    if h.config.monitor.enabled {
-        names.push("F5".into());
+    let names = node_names(h);
+    if let Some(r) = &s.random_faults {
+        for (field, message) in random::problems(r, s.duration_s, &names) {
+            p.push(Problem::at(file, field, message));
+        }
     }
     let node_ok = |p: &mut Vec<Problem>, field: String, n: &str| {
         if !names.iter().any(|x| x == n) {
@@ -248,6 +288,7 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
                 | Expect::NoAlarms
                 | Expect::YieldWithin(_)
                 | Expect::Display { .. }
+                | Expect::FramesAccounted
         );
         if needs_monitor && !h.config.monitor.enabled {
             p.push(Problem::at(
@@ -300,6 +341,19 @@ pub struct Outcome {
     pub interrupted: bool,
     /// What the run looked like over time (for the report).
     pub series: Series,
+    /// Where the frames went (the monitor's books, the trace's count).
+    pub books: books::Books,
+    /// Timeline actions carried out, by [`Action::name`].
+    pub applied: std::collections::BTreeMap<&'static str, u64>,
+    /// The hub at the end.
+    pub snapshot: Option<bus::hub::Snapshot>,
+}
+
+/// What the run leaves besides verdicts.
+struct End {
+    books: books::Books,
+    applied: std::collections::BTreeMap<&'static str, u64>,
+    snapshot: bus::hub::Snapshot,
 }
 
 impl Outcome {
@@ -343,11 +397,20 @@ pub fn run(
         }
     }
     todo.sort_by_key(|(t, i, _)| (*t, *i));
+    // Counting the trace costs a line per frame: only when it is written anyway or checked.
+    let count_trace = trace.is_some() || s.expect.iter().any(|e| matches!(e, Expect::TraceComplete));
+    let (trace, trace_tally) = if count_trace {
+        let (w, tally) = trace_count::CountingWriter::new(trace);
+        (Some(Box::new(w) as Box<dyn Write>), Some(tally))
+    } else {
+        (trace, None)
+    };
     let system = System::with_tokio_rt(|| runtime(true).expect("a tokio runtime"));
     let result = system.block_on(async move {
         let mut running = harvester::start(&h, trace).await?;
         let mut rules = std::collections::BTreeMap::new();
-        let mut babbler = None;
+        let mut babbler = Babblers::default();
+        let mut applied = std::collections::BTreeMap::new();
         // Ctrl-C stops the run where it is; verdicts, trace and report are still written.
         let mut ctrl_c = Box::pin(tokio::signal::ctrl_c());
         let mut interrupted = false;
@@ -382,16 +445,21 @@ pub fn run(
             }
             progress(running.now().as_secs_f64());
             match what {
-                Todo::Act(i, action) => act(&mut running, i, action, &mut rules, &mut babbler).await?,
+                Todo::Act(i, action) => {
+                    let name = action.name();
+                    act(&mut running, i, action, &mut rules, &mut babbler).await?;
+                    *applied.entry(name).or_insert(0) += 1;
+                }
                 Todo::EndBitErrors(i) => {
                     if let Some(id) = rules.remove(&i) {
                         running.hub.send(Control::RemoveRule(id)).await??;
                     }
                 }
                 Todo::EndBabble => {
-                    if let Some(id) = babbler.take() {
+                    if let Some(id) = babbler.active.take() {
                         running.hub.send(Control::SetConnected(id, false)).await??;
                         running.hub.send(Control::SetHung(id, true)).await??;
+                        babbler.parked.push(id);
                     }
                 }
             }
@@ -406,7 +474,12 @@ pub fn run(
         let now = running.hub.send(GetSnapshot).await?.now;
         running.hub.send(bus::hub::RunUntil(now)).await??;
         let snap = running.hub.send(GetSnapshot).await?;
-        let mut verdicts = check::all(&s, &running, &snap);
+        let monitor = running
+            .node("F5")
+            .zip(running.display.as_ref().map(|d| d.borrow().tally));
+        let trace = trace_tally.map(|t| *t.borrow());
+        let books = books::Books::gather(&snap, monitor, trace);
+        let mut verdicts = check::all(&s, &running, &snap, &books);
         if interrupted {
             verdicts.push(Verdict {
                 expectation: "the run completes".into(),
@@ -416,7 +489,12 @@ pub fn run(
             });
         }
         series.finish(&snap);
-        anyhow::Ok((verdicts, running.events.clone(), interrupted, series))
+        let end = End {
+            books,
+            applied,
+            snapshot: snap,
+        };
+        anyhow::Ok((verdicts, running.events.clone(), interrupted, series, end))
     })?;
     Ok(Outcome {
         verdicts: result.0,
@@ -425,6 +503,9 @@ pub fn run(
         wall_seconds: started.elapsed().as_secs_f64(),
         interrupted: result.2,
         series: result.3,
+        books: result.4.books,
+        applied: result.4.applied,
+        snapshot: Some(result.4.snapshot),
     })
 }
 
@@ -445,12 +526,20 @@ async fn sample(running: &Running) -> anyhow::Result<series::Sample> {
     })
 }
 
+/// Babbling idiots: the one flooding now, and those parked (disconnected, hung) for the next
+/// flood, so that a long run with many floods does not grow the bus by a controller each time.
+#[derive(Default)]
+struct Babblers {
+    active: Option<bus::engine::NodeId>,
+    parked: Vec<bus::engine::NodeId>,
+}
+
 async fn act(
     running: &mut Running,
     index: usize,
     action: Action,
     rules: &mut std::collections::BTreeMap<usize, bus::engine::RuleId>,
-    babbler: &mut Option<bus::engine::NodeId>,
+    babbler: &mut Babblers,
 ) -> anyhow::Result<()> {
     let id = |n: &str| running.node(n).ok_or_else(|| anyhow::anyhow!("no node {n}"));
     match action {
@@ -498,20 +587,38 @@ async fn act(
                 owed: 0,
             };
             let actor = NodeActor::new("babbler", Box::new(babbler_logic)).start();
-            let controller = ControllerConfig {
-                tx_queue_len: BABBLER_QUEUE,
-                ..ControllerConfig::named("babbler")
+            let node = if let Some(node) = babbler.parked.pop() {
+                // A new logic behind a parked controller (reset), back on the bus.
+                running
+                    .hub
+                    .send(Replace {
+                        node,
+                        actor: actor.recipient(),
+                    })
+                    .await??;
+                running.hub.send(Control::SetConnected(node, true)).await??;
+                node
+            } else {
+                let controller = ControllerConfig {
+                    tx_queue_len: BABBLER_QUEUE,
+                    ..ControllerConfig::named("babbler")
+                }
+                .with_filter(Filter::Nothing);
+                running
+                    .hub
+                    .send(Attach {
+                        controller,
+                        node: Some(actor.recipient()),
+                        reaction: std::time::Duration::from_micros(50),
+                    })
+                    .await?
+            };
+            // Overlapping floods: the newer one takes over, and the first end stops it.
+            if let Some(old) = babbler.active.replace(node) {
+                running.hub.send(Control::SetConnected(old, false)).await??;
+                running.hub.send(Control::SetHung(old, true)).await??;
+                babbler.parked.push(old);
             }
-            .with_filter(Filter::Nothing);
-            let node = running
-                .hub
-                .send(Attach {
-                    controller,
-                    node: Some(actor.recipient()),
-                    reaction: std::time::Duration::from_micros(50),
-                })
-                .await?;
-            *babbler = Some(node);
         }
         Action::SendFrame { node, frame } => {
             let frame = parse_frame(&frame)?;

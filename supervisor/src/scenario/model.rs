@@ -27,6 +27,9 @@ pub struct Scenario {
     /// What happens when.
     #[serde(default)]
     pub timeline: Vec<Step>,
+    /// Faults drawn from a seed, added to the timeline when the scenario is loaded.
+    #[serde(default)]
+    pub random_faults: Option<super::random::RandomFaults>,
     /// What must be true.
     pub expect: Vec<Expect>,
 }
@@ -139,6 +142,28 @@ pub enum Action {
     PowerCycle,
 }
 
+impl Action {
+    /// The variant's name, as written in scenarios ("Crash", "BitErrors", ...).
+    pub fn name(&self) -> &'static str {
+        match self {
+            Action::BitErrors { .. } => "BitErrors",
+            Action::AckFailure(_) => "AckFailure",
+            Action::AckRestored(_) => "AckRestored",
+            Action::Disconnect(_) => "Disconnect",
+            Action::Reconnect(_) => "Reconnect",
+            Action::Crash(_) => "Crash",
+            Action::Hang(_) => "Hang",
+            Action::Resume(_) => "Resume",
+            Action::Babble { .. } => "Babble",
+            Action::SendFrame { .. } => "SendFrame",
+            Action::SensorFault { .. } => "SensorFault",
+            Action::SensorRepaired { .. } => "SensorRepaired",
+            Action::Plant { .. } => "Plant",
+            Action::PowerCycle => "PowerCycle",
+        }
+    }
+}
+
 /// What must be true.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub enum Expect {
@@ -215,4 +240,9 @@ pub enum Expect {
         /// Count.
         count: usize,
     },
+    /// Every frame addressed to the monitor that completed on the bus was processed by its main
+    /// loop or lost for a counted reason, and the counts add up exactly.
+    FramesAccounted,
+    /// Every frame that completed on the bus is a frame line of the trace.
+    TraceComplete,
 }

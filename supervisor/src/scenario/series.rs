@@ -2,7 +2,9 @@
 //!
 //! Contract: the scenario loop stops the bus at [`Series::next_stop`] on its way to any target;
 //! whenever [`Series::is_due`] says so it reads a [`Sample`] and hands it to [`Series::record`].
-//! That gives one sample at each whole bus second from the end of start-up to the end of the run.
+//! That gives one sample at each whole bus second from the end of start-up to the end of the run,
+//! up to [`MAX_SAMPLES`]: past that, every other sample is dropped and the period doubles (as the
+//! hub's histories do), so a day-long soak keeps its memory flat.
 //! At the end, [`Series::finish`] copies the hub's own histories (load per second, latency per
 //! priority, error counters at each error) from the final snapshot. Sampling only reads, and the
 //! bus already stops at every 10 ms for supervision, so a run gives the same verdicts whether
@@ -13,6 +15,8 @@ use bus::time::BusTime;
 
 /// Sampling period.
 pub const SAMPLE_NS: u64 = 1_000_000_000;
+/// Most samples kept before the resolution halves.
+pub const MAX_SAMPLES: usize = 4096;
 
 /// What was read at one whole second.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -71,6 +75,8 @@ pub struct Series {
     /// Bus time the run reached, s.
     pub end_s: f64,
     next: Option<BusTime>,
+    /// Sampling period, ns: [`SAMPLE_NS`] times a power of two (0 before the first halving).
+    period_ns: u64,
 }
 
 fn ceil_to_sample(t: BusTime) -> BusTime {
@@ -78,6 +84,11 @@ fn ceil_to_sample(t: BusTime) -> BusTime {
 }
 
 impl Series {
+    /// The present sampling period, ns.
+    pub fn period_ns(&self) -> u64 {
+        self.period_ns.max(SAMPLE_NS)
+    }
+
     /// The next sampling time, given that the bus is at `now`.
     fn due(&self, now: BusTime) -> BusTime {
         self.next.unwrap_or_else(|| ceil_to_sample(now))
@@ -97,7 +108,17 @@ impl Series {
     pub fn record(&mut self, now: BusTime, mut sample: Sample) {
         sample.t_s = now.as_secs_f64();
         self.samples.push(sample);
-        self.next = Some(BusTime((now.as_nanos() / SAMPLE_NS + 1) * SAMPLE_NS));
+        if self.samples.len() > MAX_SAMPLES {
+            // Halve the resolution: keep every other sample, sample half as often from now on.
+            let mut i = 0;
+            self.samples.retain(|_| {
+                i += 1;
+                i % 2 == 1
+            });
+            self.period_ns = self.period_ns() * 2;
+        }
+        let period = self.period_ns();
+        self.next = Some(BusTime((now.as_nanos() / period + 1) * period));
     }
 
     /// Takes the hub's histories from the final snapshot.
@@ -199,6 +220,21 @@ mod tests {
         // Start-up ends exactly at 2 s: that second is sampled too; the end at 4.5 s is not.
         let times = drive(BusTime(2 * S), &[4 * S + S / 2], 0);
         assert_eq!(times, vec![2 * S, 3 * S, 4 * S]);
+    }
+
+    #[test]
+    fn a_long_run_halves_its_resolution_and_keeps_its_memory_bounded() {
+        let run = 3 * MAX_SAMPLES as u64 + 5;
+        let times = drive(BusTime(0), &[run * S], 0);
+        assert!(times.len() <= MAX_SAMPLES, "{} samples", times.len());
+        assert!(times.len() > MAX_SAMPLES / 2, "{} samples", times.len());
+        // Still in time order, from the start to near the end, on whole seconds.
+        assert!(times.windows(2).all(|w| w[0] < w[1]));
+        assert_eq!(times[0], 0);
+        assert!(*times.last().unwrap() > (run - 4) * S);
+        assert!(times.iter().all(|t| t % S == 0));
+        // After two halvings, samples are 4 s apart.
+        assert_eq!(times[times.len() - 1] - times[times.len() - 2], 4 * S);
     }
 
     #[test]

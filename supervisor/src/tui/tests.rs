@@ -66,6 +66,8 @@ fn node(name: &str, state: ErrorState, tec: u16, rec: u16) -> NodeSnapshot {
         rec,
         state,
         counters: ControllerCounters::default(),
+        handover: Default::default(),
+        rx_queued: 0,
         hung: false,
         crashed: None,
     }

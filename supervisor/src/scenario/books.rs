@@ -1,0 +1,278 @@
+//! The books of a run: where every frame addressed to the monitor went, and whether the trace
+//! holds every frame that completed on the bus.
+//!
+//! Contract: plain arithmetic over counters the bus engine, the hub and the monitor keep as they
+//! run (no I/O, nothing recomputed from frames). A frame addressed to the monitor that completed
+//! on the bus is counted in exactly one reason; [`MonitorBooks::checks`] states each identity
+//! between two layers (bus, controller, hub, monitor logic) and whether it holds, so an imbalance
+//! says where frames went missing. [`TraceTally`] counts a candump log's lines independently of
+//! the engine, for the check that every completed frame is in the trace.
+
+use bus::engine::{ControllerCounters, NodeId};
+use bus::hub::{Handover, Snapshot};
+use nodes::monitor::FrameTally;
+use serde::Serialize;
+
+/// The monitor's address.
+const MONITOR: u32 = 0xF5;
+/// `CAN_EFF_FLAG` of a kernel can_id.
+const EFF: u32 = 0x8000_0000;
+/// `CAN_ERR_FLAG`.
+const ERR: u32 = 0x2000_0000;
+
+/// True when a kernel can_id (extended flag included) is a harvester identifier whose
+/// destination byte is the monitor's.
+pub fn to_monitor(can_id: u32) -> bool {
+    can_id & EFF != 0 && (can_id >> 8) & 0xFF == MONITOR
+}
+
+/// The monitor's counters at the end of a run.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct MonitorBooks {
+    /// Frames addressed to the monitor that completed on the bus (per-identifier statistics).
+    pub on_bus: u64,
+    /// Frames whose identifier the statistics did not track one by one (cannot be attributed).
+    pub untracked: u64,
+    /// The same count from the trace, when one was counted.
+    pub in_trace: Option<u64>,
+    /// The monitor's controller.
+    pub controller: ControllerCounters,
+    /// Frames in its receive FIFO at the end.
+    pub in_fifo: u64,
+    /// What the hub did with the frames it took from the FIFO.
+    pub handover: Handover,
+    /// What the monitor's logic did with the frames it got.
+    pub tally: FrameTally,
+}
+
+/// One identity of the books.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Check {
+    /// What should be equal.
+    pub what: &'static str,
+    /// Left side.
+    pub left: u64,
+    /// Right side.
+    pub right: u64,
+}
+
+impl Check {
+    /// True when both sides agree.
+    pub fn holds(&self) -> bool {
+        self.left == self.right
+    }
+}
+
+impl MonitorBooks {
+    /// Every frame addressed to the monitor, by what became of it. The first row is the only
+    /// one that is not a loss; the sum of all rows is [`MonitorBooks::on_bus`] when the books
+    /// balance.
+    pub fn reasons(&self) -> Vec<(&'static str, u64)> {
+        let (c, h, t) = (&self.controller, &self.handover, &self.tally);
+        vec![
+            ("processed by the main loop", t.processed),
+            ("sent by the monitor itself", c.rx_own),
+            ("missed: monitor off the bus (disconnected, bus off)", c.rx_missed),
+            ("lost: receive FIFO overrun", c.rx_overruns),
+            ("lost: receive FIFO cleared at a restart", c.rx_cleared),
+            ("lost: in a wake the logic crashed on", h.crashed),
+            ("lost: held for a logic that was replaced", h.dropped_at_replace),
+            ("lost: receive queue full", t.queue_full),
+            (
+                "lost: in the queue of a logic that was replaced",
+                t.dropped_at_restart,
+            ),
+            ("still in the receive FIFO at the end", self.in_fifo),
+            ("still held by the hub at the end", h.held),
+            ("still in a wake at the end", h.in_flight),
+            ("still in the receive queue at the end", t.queued),
+        ]
+    }
+
+    /// Sum of the reasons.
+    pub fn accounted(&self) -> u64 {
+        self.reasons().iter().map(|(_, n)| n).sum()
+    }
+
+    /// Each layer's identity.
+    pub fn checks(&self) -> Vec<Check> {
+        let (c, h, t) = (&self.controller, &self.handover, &self.tally);
+        let mut v = vec![
+            Check {
+                what: "on the bus = accounted for",
+                left: self.on_bus,
+                right: self.accounted(),
+            },
+            Check {
+                what: "on the bus = own + missed + overrun + stored (controller)",
+                left: self.on_bus,
+                right: c.rx_own + c.rx_missed + c.rx_overruns + c.rx_frames,
+            },
+            Check {
+                what: "stored = read + cleared + in FIFO (controller)",
+                left: c.rx_frames,
+                right: c.rx_read + c.rx_cleared + self.in_fifo,
+            },
+            Check {
+                what: "read = handled + crashed + dropped + held + in a wake (hub)",
+                left: c.rx_read,
+                right: h.handled + h.crashed + h.dropped_at_replace + h.held + h.in_flight,
+            },
+            Check {
+                what: "handled by the hub = received by the interrupt (monitor)",
+                left: h.handled,
+                right: t.received,
+            },
+            Check {
+                what: "received = processed + queue full + queued + dropped (monitor)",
+                left: t.received,
+                right: t.processed + t.queue_full + t.queued + t.dropped_at_restart,
+            },
+            Check {
+                what: "frames of untracked identifiers",
+                left: self.untracked,
+                right: 0,
+            },
+        ];
+        if let Some(n) = self.in_trace {
+            v.push(Check {
+                what: "on the bus = addressed to the monitor in the trace",
+                left: self.on_bus,
+                right: n,
+            });
+        }
+        v
+    }
+
+    /// True when every identity holds.
+    pub fn balance(&self) -> bool {
+        self.checks().iter().all(Check::holds)
+    }
+
+    /// The table the soak prints.
+    pub fn table(&self) -> String {
+        let mut s = format!(
+            "{:>12}  frames addressed to F5 that completed on the bus\n",
+            self.on_bus
+        );
+        for (what, n) in self.reasons() {
+            s += &format!("{n:>12}  {what}\n");
+        }
+        s += &format!("{:>12}  accounted for\n", self.accounted());
+        for c in self.checks() {
+            let mark = if c.holds() { "ok  " } else { "FAIL" };
+            s += &format!("  {mark} {}: {} vs {}\n", c.what, c.left, c.right);
+        }
+        s
+    }
+}
+
+/// The books of a whole run.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Books {
+    /// Frames that completed on the bus (the engine's statistics).
+    pub frames: u64,
+    /// Error frames on the bus.
+    pub error_frames: u64,
+    /// The trace's lines, when they were counted.
+    pub trace: Option<TraceTally>,
+    /// The monitor's books, when the monitor is emulated.
+    pub monitor: Option<MonitorBooks>,
+}
+
+impl Books {
+    /// Gathers the books from the hub's last snapshot, the monitor's node and tally, and the
+    /// trace's count.
+    pub fn gather(
+        snap: &Snapshot,
+        monitor: Option<(NodeId, FrameTally)>,
+        trace: Option<TraceTally>,
+    ) -> Books {
+        let monitor = monitor.and_then(|(id, tally)| {
+            let node = snap.nodes.get(id.index())?;
+            let on_bus = snap
+                .stats
+                .per_id
+                .iter()
+                .filter(|(id, _)| to_monitor(**id))
+                .map(|(_, s)| s.count)
+                .sum();
+            Some(MonitorBooks {
+                on_bus,
+                untracked: snap.stats.untracked_frames,
+                in_trace: trace.map(|t| t.to_monitor),
+                controller: node.counters,
+                in_fifo: node.rx_queued,
+                handover: node.handover,
+                tally,
+            })
+        });
+        Books {
+            frames: snap.stats.frames,
+            error_frames: snap.stats.error_frames,
+            trace,
+            monitor,
+        }
+    }
+
+    /// Every completed frame is a frame line of the trace, and the trace has nothing else but
+    /// error frames (None when the trace was not counted).
+    pub fn trace_complete(&self) -> Option<bool> {
+        self.trace.map(|t| t.frames == self.frames && t.other == 0)
+    }
+}
+
+/// A candump log's lines, counted as they stream by.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct TraceTally {
+    /// Data and remote frames.
+    pub frames: u64,
+    /// Of those, addressed to the monitor.
+    pub to_monitor: u64,
+    /// Error frames (`CAN_ERR_FLAG` in the identifier).
+    pub error_frames: u64,
+    /// Lines that are neither.
+    pub other: u64,
+}
+
+impl TraceTally {
+    /// Counts one line (without its newline): `(secs.usecs) iface ID#DATA`.
+    pub fn line(&mut self, line: &str) {
+        match classify(line) {
+            Some(Line::Frame(id)) => {
+                self.frames += 1;
+                self.to_monitor += u64::from(to_monitor(id));
+            }
+            Some(Line::Error) => self.error_frames += 1,
+            None => self.other += 1,
+        }
+    }
+}
+
+enum Line {
+    /// A frame, with its kernel can_id.
+    Frame(u32),
+    Error,
+}
+
+/// Reads a candump line by the format's own rules (not by the writer's code): 3 hex digits for a
+/// base identifier, 8 for an extended one, then `R` or up to 8 bytes in hex.
+fn classify(line: &str) -> Option<Line> {
+    let rest = line.strip_prefix('(')?;
+    let (_time, rest) = rest.split_once(") ")?;
+    let (_iface, frame) = rest.split_once(' ')?;
+    let (id, data) = frame.split_once('#')?;
+    let raw = u32::from_str_radix(id, 16).ok()?;
+    let can_id = match id.len() {
+        3 if raw <= 0x7FF => raw,
+        8 if raw & ERR != 0 => return Some(Line::Error),
+        8 if raw <= 0x1FFF_FFFF => raw | EFF,
+        _ => return None,
+    };
+    let remote = data.starts_with('R');
+    let hex_ok = data.len() % 2 == 0 && data.len() <= 16 && data.bytes().all(|b| b.is_ascii_hexdigit());
+    (remote || hex_ok).then_some(Line::Frame(can_id))
+}
+
+#[cfg(test)]
+mod tests;

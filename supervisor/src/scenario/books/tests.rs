@@ -1,0 +1,122 @@
+use super::*;
+
+/// 1000 frames to the monitor: 10 missed while it was away, 5 overruns, 985 stored; of those 3
+/// cleared at a restart, 2 still in the FIFO, 980 read; of those 4 in a crashed wake, 6 dropped at
+/// the replacement, 1 held, 969 handled; of those 7 did not fit, 950 processed, 2 queued, 10
+/// dropped with a replaced logic.
+fn balanced() -> MonitorBooks {
+    MonitorBooks {
+        on_bus: 1000,
+        untracked: 0,
+        in_trace: Some(1000),
+        controller: ControllerCounters {
+            rx_missed: 10,
+            rx_overruns: 5,
+            rx_frames: 985,
+            rx_cleared: 3,
+            rx_read: 980,
+            rx_filtered: 123_456,
+            ..ControllerCounters::default()
+        },
+        in_fifo: 2,
+        handover: Handover {
+            handled: 969,
+            crashed: 4,
+            dropped_at_replace: 6,
+            held: 1,
+            in_flight: 0,
+        },
+        tally: FrameTally {
+            received: 969,
+            queue_full: 7,
+            processed: 950,
+            queued: 2,
+            dropped_at_restart: 10,
+        },
+    }
+}
+
+#[test]
+fn balanced_books_sum_to_the_frames_on_the_bus_in_every_layer() {
+    let b = balanced();
+    assert_eq!(b.accounted(), 1000);
+    assert!(b.balance(), "{}", b.table());
+    // Frames addressed to others (filtered) are nobody's loss.
+    assert!(!b.reasons().iter().any(|(_, n)| *n == 123_456));
+    assert!(b.table().starts_with("        1000  frames addressed to F5"));
+}
+
+#[test]
+fn a_frame_gone_missing_is_caught_in_its_layer() {
+    // The hub loses one frame without saying so: read no longer matches what it did.
+    let mut b = balanced();
+    b.handover.handled -= 1;
+    b.tally.received -= 1;
+    b.tally.processed -= 1;
+    let failed: Vec<&str> = b
+        .checks()
+        .into_iter()
+        .filter(|c| !c.holds())
+        .map(|c| c.what)
+        .collect();
+    assert_eq!(
+        failed,
+        [
+            "on the bus = accounted for",
+            "read = handled + crashed + dropped + held + in a wake (hub)"
+        ]
+    );
+    assert_eq!(b.accounted(), 999);
+    assert!(b.table().contains("FAIL read ="), "{}", b.table());
+}
+
+#[test]
+fn the_trace_count_and_untracked_identifiers_are_checked_too() {
+    let mut b = balanced();
+    b.in_trace = Some(1001);
+    b.untracked = 0;
+    assert!(!b.balance());
+    b.in_trace = None;
+    assert!(b.balance());
+    b.untracked = 3;
+    assert!(!b.balance());
+}
+
+#[test]
+fn destinations_are_read_from_the_identifier() {
+    // priority | type | destination | source, with the kernel's extended flag.
+    assert!(to_monitor(0x8000_0000 | 0x0601_F5D0));
+    assert!(to_monitor(0x8000_0000 | 0x0000_F5EE));
+    assert!(!to_monitor(0x8000_0000 | 0x0500_A0F5), "from the monitor");
+    assert!(!to_monitor(0x0000_00F5), "base identifier");
+    assert!(!to_monitor(0x0000_F500), "no extended flag");
+}
+
+#[test]
+fn trace_lines_are_told_apart() {
+    let mut t = TraceTally::default();
+    for line in [
+        "(0000000001.000100) harv0 0601F5D0#200D0002FFBFFF00",
+        "(0000000001.000200) harv0 0601A0D0#",
+        "(0000000001.000300) harv0 123#DEADBEEF",
+        "(0000000001.000400) harv0 0000F5EE#R",
+        "(0000000001.000500) harv0 20000088#0000800000000800",
+        "(0000000001.000600) harv0 20000004#0001000000000000",
+        "(0000000001.000700) harv0 800#00",
+        "(0000000001.000800) harv0 0601F5D0#0",
+        "(0000000001.000900) harv0 0601F5D0#001122334455667788",
+        "garbage",
+        "",
+    ] {
+        t.line(line);
+    }
+    assert_eq!(
+        t,
+        TraceTally {
+            frames: 4,
+            to_monitor: 2,
+            error_frames: 2,
+            other: 5,
+        }
+    );
+}

@@ -1,0 +1,154 @@
+//! `harvemu soak`: a long scenario in virtual time with random faults (by default a day of
+//! harvesting, `configs/scenarios/soak_24h.ron`), reported with its memory over time and the
+//! monitor's books.
+//!
+//! Contract: the run is an ordinary scenario run (same loader, runner and verdicts); this module
+//! adds only the sampling of resident memory at the start, at every eighth of the run and at the
+//! end, and the report. Exit code 0 when every expectation passed and memory stayed flat, 1
+//! otherwise, 2 for bad input.
+
+pub mod memory;
+
+use crate::BadInput;
+use crate::harvester;
+use crate::scenario::{self, random};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::PathBuf;
+
+/// Arguments of `harvemu soak`.
+#[derive(clap::Args)]
+pub struct Args {
+    /// The soak scenario (RON, usually with a `random_faults` section).
+    #[arg(default_value = "configs/scenarios/soak_24h.ron")]
+    scenario: PathBuf,
+    /// Virtual hours to run (default: the scenario's duration); the faults are drawn for this length.
+    #[arg(long)]
+    hours: Option<f64>,
+    /// Seed of the run and of its faults (default: the scenario's, else its config's).
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Write the trace here: Vector ASC when the name ends in .asc, else a candump log.
+    #[arg(long)]
+    record: Option<PathBuf>,
+}
+
+/// Runs `harvemu soak`: true when every expectation passed and memory stayed flat.
+pub fn run(args: &Args) -> anyhow::Result<bool> {
+    let duration = match args.hours {
+        Some(h) if h.is_finite() && h > 0.0 => Some(h * 3600.0),
+        Some(h) => return Err(BadInput(format!("--hours {h}: must be a positive number of hours")).into()),
+        None => None,
+    };
+    let before = memory::vm_rss_kib();
+    let loaded = scenario::load_with(&args.scenario, args.seed, duration).map_err(harvester::bad)?;
+    let trace: Option<Box<dyn Write>> = match &args.record {
+        Some(p) => Some(crate::record::create(p)?),
+        None => None,
+    };
+    let s = &loaded.scenario;
+    let mut rss = memory::Samples {
+        duration_s: s.duration_s,
+        points: before.map(|k| (0.0, k)).into_iter().collect(),
+    };
+    let bar = ProgressBar::new(s.duration_s.ceil() as u64);
+    bar.set_style(
+        ProgressStyle::with_template("{msg:24} {bar:30} {pos}/{len} s virtual, {elapsed} wall, eta {eta}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    bar.set_message(s.name.clone());
+    let step = s.duration_s / 8.0;
+    let mut next_sample = step;
+    let outcome = scenario::run(&loaded, trace, |t| {
+        bar.set_position(t as u64);
+        if t >= next_sample {
+            if let Some(k) = memory::vm_rss_kib() {
+                rss.points.push((t, k));
+                bar.set_message(format!("{} {:.1} MiB", s.name, k as f64 / 1024.0));
+            }
+            next_sample += step;
+        }
+    })?;
+    bar.finish_and_clear();
+    if let Some(k) = memory::vm_rss_kib() {
+        let end = outcome
+            .snapshot
+            .as_ref()
+            .map_or(s.duration_s, |n| n.now.as_secs_f64());
+        rss.points.push((end, k));
+    }
+    print!("{}", report(&loaded, &outcome, &rss, args.hours));
+    let flat = rss.verdict().is_none_or(|(flat, _)| flat);
+    Ok(outcome.passed() && flat)
+}
+
+/// The soak's report, as printed.
+fn report(l: &scenario::Loaded, o: &scenario::Outcome, rss: &memory::Samples, hours: Option<f64>) -> String {
+    let s = &l.scenario;
+    let mut out = format!(
+        "{} ({}), seed {}, {:.2} h virtual\n",
+        s.name,
+        l.path.display(),
+        o.seed,
+        s.duration_s / 3600.0
+    );
+    let mut drawn: BTreeMap<String, usize> = BTreeMap::new();
+    for step in &s.timeline {
+        if let Some(k) = random::kind_of(&step.action) {
+            *drawn.entry(format!("{k:?}")).or_insert(0) += 1;
+        }
+    }
+    let total: usize = drawn.values().sum();
+    let kinds: Vec<String> = drawn.iter().map(|(k, n)| format!("{k} {n}")).collect();
+    let applied: u64 = o.applied.values().sum();
+    out += &format!(
+        "faults: {total} ({}); {applied} timeline actions carried out\n",
+        kinds.join(", ")
+    );
+    let count = |prefix: &str| o.events.iter().filter(|e| e.what.starts_with(prefix)).count();
+    out += &format!(
+        "supervisor: {} crash(es), {} restart(s), {} gave up\n",
+        count("crashed"),
+        count("restarted"),
+        count("gave up")
+    );
+    let virtual_s = o.snapshot.as_ref().map_or(0.0, |n| n.now.as_secs_f64());
+    out += &format!(
+        "wall: {:.1} s ({:.0}x real time)\n",
+        o.wall_seconds,
+        virtual_s / o.wall_seconds.max(1e-9)
+    );
+    out += &rss.line();
+    out.push('\n');
+    let b = &o.books;
+    out += &format!("bus: {} frames, {} error frames", b.frames, b.error_frames);
+    if let Some(t) = b.trace {
+        out += &format!(
+            "; trace: {} frame lines, {} error-frame lines, {} other",
+            t.frames, t.error_frames, t.other
+        );
+    }
+    out.push('\n');
+    if let Some(m) = &b.monitor {
+        out += "books of the monitor (F5):\n";
+        out += &m.table();
+    }
+    for v in &o.verdicts {
+        out += &format!(
+            "{} {}  {}\n",
+            if v.passed { "pass" } else { "FAIL" },
+            v.expectation,
+            v.observed
+        );
+    }
+    if !o.passed() {
+        out += &format!(
+            "failed: reproduce with: harvemu soak {} --seed {}{}\n",
+            l.path.display(),
+            o.seed,
+            hours.map(|h| format!(" --hours {h}")).unwrap_or_default()
+        );
+    }
+    out
+}
