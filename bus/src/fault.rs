@@ -392,6 +392,10 @@ impl FaultConfinement {
     /// Rule 7: the node transmitted a frame successfully (ACK received, no error up to the end
     /// of EOF): TEC -1, not below 0.
     pub fn transmit_success(&mut self) -> Changes {
+        // The common case on a healthy bus: nothing to count down, nothing can change.
+        if self.tec == 0 {
+            return Changes::NONE;
+        }
         self.counting(|fc| fc.tec = fc.tec.saturating_sub(1))
     }
 
@@ -399,6 +403,9 @@ impl FaultConfinement {
     /// bit sent): REC -1 when it is 1–127, set to [`REC_AFTER_PASSIVE_RECEPTION`] (119) when it
     /// is above 127, unchanged at 0.
     pub fn receive_success(&mut self) -> Changes {
+        if self.rec == 0 {
+            return Changes::NONE;
+        }
         self.counting(|fc| {
             fc.rec = if fc.rec >= PASSIVE_LIMIT {
                 REC_AFTER_PASSIVE_RECEPTION

@@ -210,7 +210,7 @@ pub struct Stats {
     /// Receive overruns over all nodes.
     pub overruns: u64,
     /// Per identifier (kernel form: EFF flag set for extended).
-    pub per_id: HashMap<u32, IdStats>,
+    pub per_id: rustc_hash::FxHashMap<u32, IdStats>,
     /// Frames of identifiers beyond the tracked maximum.
     pub untracked_frames: u64,
     /// Queueing latency (submit to end of frame) per priority (0–31; 32 = base frames).
@@ -238,7 +238,7 @@ impl Stats {
             error_frames: 0,
             errors_by_kind: HashMap::new(),
             overruns: 0,
-            per_id: HashMap::new(),
+            per_id: Default::default(),
             untracked_frames: 0,
             latency: vec![Latency::default(); 33],
             buckets: vec![0; BUCKETS],
