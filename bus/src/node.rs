@@ -257,7 +257,7 @@ impl Handler<Wake> for NodeActor {
             tracing::info!(node = %self.name, "injected crash");
             ctx.stop();
             return reply.send(Report {
-                crashed: Some("injected crash".to_string()),
+                crashed: Some(INJECTED_CRASH.to_string()),
                 ..Report::default()
             });
         }
@@ -284,6 +284,9 @@ impl Handler<Wake> for NodeActor {
         reply.send(report);
     }
 }
+
+/// What a node reports when it crashed because it was told to ([`Crash`]).
+pub const INJECTED_CRASH: &str = "injected crash";
 
 /// Makes the node's logic crash at its next wake (fault injection).
 #[derive(Message)]
