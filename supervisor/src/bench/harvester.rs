@@ -3,7 +3,7 @@
 use super::Totals;
 use crate::harvester::{self, Harvester};
 use actix::prelude::*;
-use bus::hub::{GetSnapshot, runtime};
+use bus::hub::runtime;
 use bus::time::BusTime;
 
 /// Bus time each harvester runs before the next one's turn.
@@ -32,21 +32,7 @@ pub fn run_on_this_thread(h: &Harvester, count: usize, first: u64, seconds: f64)
                 r.run_until(reached).await.map_err(|e| format!("{e:#}"))?;
             }
         }
-        let mut totals = Totals {
-            frames: 0,
-            deliveries: 0,
-            wakes: 0,
-            load: 0.0,
-        };
-        for (i, r) in running.iter().enumerate() {
-            let snap = r.hub.send(GetSnapshot).await.map_err(|e| e.to_string())?;
-            totals.frames += snap.stats.frames;
-            totals.deliveries += snap.stats.deliveries;
-            totals.wakes += snap.wakes;
-            if i == 0 {
-                totals.load = snap.stats.total_load();
-            }
-        }
-        Ok(totals)
+        let hubs: Vec<_> = running.iter().map(|r| r.hub.clone()).collect();
+        super::totals(&hubs).await
     })
 }

@@ -101,6 +101,26 @@ pub struct Totals {
     load: f64,
 }
 
+/// What the hubs of one thread did; the load is the first one's.
+async fn totals(hubs: &[actix::Addr<bus::hub::Hub>]) -> Result<Totals, String> {
+    let mut totals = Totals {
+        frames: 0,
+        deliveries: 0,
+        wakes: 0,
+        load: 0.0,
+    };
+    for (i, hub) in hubs.iter().enumerate() {
+        let snap = hub.send(bus::hub::GetSnapshot).await.map_err(|e| e.to_string())?;
+        totals.frames += snap.stats.frames;
+        totals.deliveries += snap.stats.deliveries;
+        totals.wakes += snap.wakes;
+        if i == 0 {
+            totals.load = snap.stats.total_load();
+        }
+    }
+    Ok(totals)
+}
+
 /// A workload: builds and runs some buses on the calling thread.
 #[derive(Clone)]
 pub enum Workload {

@@ -3,7 +3,7 @@
 use actix::prelude::*;
 use bus::engine::{ControllerConfig, Filter, NodeId};
 use bus::filter::{CAN_EFF_FLAG, SocketCanFilter, SocketCanFilterSet};
-use bus::hub::{Attach, GetSnapshot, Hub, HubConfig, RunUntil, runtime};
+use bus::hub::{Attach, Hub, HubConfig, RunUntil, runtime};
 use bus::ident::{Address, AppId, FrameType, Priority};
 use bus::node::{ControllerEvent, NodeActor, NodeLogic};
 use bus::time::BusTime;
@@ -112,21 +112,6 @@ pub fn run_on_this_thread(buses: usize, first_seed: u64, seconds: f64) -> Result
         for r in join_all(hubs.iter().map(|h| h.send(RunUntil(until)))).await {
             r.map_err(|e| e.to_string())?.map_err(|e| e.to_string())?;
         }
-        let mut totals = Totals {
-            frames: 0,
-            deliveries: 0,
-            wakes: 0,
-            load: 0.0,
-        };
-        for (i, hub) in hubs.iter().enumerate() {
-            let snap = hub.send(GetSnapshot).await.map_err(|e| e.to_string())?;
-            totals.frames += snap.stats.frames;
-            totals.deliveries += snap.stats.deliveries;
-            totals.wakes += snap.wakes;
-            if i == 0 {
-                totals.load = snap.stats.total_load();
-            }
-        }
-        Ok(totals)
+        super::totals(&hubs).await
     })
 }
