@@ -1,23 +1,13 @@
 //! `harvemu dbc` as a user runs it: standard output or a file, the config's cycle times, and
 //! clear errors for paths that do not work.
 
+mod common;
+
+use common::harvemu;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
-fn harvemu(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_harvemu"))
-        .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
-        .args(args)
-        .output()
-        .expect("run harvemu")
-}
-
-/// A private, empty directory for this test.
 fn scratch(tag: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("harvemu-cli-dbc-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+    common::scratch("cli-dbc", tag)
 }
 
 #[test]

@@ -2,17 +2,12 @@
 //! recording of a run against its candump recording, an interrupted recording, and bad input.
 
 use std::io::{BufRead, BufReader};
+mod common;
+
+use common::harvemu;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::sync::OnceLock;
-
-fn harvemu(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_harvemu"))
-        .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
-        .args(args)
-        .output()
-        .expect("run harvemu")
-}
 
 fn ok(out: Output) -> String {
     let err = String::from_utf8_lossy(&out.stderr).to_string();

@@ -1,16 +1,10 @@
 //! `harvemu run` as a user runs it: the default harvester in virtual time, a recorded trace, and
 //! configs with mistakes.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn harvemu(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_harvemu"))
-        .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
-        .args(args)
-        .output()
-        .expect("run harvemu")
-}
+use common::harvemu;
+use std::path::{Path, PathBuf};
 
 /// A private copy of `configs/` to break.
 fn configs_copy(tag: &str) -> PathBuf {

@@ -1,21 +1,12 @@
 //! `harvemu scenario` and `harvemu validate` as a user runs them.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn harvemu(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_harvemu"))
-        .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
-        .args(args)
-        .output()
-        .expect("run harvemu")
-}
+use common::harvemu;
+use std::path::{Path, PathBuf};
 
 fn scratch(tag: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("harvemu-cli-scenario-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+    common::scratch("cli-scenario", tag)
 }
 
 fn config() -> String {
