@@ -6,7 +6,7 @@
 //! error message, not a panic.
 
 use crate::scenario::Series;
-use crate::scenario::series::ClassLatency;
+use crate::scenario::series::{ClassLatency, Sample};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
@@ -244,45 +244,44 @@ pub fn counters(s: &Series) -> Result<String> {
 
 /// The monitor's yield against the plant's true harvested mass, kg.
 pub fn yield_kg(s: &Series) -> Result<String> {
-    let truth: Vec<(f64, f64)> = s.samples.iter().map(|x| (x.t_s, x.harvested_kg)).collect();
-    let shown: Vec<(f64, f64)> = s
-        .samples
-        .iter()
-        .filter_map(|x| Some((x.t_s, x.monitor_kg?)))
-        .collect();
-    let max = truth.iter().chain(&shown).map(|p| p.1).fold(0.0, f64::max);
-    svg(YIELD, SIZE, |area| {
-        lines(
-            area,
-            s.end_s,
-            ("mass [kg]", top(max, 1.0)),
-            vec![
-                ("plant: harvested", RGBColor(0, 120, 0), truth),
-                ("monitor: yield", RGBColor(200, 90, 0), shown),
-            ],
-            true,
-        )
+    let truth = ("plant: harvested", RGBColor(0, 120, 0));
+    let shown = ("monitor: yield", RGBColor(200, 90, 0));
+    truth_and_shown(s, YIELD, "mass [kg]", truth, shown, |x| {
+        (x.harvested_kg, x.monitor_kg)
     })
 }
 
 /// The plant's true travel speed against what the monitor shows, km/h.
 pub fn speed(s: &Series) -> Result<String> {
-    let truth: Vec<(f64, f64)> = s.samples.iter().map(|x| (x.t_s, x.speed_kmh)).collect();
-    let shown: Vec<(f64, f64)> = s
+    let truth = ("plant: actual", BLUE);
+    let shown = ("monitor: shown", RGBColor(200, 90, 0));
+    truth_and_shown(s, SPEED, "speed [km/h]", truth, shown, |x| {
+        (x.speed_kmh, x.monitor_speed_kmh)
+    })
+}
+
+/// One plant value against what the monitor shows of it, over time.
+fn truth_and_shown(
+    s: &Series,
+    title: &str,
+    axis: &str,
+    truth: (&str, RGBColor),
+    shown: (&str, RGBColor),
+    value: impl Fn(&Sample) -> (f64, Option<f64>),
+) -> Result<String> {
+    let plant: Vec<(f64, f64)> = s.samples.iter().map(|x| (x.t_s, value(x).0)).collect();
+    let monitor: Vec<(f64, f64)> = s
         .samples
         .iter()
-        .filter_map(|x| Some((x.t_s, x.monitor_speed_kmh?)))
+        .filter_map(|x| Some((x.t_s, value(x).1?)))
         .collect();
-    let max = truth.iter().chain(&shown).map(|p| p.1).fold(0.0, f64::max);
-    svg(SPEED, SIZE, |area| {
+    let max = plant.iter().chain(&monitor).map(|p| p.1).fold(0.0, f64::max);
+    svg(title, SIZE, |area| {
         lines(
             area,
             s.end_s,
-            ("speed [km/h]", top(max, 1.0)),
-            vec![
-                ("plant: actual", BLUE, truth),
-                ("monitor: shown", RGBColor(200, 90, 0), shown),
-            ],
+            (axis, top(max, 1.0)),
+            vec![(truth.0, truth.1, plant), (shown.0, shown.1, monitor)],
             true,
         )
     })
