@@ -294,7 +294,9 @@ impl Hub {
         for event in self.scratch.drain(..) {
             if let Some(out) = self.trace.as_mut() {
                 self.line.clear();
-                trace::event_line(&mut self.line, &self.iface, &event);
+                let controllers = self.bus.controllers();
+                let name = |n: NodeId| controllers.get(n.index()).map_or("?", |c| c.config().name.as_str());
+                trace::event_line(&mut self.line, &self.iface, name, &event);
                 if !self.line.is_empty()
                     && let Err(e) = out.write_all(self.line.as_bytes())
                 {

@@ -1,14 +1,17 @@
 //! The bus as a candump log: `(secs.usecs) harv0 0601F5D0#200D0002FFBFFF00`.
 //!
 //! Error frames are written in SocketCAN's error-frame encoding (`include/uapi/linux/can/error.h`):
-//! the identifier is `CAN_ERR_FLAG` with class bits, the 8 data bytes carry the details. A bus
-//! error is written from its transmitter's point of view (protocol error, bus error, counters);
-//! node state changes (warning, passive, bus off, restarted) and receive overruns are written as
-//! the controller-class frames a SocketCAN driver would raise.
+//! the identifier is `CAN_ERR_FLAG` with class bits, the 8 data bytes carry the details. Frames
+//! are written on the bus's interface (`harv0`); everything one controller reports is written on
+//! an interface of its own, the bus's name, a dot and the controller's name (`harv0.D2`), as a
+//! SocketCAN interface per controller would deliver it: each bus error it detected (protocol
+//! error type in data[2], `CAN_ERR_PROT_TX` when it was transmitting, the location in data[3],
+//! TEC and REC in data[6] and data[7]), each overload flag it sent, its state changes (warning,
+//! passive, bus off, restarted) and its receive overruns.
 
 use crate::Frame;
 use crate::candump::write_frame;
-use crate::engine::{BusError, Event};
+use crate::engine::{BusError, Event, NodeId};
 use crate::fault::ErrorState;
 use crate::filter::CAN_ERR_FLAG;
 use crate::time::BusTime;
@@ -46,6 +49,12 @@ pub mod err {
     pub const CRTL_ACTIVE: u8 = 0x40;
     /// data[2]: single bit error.
     pub const PROT_BIT: u8 = 0x01;
+    /// data[2]: frame format error.
+    pub const PROT_FORM: u8 = 0x02;
+    /// data[2]: bit stuffing error.
+    pub const PROT_STUFF: u8 = 0x04;
+    /// data[2]: bus overload.
+    pub const PROT_OVERLOAD: u8 = 0x20;
     /// data[2]: error occurred on transmission.
     pub const PROT_TX: u8 = 0x80;
     /// data[3]: ACK slot.
@@ -70,19 +79,35 @@ fn counters(data: &mut [u8; 8], tec: u16, rec: u16) {
 pub fn error_frame(event: &Event) -> Option<ErrorFrame> {
     let mut data = [0u8; 8];
     let class = match *event {
-        Event::ErrorFrame { error, tec, rec, .. } => {
+        Event::BusError {
+            error,
+            transmitting,
+            location,
+            tec,
+            rec,
+            ..
+        } => {
             counters(&mut data, tec, rec);
-            data[2] = err::PROT_TX;
+            data[2] = if transmitting { err::PROT_TX } else { 0 };
+            data[3] = location.socketcan();
+            data[2] |= match error {
+                BusError::Bit => err::PROT_BIT,
+                BusError::Form => err::PROT_FORM,
+                BusError::Stuff => err::PROT_STUFF,
+                // Linux drivers report a CRC error as no type at the CRC sequence.
+                BusError::Crc | BusError::Ack => 0,
+            };
             match error {
-                BusError::Bit => {
-                    data[2] |= err::PROT_BIT;
-                    err::PROT | err::BUSERROR | err::CNT
-                }
                 BusError::Ack => {
                     data[3] = err::PROT_LOC_ACK;
                     err::PROT | err::ACK | err::BUSERROR | err::CNT
                 }
+                _ => err::PROT | err::BUSERROR | err::CNT,
             }
+        }
+        Event::Overload { .. } => {
+            data[2] = err::PROT_OVERLOAD;
+            err::PROT
         }
         Event::State {
             to, tec, rec, from, ..
@@ -154,18 +179,34 @@ pub fn error_line(out: &mut String, at: BusTime, iface: &str, e: &ErrorFrame) {
     out.push('\n');
 }
 
-/// Appends the log line an engine event gives, if any: frames at their end-of-frame time, error
-/// frames at their flag, state changes when they happen.
-pub fn event_line(out: &mut String, iface: &str, event: &Event) {
+/// Appends the log line an engine event gives, if any: frames at their end-of-frame time on
+/// `iface`; a controller's error frames (bus errors at the first bit of its flag, overload flags,
+/// state changes, overruns) on `iface.NAME`, with `name` giving each controller's name.
+pub fn event_line<'a>(out: &mut String, iface: &str, name: impl Fn(NodeId) -> &'a str, event: &Event) {
     match event {
         Event::Frame { end, frame, .. } => frame_line(out, *end, iface, frame),
-        Event::ErrorFrame { flag: at, .. }
-        | Event::State { at, .. }
-        | Event::Warning { at, .. }
-        | Event::Restarted { at, .. }
-        | Event::Overrun { at, .. } => {
+        Event::BusError { node, at, .. }
+        | Event::Overload { node, at }
+        | Event::State { node, at, .. }
+        | Event::Warning { node, at, .. }
+        | Event::Restarted { node, at }
+        | Event::Overrun { node, at } => {
             if let Some(e) = error_frame(event) {
-                error_line(out, *at, iface, &e);
+                prefix(out, *at, iface);
+                out.pop();
+                // A name is one word on the line, as an interface name would be.
+                out.push('.');
+                out.extend(
+                    name(*node)
+                        .chars()
+                        .map(|c| if c.is_ascii_graphic() { c } else { '_' }),
+                );
+                out.push(' ');
+                let _ = write!(out, "{:08X}#", e.can_id);
+                for b in e.data {
+                    let _ = write!(out, "{b:02X}");
+                }
+                out.push('\n');
             }
         }
         _ => {}
@@ -176,7 +217,7 @@ pub fn event_line(out: &mut String, iface: &str, event: &Event) {
 mod tests {
     use super::*;
     use crate::candump::parse_frame;
-    use crate::engine::NodeId;
+    use crate::engine::Location;
 
     #[test]
     fn frame_lines_look_like_candump() {
@@ -191,23 +232,44 @@ mod tests {
 
     #[test]
     fn error_frames_use_socketcan_encoding() {
-        let f = parse_frame("0300A0F5#01").unwrap();
-        let ack = Event::ErrorFrame {
-            start: BusTime(0),
-            flag: BusTime(1_000_000),
-            end: BusTime(0),
+        let ack = Event::BusError {
             node: NodeId(0),
-            frame: f,
+            at: BusTime(1_000_000),
             error: BusError::Ack,
-            bit: 70,
+            transmitting: true,
+            location: Location::Ack,
             tec: 8,
             rec: 0,
         };
         let mut out = String::new();
-        event_line(&mut out, "harv0", &ack);
+        event_line(&mut out, "harv0", |_| "E0", &ack);
         // CAN_ERR_FLAG | PROT 0x8 | ACK 0x20 | BUSERROR 0x80 | CNT 0x200; data[2] TX, data[3] ACK
         // slot, data[6] TEC.
-        assert_eq!(out, "(0.001000) harv0 200002A8#0000801900000800\n");
+        assert_eq!(out, "(0.001000) harv0.E0 200002A8#0000801900000800\n");
+        // A receiver's stuff error in the data field, a CRC error, a form error in EOF.
+        let seen = |error, location| {
+            error_frame(&Event::BusError {
+                node: NodeId(1),
+                at: BusTime(0),
+                error,
+                transmitting: false,
+                location,
+                tec: 0,
+                rec: 1,
+            })
+            .unwrap()
+        };
+        let stuff = seen(BusError::Stuff, Location::Data);
+        assert_eq!(stuff.can_id, CAN_ERR_FLAG | 0x8 | 0x80 | 0x200);
+        assert_eq!(stuff.data, [0, 0, 0x04, 0x0A, 0, 0, 0, 1]);
+        assert_eq!(seen(BusError::Crc, Location::CrcSeq).data[2..4], [0x00, 0x08]);
+        assert_eq!(seen(BusError::Form, Location::Eof).data[2..4], [0x02, 0x1A]);
+        let over = error_frame(&Event::Overload {
+            node: NodeId(2),
+            at: BusTime(0),
+        })
+        .unwrap();
+        assert_eq!((over.can_id, over.data[2]), (CAN_ERR_FLAG | 0x8, 0x20));
         let off = Event::State {
             node: NodeId(1),
             at: BusTime(2_000_000),

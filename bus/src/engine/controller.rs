@@ -159,8 +159,13 @@ pub struct Controller {
     pub(crate) tx: VecDeque<Pending>,
     pub(crate) connected: bool,
     pub(crate) acks: bool,
-    /// An error-passive transmitter waits 8 more bits before it may start again.
-    pub(crate) suspended_until: BusTime,
+    /// The earliest time it may start a frame of its own: the end of its intermission, and of
+    /// suspend transmission after it sent as an error-passive node.
+    pub(crate) ready_at: BusTime,
+    /// Its protocol state, carried between attempts, as of `mac_at`.
+    pub(crate) mac: super::wire::Mac,
+    /// The next bit time `mac` has not seen.
+    pub(crate) mac_at: BusTime,
     /// Start of the recessive run this (bus-off) controller is counting towards recovery.
     pub(crate) recessive_since: BusTime,
     pub(crate) counters: ControllerCounters,
@@ -178,7 +183,9 @@ impl Controller {
             overrun_flag: false,
             connected: true,
             acks: true,
-            suspended_until: BusTime::ZERO,
+            ready_at: BusTime::ZERO,
+            mac: super::wire::Mac::default(),
+            mac_at: BusTime::ZERO,
             recessive_since: BusTime::ZERO,
             counters: ControllerCounters::default(),
         }

@@ -1,7 +1,14 @@
-//! Error injection: rules that corrupt chosen frames on the wire.
+//! Error injection: rules that corrupt chosen frames, or follow them with overload frames.
 //!
 //! A rule picks frames (by transmitter or identifier), decides which of them to hit (once, every
-//! n-th, always, with a probability, or at a bit-error rate), and where in the frame the bit flips.
+//! n-th, always, with a probability, or at a bit-error rate), what the hit does ([`Effect`]) and
+//! who sees it ([`SeenBy`]). A [`Effect::Bit`] flips a bit on the wire: everybody samples it,
+//! and the transmitter sees a bit error before anything else. [`Effect::Stuff`],
+//! [`Effect::Crc`] and [`Effect::Form`] are a disturbance near the receivers: the receivers named
+//! (all of them by default) sample one bit flipped, chosen so that it is a stuff, CRC or form
+//! error to them, while the transmitter reads its own bits correctly. [`Effect::Overload`] makes
+//! receivers that are not ready send overload frames after the frame.
+//!
 //! Randomness comes from one generator seeded by the run's seed, so a run repeats exactly.
 
 use super::NodeId;
@@ -49,8 +56,45 @@ pub enum BitPosition {
     Random,
 }
 
+/// What a hit does.
+#[derive(Clone, Copy, PartialEq, Eq, Debug, Default, Serialize, Deserialize)]
+pub enum Effect {
+    /// A bit flipped on the wire, seen by every controller (a bit error to the transmitter).
+    #[default]
+    Bit,
+    /// A stuff bit flipped for the receivers: six equal bits, a stuff error.
+    Stuff,
+    /// A data or CRC bit flipped for the receivers: the CRC does not match.
+    Crc,
+    /// A fixed-form bit (CRC delimiter, ACK delimiter, EOF 1 to 6) made dominant for the
+    /// receivers: a form error.
+    Form,
+    /// Receivers that are not ready send this many overload frames (1 or 2) after the frame.
+    Overload(u8),
+}
+
+/// Who sees a hit.
+#[derive(Clone, PartialEq, Eq, Debug, Default, Serialize, Deserialize)]
+pub enum SeenBy {
+    /// Everyone it can reach: every controller for [`Effect::Bit`], every receiver otherwise.
+    #[default]
+    All,
+    /// These receivers only (ignored for [`Effect::Bit`]; a transmitter in the list is left out).
+    Nodes(Vec<NodeId>),
+}
+
+impl SeenBy {
+    /// True when `node` is one of those named (or all are).
+    pub fn includes(&self, node: NodeId) -> bool {
+        match self {
+            SeenBy::All => true,
+            SeenBy::Nodes(list) => list.contains(&node),
+        }
+    }
+}
+
 /// One injection rule.
-#[derive(Clone, Copy, PartialEq, Debug, Serialize, Deserialize)]
+#[derive(Clone, PartialEq, Debug, Serialize, Deserialize)]
 pub struct Rule {
     /// Which attempts it looks at.
     pub target: Target,
@@ -58,6 +102,42 @@ pub struct Rule {
     pub schedule: Schedule,
     /// Where the bit flips.
     pub bit: BitPosition,
+    /// What a hit does.
+    #[serde(default)]
+    pub effect: Effect,
+    /// Who sees it.
+    #[serde(default)]
+    pub seen_by: SeenBy,
+}
+
+impl Rule {
+    /// A wire bit flip at `bit` on the attempts `target` and `schedule` pick.
+    pub fn bit_errors(target: Target, schedule: Schedule, bit: BitPosition) -> Rule {
+        Rule {
+            target,
+            schedule,
+            bit,
+            effect: Effect::Bit,
+            seen_by: SeenBy::All,
+        }
+    }
+}
+
+/// What the rules decided for one attempt.
+#[derive(Clone, PartialEq, Debug, Default)]
+pub struct Decision {
+    /// A corrupted bit: the effect, the stuffed bit (counted from SOF; tail bits follow the
+    /// stuffed part) and who samples it flipped.
+    pub corrupt: Option<(Effect, u16, SeenBy)>,
+    /// Overload frames after the frame: how many, and which receivers send them.
+    pub overload: Option<(u8, SeenBy)>,
+}
+
+impl Decision {
+    /// Nothing happens to the attempt.
+    pub fn is_none(&self) -> bool {
+        self.corrupt.is_none() && self.overload.is_none()
+    }
 }
 
 /// Handle of an installed rule, to remove it.
@@ -121,9 +201,18 @@ impl Injector {
     }
 
     /// Decides whether this attempt is corrupted, and at which stuffed bit. `first` and `last`
-    /// bound the positions a random choice may take (after arbitration, up to the last CRC bit).
-    pub(crate) fn decide(&mut self, node: NodeId, raw_id: u32, first: u16, last: u16) -> Option<u16> {
-        let mut hit = None;
+    /// bound the positions a random wire flip may take (after arbitration, up to the last CRC
+    /// bit); `positions` gives the bits where another effect can fall (empty: it cannot, and the
+    /// rule does not fire on this attempt).
+    pub(crate) fn decide(
+        &mut self,
+        node: NodeId,
+        raw_id: u32,
+        first: u16,
+        last: u16,
+        positions: &mut dyn FnMut(Effect) -> Vec<u16>,
+    ) -> Decision {
+        let mut decision = Decision::default();
         for r in &mut self.rules {
             let matches = match r.rule.target {
                 Target::Any => true,
@@ -146,16 +235,50 @@ impl Injector {
                     self.rng.random_bool(p.clamp(0.0, 1.0))
                 }
             };
-            if fire && hit.is_none() {
-                r.fired += 1;
-                let bit = match r.rule.bit {
-                    BitPosition::At(b) => b.min(last),
-                    BitPosition::Random => self.rng.random_range(first..=last.max(first)),
-                };
-                hit = Some(bit);
+            if !fire {
+                continue;
+            }
+            match r.rule.effect {
+                Effect::Overload(frames) => {
+                    if decision.overload.is_none() {
+                        r.fired += 1;
+                        decision.overload = Some((frames.clamp(1, 2), r.rule.seen_by.clone()));
+                    }
+                }
+                Effect::Bit => {
+                    if decision.corrupt.is_none() {
+                        r.fired += 1;
+                        let bit = match r.rule.bit {
+                            BitPosition::At(b) => b.min(last),
+                            BitPosition::Random => self.rng.random_range(first..=last.max(first)),
+                        };
+                        decision.corrupt = Some((Effect::Bit, bit, SeenBy::All));
+                    }
+                }
+                effect => {
+                    if decision.corrupt.is_some() {
+                        continue;
+                    }
+                    let candidates = positions(effect);
+                    let bit = match r.rule.bit {
+                        _ if candidates.is_empty() => continue,
+                        BitPosition::At(b) => candidates
+                            .iter()
+                            .copied()
+                            .find(|&c| c >= b)
+                            .or(candidates.last().copied()),
+                        BitPosition::Random => {
+                            candidates.get(self.rng.random_range(0..candidates.len())).copied()
+                        }
+                    };
+                    if let Some(bit) = bit {
+                        r.fired += 1;
+                        decision.corrupt = Some((effect, bit, r.rule.seen_by.clone()));
+                    }
+                }
             }
         }
-        hit
+        decision
     }
 }
 
@@ -164,11 +287,14 @@ mod tests {
     use super::*;
 
     fn rule(schedule: Schedule) -> Rule {
-        Rule {
-            target: Target::Node(NodeId(1)),
-            schedule,
-            bit: BitPosition::At(40),
-        }
+        Rule::bit_errors(Target::Node(NodeId(1)), schedule, BitPosition::At(40))
+    }
+
+    /// The wire-flip bit an attempt got, if any.
+    fn flip(inj: &mut Injector, node: u16, raw_id: u32, first: u16, last: u16) -> Option<u16> {
+        inj.decide(NodeId(node), raw_id, first, last, &mut |_| Vec::new())
+            .corrupt
+            .map(|(_, b, _)| b)
     }
 
     #[test]
@@ -176,7 +302,7 @@ mod tests {
         let mut inj = Injector::new(7);
         let once = inj.add(rule(Schedule::Once));
         let hits: Vec<bool> = (0..4)
-            .map(|_| inj.decide(NodeId(1), 0, 33, 100).is_some())
+            .map(|_| flip(&mut inj, 1, 0, 33, 100).is_some())
             .collect();
         assert_eq!(hits, [true, false, false, false]);
         assert_eq!(inj.fired(once), Some(1));
@@ -184,37 +310,33 @@ mod tests {
 
         inj.add(rule(Schedule::EveryNth(3)));
         let hits: Vec<bool> = (0..7)
-            .map(|_| inj.decide(NodeId(1), 0, 33, 100).is_some())
+            .map(|_| flip(&mut inj, 1, 0, 33, 100).is_some())
             .collect();
         assert_eq!(hits, [false, false, true, false, false, true, false]);
         // Other nodes are not looked at.
-        assert!((0..10).all(|_| inj.decide(NodeId(2), 0, 33, 100).is_none()));
+        assert!((0..10).all(|_| flip(&mut inj, 2, 0, 33, 100).is_none()));
     }
 
     #[test]
     fn positions_and_ids() {
         let mut inj = Injector::new(1);
-        inj.add(Rule {
-            target: Target::Id {
+        inj.add(Rule::bit_errors(
+            Target::Id {
                 id: 0x0601F5D0,
                 mask: 0xFF,
             },
-            schedule: Schedule::Always,
-            bit: BitPosition::Random,
-        });
+            Schedule::Always,
+            BitPosition::Random,
+        ));
         for _ in 0..200 {
-            let b = inj.decide(NodeId(0), 0x0000_00D0, 33, 90).unwrap();
+            let b = flip(&mut inj, 0, 0x0000_00D0, 33, 90).unwrap();
             assert!((33..=90).contains(&b));
         }
-        assert!(inj.decide(NodeId(0), 0x0000_00D1, 33, 90).is_none());
+        assert!(flip(&mut inj, 0, 0x0000_00D1, 33, 90).is_none());
         let mut at = Injector::new(1);
-        at.add(Rule {
-            target: Target::Any,
-            schedule: Schedule::Always,
-            bit: BitPosition::At(500),
-        });
+        at.add(Rule::bit_errors(Target::Any, Schedule::Always, BitPosition::At(500)));
         assert_eq!(
-            at.decide(NodeId(0), 0, 33, 90),
+            flip(&mut at, 0, 0, 33, 90),
             Some(90),
             "clamped to the last CRC bit"
         );
@@ -224,13 +346,13 @@ mod tests {
     fn same_seed_same_choices() {
         let run = |seed| {
             let mut inj = Injector::new(seed);
-            inj.add(Rule {
-                target: Target::Any,
-                schedule: Schedule::Probability(0.3),
-                bit: BitPosition::Random,
-            });
+            inj.add(Rule::bit_errors(
+                Target::Any,
+                Schedule::Probability(0.3),
+                BitPosition::Random,
+            ));
             (0..100)
-                .map(|_| inj.decide(NodeId(0), 0, 10, 80))
+                .map(|_| flip(&mut inj, 0, 0, 10, 80))
                 .collect::<Vec<_>>()
         };
         assert_eq!(run(5), run(5));

@@ -24,31 +24,31 @@
 //! frame it was sending; a disconnected node neither sends nor receives, and keeps its queue.
 
 mod controller;
+mod episode;
 pub mod inject;
 pub mod stats;
+mod wire;
 
 pub use controller::{
     Controller, ControllerConfig, ControllerCounters, Filter, NodeId, Received, SJA1000_FIFO_BYTES,
     fifo_bytes,
 };
-pub use inject::{BitPosition, Injector, Rule, RuleId, Schedule, Target};
+pub use inject::{BitPosition, Decision, Effect, Injector, Rule, RuleId, Schedule, SeenBy, Target};
 pub use stats::Stats;
+pub use wire::Location;
 
 use crate::bits::{self, BitRate};
-use crate::fault::{Changes, ErrorState, TransmitError, TxErrorKind};
+use crate::fault::{Changes, ErrorState};
 use crate::filter::{AcceptanceFilter, kernel_can_id};
 use crate::time::BusTime;
 use crate::{Error, Frame};
 use controller::Pending;
+use episode::{Flip, Plan, Who};
 
-/// Bits of an error flag sent by one node.
-const FLAG_BITS: u64 = 6;
-/// Error delimiter.
-const DELIMITER_BITS: u64 = 8;
 /// Intermission.
-const INTERMISSION_BITS: u64 = 3;
+const INTERMISSION_BITS: u64 = wire::INTERMISSION_BITS as u64;
 /// Suspend transmission of an error-passive transmitter.
-const SUSPEND_BITS: u64 = 8;
+const SUSPEND_BITS: u64 = wire::SUSPEND_BITS as u64;
 
 /// How a bus is built.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -68,12 +68,18 @@ impl Default for BusConfig {
     }
 }
 
-/// The kind of bus error behind an error frame.
+/// The kind of bus error a controller detected.
 #[derive(Clone, Copy, PartialEq, Eq, Hash, Debug, serde::Serialize)]
 pub enum BusError {
-    /// The transmitter read back another level than it sent (injected corruption, collision).
+    /// A controller read back another level than it sent.
     Bit,
-    /// Nobody acknowledged.
+    /// Six equal bits where stuffing applies.
+    Stuff,
+    /// The CRC sequence did not match (receivers only).
+    Crc,
+    /// A fixed-form bit was dominant.
+    Form,
+    /// Nobody acknowledged (the transmitter only).
     Ack,
 }
 
@@ -82,9 +88,29 @@ impl BusError {
     pub fn name(self) -> &'static str {
         match self {
             BusError::Bit => "bit",
+            BusError::Stuff => "stuff",
+            BusError::Crc => "crc",
+            BusError::Form => "form",
             BusError::Ack => "ack",
         }
     }
+}
+
+/// A change to what controllers sample while something is on the bus, for tests and for
+/// disturbances that injection rules cannot express: from `at` for `bits` bit times, the
+/// controllers named (all when `nodes` is `None`) sample `level` (`Some(true)` recessive,
+/// `Some(false)` dominant) or the inverse of the bus level (`None`). It acts only during
+/// attempts: an idle bus is not disturbed.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Disturbance {
+    /// First bit time it covers (bits that start at or after it).
+    pub at: BusTime,
+    /// How many bit times.
+    pub bits: u32,
+    /// The level sampled, or `None` to invert.
+    pub level: Option<bool>,
+    /// Who samples it; `None` for every controller.
+    pub nodes: Option<Vec<NodeId>>,
 }
 
 /// What happened on the bus.
@@ -103,26 +129,52 @@ pub enum Event {
         /// Bits on the bus, intermission included.
         bits: u32,
     },
-    /// An error frame destroyed a transmission attempt.
+    /// An error frame destroyed a transmission attempt (one event per transmitter that lost
+    /// its attempt; each controller's own view is a [`Event::BusError`]).
     ErrorFrame {
         /// Start of the destroyed frame.
         start: BusTime,
-        /// First bit of the error flag.
+        /// First bit of the transmitter's error flag.
         flag: BusTime,
-        /// End of the error delimiter.
+        /// When the last flag of the episode was over (the bus quiet again).
         end: BusTime,
         /// Transmitter of the destroyed frame.
         node: NodeId,
         /// The destroyed frame.
         frame: Frame,
-        /// What went wrong.
+        /// What the transmitter detected.
         error: BusError,
-        /// Stuffed bit at which the error was detected.
+        /// Bit of the frame (from SOF, tail bits after the stuffed part) at which it did.
         bit: u16,
         /// TEC and REC of the transmitter after the error.
         tec: u16,
         /// REC of the transmitter after the error.
         rec: u16,
+    },
+    /// A controller detected a bus error and signals it with an error flag from `at` (one
+    /// event per controller, as its SocketCAN interface reports it).
+    BusError {
+        /// The controller.
+        node: NodeId,
+        /// First bit of its error flag.
+        at: BusTime,
+        /// What it detected.
+        error: BusError,
+        /// It was the transmitter of the frame.
+        transmitting: bool,
+        /// Where.
+        location: Location,
+        /// TEC after counting the error.
+        tec: u16,
+        /// REC after counting the error.
+        rec: u16,
+    },
+    /// A controller sends an overload flag from `at`.
+    Overload {
+        /// The controller.
+        node: NodeId,
+        /// First bit of its overload flag.
+        at: BusTime,
     },
     /// A frame entered a node's receive FIFO.
     Delivered {
@@ -211,8 +263,10 @@ pub enum NextEvent {
 pub struct Bus {
     bitrate: BitRate,
     bit_ns: u64,
-    /// When the bus is next idle (end of the last intermission).
+    /// When the last committed activity on the bus ended.
     idle_at: BusTime,
+    /// Disturbances still to come, in the order given.
+    disturbances: Vec<Disturbance>,
     /// Start of the last committed event: nothing may be submitted before it.
     committed: BusTime,
     controllers: Vec<Controller>,
@@ -237,6 +291,7 @@ impl Bus {
             bitrate: config.bitrate,
             bit_ns,
             idle_at: BusTime::ZERO,
+            disturbances: Vec::new(),
             committed: BusTime::ZERO,
             controllers: Vec::new(),
             injector: Injector::new(config.seed),
@@ -261,6 +316,8 @@ impl Bus {
         let id = NodeId(self.controllers.len() as u16);
         let mut c = Controller::new(config);
         c.recessive_since = self.idle_at;
+        c.mac_at = self.idle_at;
+        c.ready_at = self.idle_at;
         self.controllers.push(c);
         id
     }
@@ -291,6 +348,10 @@ impl Bus {
     /// Start of the last committed event.
     pub fn committed(&self) -> BusTime {
         self.committed
+    }
+    /// Adds a disturbance (see [`Disturbance`]).
+    pub fn disturb(&mut self, d: Disturbance) {
+        self.disturbances.push(d);
     }
 
     fn get_mut(&mut self, node: NodeId) -> Result<&mut Controller, Error> {
@@ -348,7 +409,9 @@ impl Bus {
         if connected && !c.connected {
             // It sees an idle bus from here on, and sends nothing before it is back.
             c.recessive_since = c.recessive_since.max(at);
-            c.suspended_until = c.suspended_until.max(at);
+            c.ready_at = c.ready_at.max(at);
+            c.mac = wire::Mac::default();
+            c.mac_at = at;
         }
         c.connected = connected;
         Ok(())
@@ -361,7 +424,9 @@ impl Bus {
         c.tx.clear();
         c.clear_rx();
         c.recessive_since = at;
-        c.suspended_until = c.suspended_until.max(at);
+        c.ready_at = c.ready_at.max(at);
+        c.mac = wire::Mac::default();
+        c.mac_at = at;
         self.events.push(Event::Restarted { node, at });
         self.sample(node, at);
         Ok(())
@@ -378,8 +443,7 @@ impl Bus {
             .iter()
             .filter(|c| c.on_bus())
             .filter_map(|c| {
-                c.tx.front()
-                    .map(|p| p.submitted.max(self.idle_at).max(c.suspended_until))
+                c.tx.front().map(|p| p.submitted.max(c.ready_at))
             })
             .min()
     }
@@ -445,6 +509,10 @@ impl Bus {
         let bits = c.fault.recovery_bits_remaining();
         let changes = c.fault.recessive_bits(bits);
         c.recessive_since = at;
+        // Back on the bus from here: an idle bus, and nothing sent before the recovery.
+        c.ready_at = c.ready_at.max(at);
+        c.mac = wire::Mac::default();
+        c.mac_at = at;
         self.note(node, at, changes);
     }
 
@@ -510,98 +578,119 @@ impl Bus {
         let bit = self.bit_ns;
         // Contenders: nodes ready to start within the same bit time.
         let mut winner: Option<(crate::ArbitrationKey, usize)> = None;
-        let mut contenders = 0;
+        let mut starters = std::mem::take(&mut self.transmitters);
+        starters.clear();
         for (i, c) in self.controllers.iter().enumerate() {
             if !c.on_bus() {
                 continue;
             }
             let Some(p) = c.tx.front() else { continue };
-            let ready = p.submitted.max(self.idle_at).max(c.suspended_until);
-            if ready >= sof + bit {
+            if p.submitted.max(c.ready_at) >= sof + bit {
                 continue;
             }
-            contenders += 1;
+            starters.push(i);
             let key = p.frame.arbitration();
             if winner.is_none_or(|(k, _)| key < k) {
                 winner = Some((key, i));
             }
         }
-        let Some((key, w)) = winner else { return };
-        let mut collision: Vec<usize> = Vec::new();
-        if contenders > 1 {
-            for (i, c) in self.controllers.iter_mut().enumerate() {
-                if i == w || !c.on_bus() {
-                    continue;
-                }
-                let Some(p) = c.tx.front() else { continue };
-                let ready = p.submitted.max(self.idle_at).max(c.suspended_until);
-                if ready >= sof + bit {
-                    continue;
-                }
-                if p.frame.arbitration() == key {
-                    collision.push(i);
-                } else {
-                    c.counters.arbitration_lost += 1;
-                }
+        let Some((key, w)) = winner else {
+            self.transmitters = starters;
+            return;
+        };
+        let frame = self.controllers[w].tx[0].frame;
+        for i in 0..self.controllers.len() {
+            if self.controllers[i].on_bus() {
+                self.settle(i, sof);
             }
         }
-        let pending = self.controllers[w].tx[0];
-        let frame = pending.frame;
-        // The full bitstream is only needed when two different frames collide.
-        let stuffed_len = u64::from(bits::stuffed_len(&frame));
-
-        // Two nodes sending the same identifier with different contents collide at the first
-        // bit where their streams differ; identical frames simply go out together.
-        let mut error_bit: Option<(u16, BusError)> = None;
-        let mut same_frame_partners: Vec<usize> = Vec::new();
-        for &i in &collision {
-            let other = self.controllers[i].tx[0].frame;
-            if other == frame {
-                same_frame_partners.push(i);
-            } else {
-                let ours = bits::encode(&frame).stuffed;
-                let theirs = bits::encode(&other).stuffed;
-                let differ = (0..ours.len().max(theirs.len()))
-                    .find(|&b| ours.get(b) != theirs.get(b))
-                    .unwrap_or(0);
-                error_bit = Some((differ as u16, BusError::Bit));
-            }
-        }
-        if error_bit.is_none() && !self.injector.is_empty() {
+        let stuffed_len = bits::stuffed_len(&frame);
+        let total_bits = stuffed_len + bits::TAIL_BITS;
+        let horizon = sof + u64::from(total_bits) * bit;
+        self.disturbances
+            .retain(|d| d.at + u64::from(d.bits) * bit > sof);
+        let disturbed = self.disturbances.iter().any(|d| d.at < horizon);
+        let decision = if self.injector.is_empty() {
+            inject::Decision::default()
+        } else {
             let arb_bits: u16 = if frame.is_extended() { 33 } else { 13 };
             let last = (stuffed_len - 1) as u16;
             let first = (arb_bits + arb_bits / 4).min(last);
-            if let Some(b) = self
-                .injector
-                .decide(NodeId(w as u16), frame.raw_id(), first, last)
-            {
-                error_bit = Some((b, BusError::Bit));
-            }
-        }
-        // A buffer kept across frames: one frame each is too often to allocate for.
-        let mut transmitters = std::mem::take(&mut self.transmitters);
-        transmitters.clear();
-        transmitters.push(w);
-        transmitters.extend_from_slice(if error_bit.is_some() {
-            &collision
-        } else {
-            &same_frame_partners
+            self.injector.decide(
+                NodeId(w as u16),
+                frame.raw_id(),
+                first,
+                last,
+                &mut |effect| positions(&frame, effect, first),
+            )
+        };
+        // Identical frames go out together; the same identifier with other contents collides.
+        let clash = starters.iter().any(|&i| {
+            let other = self.controllers[i].tx[0].frame;
+            other.arbitration() == key && other != frame
         });
-        let is_tx = |i: usize| transmitters.contains(&i);
+        let sends_it = |c: &Controller| c.tx.front().is_some_and(|p| p.frame == frame);
         let ackers = self
             .controllers
             .iter()
             .enumerate()
-            .filter(|(i, c)| !is_tx(*i) && c.on_bus() && c.acks)
+            .filter(|&(i, c)| c.on_bus() && c.acks && !(starters.contains(&i) && sends_it(c)))
             .count();
-        if error_bit.is_none() && ackers == 0 {
-            error_bit = Some(((stuffed_len + 1) as u16, BusError::Ack));
+        let all_idle = self
+            .controllers
+            .iter()
+            .all(|c| !c.on_bus() || c.mac.idle_for_sof());
+        if decision.is_none() && !disturbed && !clash && ackers > 0 && all_idle {
+            // Starters sending another frame lose arbitration; the rest go out together.
+            let mut k = 0;
+            while k < starters.len() {
+                let c = &mut self.controllers[starters[k]];
+                if c.tx.front().is_some_and(|p| p.frame == frame) {
+                    k += 1;
+                } else {
+                    c.counters.arbitration_lost += 1;
+                    starters.swap_remove(k);
+                }
+            }
+            self.succeed(sof, w, &starters, frame, total_bits);
+        } else {
+            let mut plan = Plan {
+                flips: Vec::new(),
+                overload: decision.overload,
+            };
+            if let Some((effect, at, seen_by)) = decision.corrupt {
+                let who = match (effect, seen_by) {
+                    (Effect::Bit, _) => Who::All,
+                    (_, SeenBy::All) => Who::Receivers,
+                    (_, SeenBy::Nodes(list)) => Who::ReceiversIn(list),
+                };
+                plan.flips.push(Flip {
+                    from: u32::from(at),
+                    bits: 1,
+                    level: (effect == Effect::Form).then_some(wire::DOM),
+                    who,
+                });
+            }
+            for d in &self.disturbances {
+                let end = d.at + u64::from(d.bits) * bit;
+                let from = if d.at <= sof {
+                    0
+                } else {
+                    (d.at - sof).div_ceil(bit)
+                };
+                let to = (end - sof).div_ceil(bit);
+                if to > from {
+                    plan.flips.push(Flip {
+                        from: from.min(u64::from(u32::MAX)) as u32,
+                        bits: (to - from).min(u64::from(u32::MAX)) as u32,
+                        level: d.level,
+                        who: d.nodes.clone().map_or(Who::All, Who::Nodes),
+                    });
+                }
+            }
+            self.episode(sof, &starters, plan);
         }
-        match error_bit {
-            None => self.succeed(sof, w, &transmitters, frame, stuffed_len as u32 + bits::TAIL_BITS),
-            Some((b, error)) => self.fail(sof, w, &transmitters, frame, b, error),
-        }
-        self.transmitters = transmitters;
+        self.transmitters = starters;
     }
 
     fn succeed(&mut self, sof: BusTime, w: usize, transmitters: &[usize], frame: Frame, total_bits: u32) {
@@ -611,6 +700,7 @@ impl Bus {
         // After the ACK slot (dominant) everything up to the next SOF is recessive.
         let ack_slot_end = BusTime(end.0 - (7 + 1) * bit);
         self.break_recessive_runs(sof, ack_slot_end);
+        let suspend_end = idle + SUSPEND_BITS * bit;
         self.stats.advance_to(end);
         self.stats.busy(sof, idle, total_bits);
         let latency = end - self.controllers[w].tx[0].submitted;
@@ -630,8 +720,15 @@ impl Bus {
         });
         for &t in transmitters {
             let c = &mut self.controllers[t];
+            c.mac_at = idle;
+            c.ready_at = c.ready_at.max(idle);
             let Some(p) = c.tx.pop_front() else { continue };
             c.counters.tx_frames += 1;
+            // Suspend transmission: an error-passive node waits 8 more bits after anything it
+            // sent, unless somebody else starts first.
+            if c.fault.state() == ErrorState::Passive {
+                c.ready_at = c.ready_at.max(suspend_end);
+            }
             if c.config.filter.accepts(&frame) {
                 c.counters.rx_own += 1;
             }
@@ -654,6 +751,8 @@ impl Bus {
                 continue;
             }
             let c = &mut self.controllers[i];
+            c.mac_at = idle;
+            c.ready_at = c.ready_at.max(idle);
             if !c.on_bus() {
                 // Counted for the books: a frame addressed to it that it never saw.
                 if c.config.filter.accepts(&frame) {
@@ -688,93 +787,26 @@ impl Bus {
         self.idle_at = idle;
     }
 
-    fn fail(
-        &mut self,
-        sof: BusTime,
-        w: usize,
-        transmitters: &[usize],
-        frame: Frame,
-        at_bit: u16,
-        error: BusError,
-    ) {
-        let bit = self.bit_ns;
-        // The flag starts at the bit after the error: for an ACK error, at the ACK delimiter.
-        let flag_start = sof + (u64::from(at_bit) + 1) * bit;
-        let receivers: Vec<usize> = (0..self.controllers.len())
-            .filter(|&i| !transmitters.contains(&i) && self.controllers[i].on_bus())
-            .collect();
-        let active_flaggers = transmitters
-            .iter()
-            .chain(&receivers)
-            .filter(|&&i| self.controllers[i].fault.state() == ErrorState::Active)
-            .count();
-        let flag_bits = if active_flaggers >= 2 {
-            2 * FLAG_BITS
-        } else {
-            FLAG_BITS
-        };
-        let flag_end = flag_start + flag_bits * bit;
-        let end = flag_end + DELIMITER_BITS * bit;
-        let idle = end + INTERMISSION_BITS * bit;
-        // A receiver's active flag is the dominant level a passive transmitter looks for (3a).
-        let dominant_seen = receivers
-            .iter()
-            .any(|&i| self.controllers[i].fault.state() == ErrorState::Active);
-        let resume = if active_flaggers > 0 { flag_end } else { flag_start };
-        self.break_recessive_runs(sof, resume);
-        let total = (at_bit as u64 + 1 + flag_bits + DELIMITER_BITS + INTERMISSION_BITS) as u32;
-        self.stats.advance_to(end);
-        self.stats.busy(sof, idle, total);
-        self.stats.error(error.name());
-        for &t in transmitters {
-            let c = &mut self.controllers[t];
-            c.counters.tx_errors += 1;
-            let mut report = TransmitError::new(match error {
-                BusError::Bit => TxErrorKind::Bit,
-                BusError::Ack => TxErrorKind::Ack,
-            });
-            report.dominant_during_passive_flag = dominant_seen;
-            let changes = c.fault.transmit_error(report);
-            if c.fault.state() == ErrorState::Passive {
-                c.suspended_until = idle + SUSPEND_BITS * bit;
-            }
-            if c.fault.state() == ErrorState::BusOff {
-                c.recessive_since = flag_end;
-                if let Some(p) = c.tx.pop_front() {
-                    c.counters.tx_aborted += 1;
-                    self.events.push(Event::TxAborted {
-                        node: NodeId(t as u16),
-                        at: flag_start,
-                        token: p.token,
-                        frame: p.frame,
-                    });
-                }
-            }
-            self.note_events(NodeId(t as u16), flag_start, changes);
-            self.sample(NodeId(t as u16), flag_start);
+}
+
+/// Bits of `frame` where an injected `effect` can fall: stuff bits for a stuff error, data and
+/// CRC bits whose flip is a CRC error (and nothing else) to a receiver, fixed-form tail bits for
+/// a form error. Empty for a wire flip and an overload, which need no search.
+fn positions(frame: &Frame, effect: Effect, first: u16) -> Vec<u16> {
+    let stuffed = bits::encode(frame).stuffed;
+    let len = stuffed.len() as u16;
+    match effect {
+        Effect::Stuff => wire::stuff_bits(&stuffed).into_iter().filter(|&b| b >= 1).collect(),
+        Effect::Crc => (first..len)
+            .filter(|&b| wire::receiver_outcome(&stuffed, u32::from(b)) == wire::Outcome::Crc)
+            .collect(),
+        Effect::Form => {
+            let t = |x: u8| len + u16::from(x);
+            let mut v = vec![t(wire::tail::CRC_DEL), t(wire::tail::ACK_DEL)];
+            v.extend((wire::tail::EOF..=wire::tail::EOF6).map(t));
+            v
         }
-        for &r in &receivers {
-            let c = &mut self.controllers[r];
-            c.counters.rx_errors += 1;
-            let changes = c.fault.receive_error();
-            self.note_events(NodeId(r as u16), flag_start, changes);
-            self.sample(NodeId(r as u16), flag_start);
-        }
-        let tx = &self.controllers[w].fault;
-        let (tec, rec) = (tx.tec(), tx.rec());
-        self.events.push(Event::ErrorFrame {
-            start: sof,
-            flag: flag_start,
-            end,
-            node: NodeId(w as u16),
-            frame,
-            error,
-            bit: at_bit,
-            tec,
-            rec,
-        });
-        // With at most 12 flag bits, rules 2 and 6 (dominant bits after a flag) never apply.
-        self.idle_at = idle;
+        Effect::Bit | Effect::Overload(_) => Vec::new(),
     }
 }
 

@@ -209,6 +209,8 @@ pub struct Stats {
     pub errors_by_kind: HashMap<&'static str, u64>,
     /// Receive overruns over all nodes.
     pub overruns: u64,
+    /// Overload flags sent, counted per controller.
+    pub overloads: u64,
     /// Per identifier (kernel form: EFF flag set for extended).
     pub per_id: rustc_hash::FxHashMap<u32, IdStats>,
     /// Frames of identifiers beyond the tracked maximum.
@@ -234,6 +236,7 @@ impl Stats {
             busy_until: BusTime::ZERO,
             bit_ns,
             frames: 0,
+            overloads: 0,
             deliveries: 0,
             error_frames: 0,
             errors_by_kind: HashMap::new(),

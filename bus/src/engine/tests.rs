@@ -173,11 +173,7 @@ fn bus_off_and_recovery_after_128_times_11_recessive_bits() {
     let mut b = bus();
     let bad = b.attach(ControllerConfig::named("bad"));
     let good = b.attach(ControllerConfig::named("good"));
-    b.injector_mut().add(Rule {
-        target: Target::Node(bad),
-        schedule: Schedule::Always,
-        bit: BitPosition::At(40),
-    });
+    b.injector_mut().add(Rule::bit_errors(Target::Node(bad), Schedule::Always, BitPosition::At(40)));
     b.submit(bad, f("0601F5D0#0101341EEA2BEF2C"), BusTime(0)).unwrap();
     let events = run(&mut b, 1_000_000_000);
     let errors: Vec<&Event> = events
@@ -204,11 +200,21 @@ fn bus_off_and_recovery_after_128_times_11_recessive_bits() {
         ]
     );
     assert_eq!(b.controller(good).unwrap().fault().rec(), 32);
-    // The last error: the bus-off node's flag is passive, the receiver's active flag is the one
-    // dominant flag (6 bits); from its end the bus is recessive and idle.
-    let Event::ErrorFrame { flag, .. } = errors[31] else {
+    // The last error takes TEC to 256: the node is bus off at once and sends no flag. The
+    // receiver samples the flipped bit 40 and then a recessive bus, and finds a stuff error at
+    // the sixth equal bit; its active flag (6 dominant bits) breaks the bus-off node's count,
+    // which starts again from the flag's end.
+    let Event::ErrorFrame { flag, start, .. } = errors[31] else {
         unreachable!()
     };
+    assert_eq!(flag.0 - start.0, 41 * BIT, "bus off at the first bit after the error");
+    let stuffed = crate::bits::encode(&f("0601F5D0#0101341EEA2BEF2C")).stuffed;
+    let level = |i: usize| match i {
+        40 => !stuffed.get(40).unwrap(),
+        i if i > 40 => true,
+        i => stuffed.get(i).unwrap(),
+    };
+    let sixth_equal = (41..).find(|&p| (p - 5..p).all(|q| level(q) == level(p))).unwrap() as u64;
     let recovered = events
         .iter()
         .find_map(|e| match e {
@@ -221,7 +227,7 @@ fn bus_off_and_recovery_after_128_times_11_recessive_bits() {
             _ => None,
         })
         .unwrap();
-    assert_eq!(recovered.0, flag.0 + 6 * BIT + 128 * 11 * BIT);
+    assert_eq!(recovered.0, start.0 + (sixth_equal + 1 + 6) * BIT + 128 * 11 * BIT);
     // The frame it was sending when it went bus off was dropped.
     assert_eq!(
         events
@@ -241,11 +247,7 @@ fn recovery_counts_recessive_runs_between_frames() {
     let bad = b.attach(ControllerConfig::named("bad"));
     let good = b.attach(ControllerConfig::named("good"));
     let _third = b.attach(ControllerConfig::named("third"));
-    b.injector_mut().add(Rule {
-        target: Target::Node(bad),
-        schedule: Schedule::Always,
-        bit: BitPosition::At(40),
-    });
+    b.injector_mut().add(Rule::bit_errors(Target::Node(bad), Schedule::Always, BitPosition::At(40)));
     b.submit(bad, f("0601F5D0#01"), BusTime(0)).unwrap();
     for k in 0..200u64 {
         b.submit(good, f("0601F5D1#01"), BusTime(k * 2_000_000)).unwrap();
@@ -321,7 +323,10 @@ fn a_node_that_does_not_ack() {
         flag,
         start,
         ..
-    }) = events.first().copied()
+    }) = events
+        .iter()
+        .find(|e| matches!(e, Event::ErrorFrame { .. }))
+        .copied()
     else {
         panic!()
     };
@@ -404,21 +409,30 @@ fn identical_frames_go_out_together_different_ones_collide() {
     b.submit(y, f("100#02"), BusTime(2_000_000)).unwrap();
     assert!(b.step());
     let events: Vec<Event> = b.take_events().collect();
-    let Some(Event::ErrorFrame {
-        error: BusError::Bit,
-        bit,
-        ..
-    }) = events.first()
-    else {
-        panic!("{events:?}")
+    let lost = |node| {
+        events.iter().find_map(|e| match *e {
+            Event::ErrorFrame {
+                node: n,
+                error: BusError::Bit,
+                bit,
+                ..
+            } if n == node => Some(usize::from(bit)),
+            _ => None,
+        })
     };
-    // 100#01 and 100#02 first differ in the last data bits.
+    // 100#01 and 100#02 first differ in the last data bits: the node that sends recessive there
+    // (y) reads dominant, a bit error; x reads its own bits until y's error flag (dominant from
+    // the next bit) meets a recessive bit of x's.
     let (one, two) = (
         crate::bits::encode(&f("100#01")).stuffed,
         crate::bits::encode(&f("100#02")).stuffed,
     );
     let first_difference = (0..one.len()).find(|&i| one.get(i) != two.get(i)).unwrap();
-    assert_eq!(usize::from(*bit), first_difference);
+    assert_eq!(two.get(first_difference), Some(true), "y sends recessive there");
+    assert_eq!(lost(y), Some(first_difference), "{events:?}");
+    let x_sees = (first_difference + 1..).find(|&i| one.get(i) == Some(true)).unwrap();
+    assert!(x_sees <= first_difference + 6);
+    assert_eq!(lost(x), Some(x_sees), "{events:?}");
     assert_eq!(b.controller(x).unwrap().fault().tec(), 8);
     assert_eq!(b.controller(y).unwrap().fault().tec(), 8);
 }
@@ -466,11 +480,7 @@ fn random_injection_is_deterministic_under_a_seed() {
             ..ControllerConfig::named("a")
         });
         let _r = b.attach(ControllerConfig::named("r"));
-        b.injector_mut().add(Rule {
-            target: Target::Any,
-            schedule: Schedule::BitErrorRate(1e-3),
-            bit: BitPosition::Random,
-        });
+        b.injector_mut().add(Rule::bit_errors(Target::Any, Schedule::BitErrorRate(1e-3), BitPosition::Random));
         for k in 0..500u64 {
             b.submit(a, f("0601F5D0#0101341EEA2BEF2C"), BusTime(k * 1_000_000))
                 .unwrap();
@@ -503,11 +513,7 @@ fn error_counters_are_kept_over_time() {
     let mut b = bus();
     let a = b.attach(ControllerConfig::named("a"));
     let _rx = b.attach(ControllerConfig::named("rx"));
-    let rule = b.injector_mut().add(Rule {
-        target: Target::Node(a),
-        schedule: Schedule::Always,
-        bit: BitPosition::At(40),
-    });
+    let rule = b.injector_mut().add(Rule::bit_errors(Target::Node(a), Schedule::Always, BitPosition::At(40)));
     b.submit(a, f("123#01"), BusTime(0)).unwrap();
     // Four errors, then the rule goes and the frame and four more go through.
     for _ in 0..4 {

@@ -562,11 +562,7 @@ async fn act(
                 Hits::Always => Schedule::Always,
                 Hits::BitErrorRate(r) => Schedule::BitErrorRate(r),
             };
-            let rule = Rule {
-                target,
-                schedule,
-                bit: BitPosition::Random,
-            };
+            let rule = Rule::bit_errors(target, schedule, BitPosition::Random);
             if let Some(r) = running.hub.send(Control::AddRule(rule)).await?? {
                 // Keyed by timeline entry, so that its `until_s` removes this rule.
                 rules.insert(index, r);

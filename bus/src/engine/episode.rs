@@ -1,0 +1,493 @@
+//! A transmission attempt bit by bit: what the bus does when something goes wrong.
+//!
+//! A clean attempt (one frame, acknowledged, nothing injected, every controller idle) is
+//! committed in closed form by `Bus::succeed`. Every other attempt runs here: each controller's
+//! protocol state machine ([`super::wire::Mac`]) drives a level, the bus is their wired AND,
+//! disturbances change what chosen controllers sample, and each controller's detections are
+//! counted by the fault-confinement rules in [`crate::fault`]. The episode ends when no
+//! controller is in a frame or a flag any more; what is left of delimiters, intermission and
+//! suspend is carried to the next attempt, so a start of frame that comes while a controller is
+//! still in its error delimiter is a form error to it, as on a real bus.
+
+use super::wire::{self, Detected, Location, Mac, Phase, Sending};
+use super::{Bus, BusError, Event, NodeId};
+use crate::fault::{ErrorFlag, ErrorState, Role, TransmitError, TxErrorKind};
+use crate::filter::AcceptanceFilter;
+use crate::time::BusTime;
+
+/// Longest episode, in bits: a disturbance that holds the bus dominant for longer is cut here
+/// (every controller is bus off or error passive long before).
+const MAX_EPISODE_BITS: u32 = 20_000;
+
+/// A change to what controllers sample, in bits counted from an episode's SOF.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub(crate) struct Flip {
+    /// First bit.
+    pub from: u32,
+    /// Bits it lasts.
+    pub bits: u32,
+    /// The level forced, or `None` to invert the bus level.
+    pub level: Option<bool>,
+    /// Who samples it.
+    pub who: Who,
+}
+
+/// Controllers a flip reaches.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub(crate) enum Who {
+    /// Every controller.
+    All,
+    /// Every controller that is not a transmitter of the frame.
+    Receivers,
+    /// These controllers (transmitters included if named).
+    Nodes(Vec<NodeId>),
+    /// These receivers (transmitters left out even if named).
+    ReceiversIn(Vec<NodeId>),
+}
+
+impl Flip {
+    fn reaches(&self, node: NodeId, transmitter: bool) -> bool {
+        match &self.who {
+            Who::All => true,
+            Who::Receivers => !transmitter,
+            Who::Nodes(list) => list.contains(&node),
+            Who::ReceiversIn(list) => !transmitter && list.contains(&node),
+        }
+    }
+}
+
+/// What an episode is asked to do beyond the frames that start it.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Plan {
+    pub flips: Vec<Flip>,
+    /// Overload frames the named receivers send after the frame (receivers not ready).
+    pub overload: Option<(u8, super::inject::SeenBy)>,
+}
+
+/// Per transmitter: the attempt it lost, for the `ErrorFrame` event.
+struct Destroyed {
+    node: usize,
+    frame: crate::Frame,
+    flag: BusTime,
+    error: BusError,
+    bit: u16,
+}
+
+impl BusError {
+    fn of(kind: TxErrorKind) -> BusError {
+        match kind {
+            TxErrorKind::Bit => BusError::Bit,
+            TxErrorKind::Stuff => BusError::Stuff,
+            TxErrorKind::Crc => BusError::Crc,
+            TxErrorKind::Form => BusError::Form,
+            TxErrorKind::Ack => BusError::Ack,
+        }
+    }
+}
+
+impl Bus {
+    /// Brings a controller's carried protocol state to `at` through the recessive bits since.
+    pub(super) fn settle(&mut self, i: usize, at: BusTime) {
+        let bit = self.bit_ns;
+        let c = &mut self.controllers[i];
+        if c.mac.phase == Phase::Idle || at <= c.mac_at {
+            c.mac_at = c.mac_at.max(at);
+            return;
+        }
+        c.mac.passive = c.fault.state() == ErrorState::Passive;
+        c.mac.idle_through((at - c.mac_at) / bit);
+        c.mac_at = at;
+    }
+
+    /// Runs an attempt that starts at `sof` with `starters` sending their queued frames.
+    pub(super) fn episode(&mut self, sof: BusTime, starters: &[usize], plan: Plan) {
+        let bit = self.bit_ns;
+        let n = self.controllers.len();
+        // Bus-off controllers have been counting an idle bus since `recessive_since`.
+        for c in &mut self.controllers {
+            if c.connected && c.fault.state() == ErrorState::BusOff {
+                let bits = (sof.max(c.recessive_since) - c.recessive_since) / bit;
+                c.fault.recessive_bits(bits.min(u64::from(u32::MAX)) as u32);
+            }
+        }
+        for &s in starters {
+            let frame = self.controllers[s].tx[0].frame;
+            let arbitration_end = if frame.is_extended() { 32 } else { 12 };
+            let c = &mut self.controllers[s];
+            c.mac.start(Sending {
+                stuffed: crate::bits::encode(&frame).stuffed,
+                arbitration_end,
+            });
+        }
+        for (i, c) in self.controllers.iter_mut().enumerate() {
+            c.mac.acks = c.acks;
+            if !starters.contains(&i)
+                && let Some((frames, by)) = &plan.overload
+                && by.includes(NodeId(i as u16))
+            {
+                c.mac.overloads = *frames;
+            }
+        }
+        let sending: Vec<bool> = (0..n).map(|i| starters.contains(&i)).collect();
+        let last_flip = plan.flips.iter().map(|f| f.from + f.bits).max().unwrap_or(0);
+        let mut events: Vec<Event> = Vec::new();
+        let mut destroyed: Vec<Destroyed> = Vec::new();
+        let mut deferred_3a = vec![false; n];
+        let mut sent_frame = false;
+        let mut drives = vec![wire::REC; n];
+        let mut k: u32 = 0;
+        loop {
+            let t = sof + u64::from(k) * bit;
+            let next = t + bit;
+            let mut level = wire::REC;
+            for (i, c) in self.controllers.iter_mut().enumerate() {
+                c.mac.passive = c.fault.state() == ErrorState::Passive;
+                drives[i] = c.mac.drive();
+                if c.on_bus() {
+                    level &= drives[i];
+                }
+            }
+            for i in 0..n {
+                let c = &self.controllers[i];
+                if !c.connected {
+                    continue;
+                }
+                let node = NodeId(i as u16);
+                let mut sampled = level;
+                for f in &plan.flips {
+                    if (f.from..f.from + f.bits).contains(&k) && f.reaches(node, sending[i]) {
+                        sampled = f.level.unwrap_or(!sampled);
+                    }
+                }
+                if c.fault.state() == ErrorState::BusOff {
+                    self.count_recovery(i, sampled, next, &mut events);
+                    continue;
+                }
+                let detected = self.controllers[i].mac.sample(drives[i], sampled);
+                self.react(i, detected, sof, next, &mut events, &mut destroyed, &mut deferred_3a, &mut sent_frame);
+            }
+            k += 1;
+            let done = k >= last_flip
+                && self
+                    .controllers
+                    .iter()
+                    .all(|c| !c.on_bus() || c.mac.quiet());
+            if done || k >= MAX_EPISODE_BITS {
+                break;
+            }
+        }
+        let end = sof + u64::from(k) * bit;
+        for c in &mut self.controllers {
+            if !c.connected {
+                continue;
+            }
+            if c.fault.state() == ErrorState::BusOff {
+                c.recessive_since = end;
+                continue;
+            }
+            c.mac_at = end;
+            let mut probe = c.mac;
+            probe.passive = c.fault.state() == ErrorState::Passive;
+            let to_idle = probe.idle_through(64).unwrap_or(64);
+            c.ready_at = c.ready_at.max(end + to_idle * bit);
+        }
+        let busy_until = end.max(self.idle_at);
+        self.stats.advance_to(end);
+        self.stats.busy(sof, end, k);
+        for d in &destroyed {
+            self.stats.error(d.error.name());
+            let c = &self.controllers[d.node];
+            events.push(Event::ErrorFrame {
+                start: sof,
+                flag: d.flag,
+                end,
+                node: NodeId(d.node as u16),
+                frame: d.frame,
+                error: d.error,
+                bit: d.bit,
+                tec: c.fault.tec(),
+                rec: c.fault.rec(),
+            });
+        }
+        // Events come out in time order; equal times keep the order they happened in.
+        events.sort_by_key(event_time);
+        self.events.extend(events);
+        self.idle_at = busy_until;
+        self.committed = self.committed.max(sof);
+    }
+
+    /// A bus-off controller counts the bit towards recovery (rule 12).
+    fn count_recovery(&mut self, i: usize, sampled: bool, next: BusTime, events: &mut Vec<Event>) {
+        let c = &mut self.controllers[i];
+        let changes = if sampled == wire::REC {
+            c.fault.recessive_bits(1)
+        } else {
+            c.fault.dominant_bit();
+            crate::fault::Changes::NONE
+        };
+        if c.fault.state() != ErrorState::BusOff {
+            c.mac = Mac {
+                acks: c.acks,
+                ..Mac::default()
+            };
+            c.mac_at = next;
+            c.ready_at = c.ready_at.max(next);
+        }
+        self.note_into(NodeId(i as u16), next, changes, events);
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn react(
+        &mut self,
+        i: usize,
+        detected: Detected,
+        sof: BusTime,
+        next: BusTime,
+        events: &mut Vec<Event>,
+        destroyed: &mut Vec<Destroyed>,
+        deferred_3a: &mut [bool],
+        sent_frame: &mut bool,
+    ) {
+        let node = NodeId(i as u16);
+        let bit = self.bit_ns;
+        match detected {
+            Detected::Nothing | Detected::Sof | Detected::Idle => {}
+            Detected::LostArbitration => self.controllers[i].counters.arbitration_lost += 1,
+            Detected::Error(found) => {
+                let c = &mut self.controllers[i];
+                let error = BusError::of(found.kind);
+                let transmitting = c.mac.tx_role;
+                let changes = if transmitting {
+                    c.counters.tx_errors += 1;
+                    if found.kind == TxErrorKind::Ack && c.fault.state() == ErrorState::Passive {
+                        // Exception 3a is decided once the passive flag has been sent.
+                        deferred_3a[i] = true;
+                        crate::fault::Changes::NONE
+                    } else {
+                        c.fault.transmit_error(TransmitError {
+                            in_arbitration_on_recessive_stuff_bit: found.arbitration_stuff,
+                            ..TransmitError::new(found.kind)
+                        })
+                    }
+                } else {
+                    c.counters.rx_errors += 1;
+                    c.fault.receive_error()
+                };
+                if c.mac.sending.is_some()
+                    && let Some(p) = c.tx.front()
+                {
+                    destroyed.push(Destroyed {
+                        node: i,
+                        frame: p.frame,
+                        flag: next,
+                        error,
+                        bit: (c.mac.pos.saturating_sub(1)).min(u32::from(u16::MAX)) as u16,
+                    });
+                    c.mac.sending = None;
+                }
+                self.bus_error(i, next, error, transmitting, found.location, events);
+                self.counted(i, next, changes, events);
+            }
+            Detected::CrcError => {
+                let c = &mut self.controllers[i];
+                c.counters.rx_errors += 1;
+                let changes = c.fault.receive_error();
+                self.bus_error(i, next, BusError::Crc, false, Location::CrcSeq, events);
+                self.counted(i, next, changes, events);
+            }
+            Detected::FlagBitError => {
+                let c = &mut self.controllers[i];
+                let changes = if c.mac.tx_role {
+                    c.fault.transmit_flag_bit_error()
+                } else {
+                    c.fault.receive_flag_bit_error()
+                };
+                let tx = c.mac.tx_role;
+                self.bus_error(i, next, BusError::Bit, tx, Location::Flag, events);
+                self.counted(i, next, changes, events);
+            }
+            Detected::FlagDone { saw_dominant } => {
+                if std::mem::take(&mut deferred_3a[i]) {
+                    let c = &mut self.controllers[i];
+                    let changes = c.fault.transmit_error(TransmitError {
+                        dominant_during_passive_flag: saw_dominant,
+                        ..TransmitError::new(TxErrorKind::Ack)
+                    });
+                    self.counted(i, next, changes, events);
+                }
+            }
+            Detected::DominantAfterFlag => {
+                let c = &mut self.controllers[i];
+                if !c.mac.tx_role {
+                    let changes = c.fault.receive_error_dominant_after_flag();
+                    self.counted(i, next, changes, events);
+                }
+            }
+            Detected::DominantRun => {
+                let c = &mut self.controllers[i];
+                let flag = match c.mac.phase {
+                    Phase::AfterFlag { active: false, .. } => ErrorFlag::Passive,
+                    _ => ErrorFlag::Active,
+                };
+                let role = if c.mac.tx_role {
+                    Role::Transmitter
+                } else {
+                    Role::Receiver
+                };
+                let changes = c.fault.dominant_bits_after_flag(flag.first_penalty_bit(), flag, role);
+                self.counted(i, next, changes, events);
+            }
+            Detected::Overload => {
+                self.stats.overloads += 1;
+                events.push(Event::Overload { node, at: next });
+            }
+            Detected::Received => {
+                // The frame ends with the next bit (EOF 7); receivers have it from then.
+                let end = next + bit;
+                // The frame on the bus is the one its transmitter is still sending.
+                let Some(frame) = self
+                    .controllers
+                    .iter()
+                    .find(|c| c.mac.sending.is_some())
+                    .and_then(|c| c.tx.front())
+                    .map(|p| p.frame)
+                else {
+                    return;
+                };
+                let c = &mut self.controllers[i];
+                let recovering = c.fault.rec() > 0;
+                let changes = c.fault.receive_success();
+                if c.config.filter.accepts(&frame) {
+                    if c.store(end, frame) {
+                        self.stats.deliveries += 1;
+                        events.push(Event::Delivered { node, at: end });
+                    } else {
+                        self.stats.overruns += 1;
+                        events.push(Event::Overrun { node, at: end });
+                    }
+                } else {
+                    c.counters.rx_filtered += 1;
+                }
+                self.note_into(node, end, changes, events);
+                if recovering {
+                    self.sample(node, end);
+                }
+            }
+            Detected::Sent => {
+                let end = next;
+                let c = &mut self.controllers[i];
+                let Some(p) = c.tx.pop_front() else { return };
+                c.counters.tx_frames += 1;
+                if c.config.filter.accepts(&p.frame) {
+                    c.counters.rx_own += 1;
+                }
+                let latency = end - p.submitted;
+                let recovering = c.fault.tec() > 0;
+                let changes = c.fault.transmit_success();
+                events.push(Event::TxDone {
+                    node,
+                    at: end,
+                    token: p.token,
+                    frame: p.frame,
+                });
+                if !*sent_frame {
+                    *sent_frame = true;
+                    let frame = p.frame;
+                    let bits = ((end - sof) / bit) as u32 + wire::INTERMISSION_BITS as u32;
+                    let priority = if frame.is_extended() {
+                        (frame.raw_id() >> 24) as usize
+                    } else {
+                        32
+                    };
+                    self.stats
+                        .frame(crate::filter::kernel_can_id(&frame), frame.data(), priority, end, latency);
+                    events.push(Event::Frame {
+                        start: sof,
+                        end,
+                        node,
+                        frame,
+                        bits,
+                    });
+                }
+                self.note_into(node, end, changes, events);
+                if recovering {
+                    self.sample(node, end);
+                }
+            }
+        }
+    }
+
+    /// One controller's error, as its SocketCAN interface would report it.
+    fn bus_error(
+        &mut self,
+        i: usize,
+        at: BusTime,
+        error: BusError,
+        transmitting: bool,
+        location: Location,
+        events: &mut Vec<Event>,
+    ) {
+        let c = &self.controllers[i];
+        events.push(Event::BusError {
+            node: NodeId(i as u16),
+            at,
+            error,
+            transmitting,
+            location,
+            tec: c.fault.tec(),
+            rec: c.fault.rec(),
+        });
+    }
+
+    /// After a counter moved: events, the history, and bus off.
+    fn counted(&mut self, i: usize, at: BusTime, changes: crate::fault::Changes, events: &mut Vec<Event>) {
+        let node = NodeId(i as u16);
+        self.note_into(node, at, changes, events);
+        self.sample(node, at);
+        let c = &mut self.controllers[i];
+        if c.fault.state() == ErrorState::BusOff {
+            // A bus-off controller has no influence on the bus: it stops at once, and drops the
+            // frame it was sending.
+            c.recessive_since = at;
+            if c.mac.tx_role
+                && let Some(p) = c.tx.pop_front()
+            {
+                c.counters.tx_aborted += 1;
+                events.push(Event::TxAborted {
+                    node,
+                    at,
+                    token: p.token,
+                    frame: p.frame,
+                });
+            }
+            c.mac = Mac {
+                acks: c.acks,
+                ..Mac::default()
+            };
+        }
+    }
+
+    /// Like `note_events`, into an episode's list.
+    fn note_into(&mut self, node: NodeId, at: BusTime, changes: crate::fault::Changes, events: &mut Vec<Event>) {
+        let from = self.events.len();
+        self.note_events(node, at, changes);
+        events.extend(self.events.drain(from..));
+    }
+}
+
+/// The time an event happened at, for ordering.
+fn event_time(e: &Event) -> BusTime {
+    match *e {
+        Event::Frame { end, .. } => end,
+        Event::ErrorFrame { flag, .. } => flag,
+        Event::Delivered { at, .. }
+        | Event::Overrun { at, .. }
+        | Event::TxDone { at, .. }
+        | Event::TxAborted { at, .. }
+        | Event::State { at, .. }
+        | Event::Restarted { at, .. }
+        | Event::Warning { at, .. }
+        | Event::BusError { at, .. }
+        | Event::Overload { at, .. } => at,
+    }
+}
