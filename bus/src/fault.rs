@@ -131,8 +131,10 @@ pub enum ErrorFlag {
 }
 
 impl ErrorFlag {
-    /// The consecutive dominant bit after the flag that brings the first rule-6 penalty: 14th
-    /// after an active flag, 8th after a passive one. Each further 8 bits bring another.
+    /// The consecutive dominant bit that brings the first rule-6 penalty, as the specification
+    /// counts: the 14th from the start of an active flag (its own six bits included, so the
+    /// 8th after it), the 8th after a passive flag. Each further 8 bits bring another. Either
+    /// way the first penalty falls on the 8th dominant bit after the flag.
     pub const fn first_penalty_bit(self) -> u32 {
         match self {
             ErrorFlag::Active => 14,
@@ -140,9 +142,9 @@ impl ErrorFlag {
         }
     }
 
-    /// How many rule-6 penalties a run of `bits` consecutive dominant bits after this flag
-    /// brings: 0 below [`first_penalty_bit`](ErrorFlag::first_penalty_bit), then one more every
-    /// 8 bits.
+    /// How many rule-6 penalties a run of `bits` consecutive dominant bits brings, counted as
+    /// [`first_penalty_bit`](ErrorFlag::first_penalty_bit) counts (from the start of an active
+    /// flag, from the end of a passive one): 0 below it, then one more every 8 bits.
     pub const fn penalties(self, bits: u32) -> u32 {
         let first = self.first_penalty_bit();
         if bits < first { 0 } else { 1 + (bits - first) / 8 }
@@ -363,15 +365,17 @@ impl FaultConfinement {
         self.counting(|fc| fc.add_rec(PENALTY))
     }
 
-    /// Rule 6: the node saw a run of `bits` consecutive dominant bits right after its `flag`
-    /// (an overload flag counts as [`ErrorFlag::Active`]). Each penalty adds 8 to TEC for a
+    /// Rule 6: the node saw a run of `bits` consecutive dominant bits with its `flag` (an
+    /// overload flag counts as [`ErrorFlag::Active`]). Each penalty adds 8 to TEC for a
     /// [`Role::Transmitter`] or to REC for a [`Role::Receiver`]; there is one penalty at the
-    /// 14th dominant bit after an active flag (8th after a passive one) and one more at each
-    /// further 8th bit, so after an active flag 13 bits bring none, 14–21 one, 22–29 two.
+    /// 14th dominant bit counted from the start of an active flag (the 8th after a passive one)
+    /// and one more at each further 8th bit, so with an active flag 13 bits bring none, 14–21
+    /// one, 22–29 two.
     ///
-    /// `bits` is the length of the whole run, reported once when the run has ended; nothing is
-    /// remembered between calls, so reporting a run in pieces would lose penalties. Penalties
-    /// are applied one at a time and stop when the node goes bus off.
+    /// `bits` is the length of the whole run as counted so far; nothing is remembered between
+    /// calls, so a caller that applies penalties as they fall (the bus engine) passes
+    /// [`ErrorFlag::first_penalty_bit`] once per penalty. Penalties are applied one at a time
+    /// and stop when the node goes bus off.
     pub fn dominant_bits_after_flag(&mut self, bits: u32, flag: ErrorFlag, role: Role) -> Changes {
         // 33 penalties take TEC from 0 to bus off and 32 take REC from 0 to its cap, so a longer
         // run changes nothing more: bounding the loop keeps a huge `bits` cheap.

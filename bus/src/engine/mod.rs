@@ -9,19 +9,34 @@
 //! time order, from [`Bus::take_events`]; received frames wait in each controller's receive FIFO
 //! until the node drains it with [`Bus::drain_rx`].
 //!
-//! What is modelled, bit-exactly at the configured bit rate: arbitration (lowest
+//! What is modelled, bit-exactly at the configured bit rate, following the Bosch CAN 2.0
+//! specification and ISO 11898-1 (docs/CAN.md): arbitration (lowest
 //! [`ArbitrationKey`](crate::ArbitrationKey) wins; nodes that start within the same bit time
 //! contend; losers retry when the bus is next idle), the stuffed length of every frame, ACK (a
 //! frame that no other connected, acknowledging, not-bus-off controller acknowledges is an ACK
-//! error), error frames (flag, superposition, delimiter, intermission, and the 8-bit suspend of an
-//! error-passive transmitter), fault confinement through [`FaultConfinement`], automatic
-//! retransmission, bus off and recovery after 128 × 11 recessive bits, acceptance filters, and the
-//! SJA1000's 64-byte receive FIFO with counted overruns.
+//! error), automatic retransmission, suspend transmission after anything an error-passive node
+//! sent, bus off and recovery after 128 × 11 recessive bits, acceptance filters, and the SJA1000's
+//! 64-byte receive FIFO with counted overruns.
 //!
-//! Simplifications, chosen so that runs stay deterministic and documented in `docs/DESIGN.md`:
-//! an error flag that more than one error-active node sends is taken to be superposed to the full
-//! 12 bits, one sent by a single active node to 6; a node that loses bus-off does not keep the
-//! frame it was sending; a disconnected node neither sends nor receives, and keeps its queue.
+//! An attempt that goes through cleanly (one frame or identical ones, acknowledged, nothing
+//! injected, every controller idle) is committed in closed form. Any other attempt runs bit by
+//! bit (`episode`): every controller's protocol state machine (`wire`) drives the bus, which is
+//! the wired AND of their levels; injected faults and [`Disturbance`]s change what chosen
+//! controllers sample; and every controller detects what it would detect: bit, stuff, CRC, form
+//! and ACK errors at their detection points, active and passive error flags (a passive flag is
+//! recessive, so others do not see it), superposed flags of 6 to 12 bits as they fall, overload
+//! frames, delimiters, and every fault-confinement rule and exception of [`crate::fault`]. What is
+//! left of a delimiter or an intermission when the next frame starts is carried into that
+//! attempt, so a controller still in its error delimiter sees that start of frame as a form
+//! error, as on a real bus.
+//!
+//! Choices where the specification leaves room, all documented in `docs/CAN.md`: counters move
+//! at the first bit of the error flag, except exception 3a, decided when the passive flag is
+//! complete; the flag's kind (active or passive) follows the state before the error is counted; a
+//! controller whose TEC reaches 256 is bus off at once and sends no flag (a bus-off node has no
+//! influence on the bus), dropping the frame it was sending; a disconnected node neither sends
+//! nor receives, and keeps its queue. Events come out in time order, and bus time in them never
+//! goes backwards.
 
 mod controller;
 mod episode;
