@@ -121,6 +121,13 @@ impl Bus {
         }
         for (i, c) in self.controllers.iter_mut().enumerate() {
             c.mac.acks = c.acks;
+            if !starters.contains(&i) {
+                // A unit stays transmitter of its message until the bus is idle (Bosch CAN 2.0,
+                // part B, 2): another node's start of frame begins a message it receives, even
+                // while it is still in the delimiter of its own.
+                c.mac.tx_role = false;
+                c.mac.transmitter = false;
+            }
             if !starters.contains(&i)
                 && let Some((frames, by)) = &plan.overload
                 && by.includes(NodeId(i as u16))
