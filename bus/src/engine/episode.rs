@@ -174,16 +174,20 @@ impl Bus {
                 self.react(i, detected, sof, next, &mut events, &mut destroyed, &mut deferred_3a, &mut sent_frame);
             }
             k += 1;
-            let done = k >= last_flip
-                && self
-                    .controllers
-                    .iter()
-                    .all(|c| !c.on_bus() || c.mac.quiet());
+            // Disturbances act while something is on the bus, not on an idle one.
+            let quiet = self.controllers.iter().all(|c| !c.on_bus() || c.mac.quiet());
+            let idle = self
+                .controllers
+                .iter()
+                .all(|c| !c.on_bus() || matches!(c.mac.phase, Phase::Idle | Phase::Suspend { .. }));
+            let done = quiet && (k >= last_flip || idle);
             if done || k >= MAX_EPISODE_BITS {
                 break;
             }
         }
         let end = sof + u64::from(k) * bit;
+        // The bus is busy until the last controller is through its intermission.
+        let mut busy_to = end;
         for c in &mut self.controllers {
             if !c.connected {
                 continue;
@@ -195,12 +199,25 @@ impl Bus {
             c.mac_at = end;
             let mut probe = c.mac;
             probe.passive = c.fault.state() == ErrorState::Passive;
+            let mut through = probe;
             let to_idle = probe.idle_through(64).unwrap_or(64);
             c.ready_at = c.ready_at.max(end + to_idle * bit);
+            let to_bus_idle = (0..64u64)
+                .find(|_| {
+                    let done = matches!(through.phase, Phase::Idle | Phase::Suspend { .. });
+                    if !done {
+                        through.idle_through(1);
+                    }
+                    done
+                })
+                .unwrap_or(64);
+            busy_to = busy_to.max(end + to_bus_idle * bit);
         }
-        let busy_until = end.max(self.idle_at);
+        let busy_from = sof.max(self.stats.busy_until);
+        let busy_to = busy_to.max(busy_from);
         self.stats.advance_to(end);
-        self.stats.busy(sof, end, k);
+        self.stats
+            .busy(busy_from, busy_to, ((busy_to - busy_from) / bit).min(u64::from(u32::MAX)) as u32);
         for d in &destroyed {
             self.stats.error(d.error.name());
             let c = &self.controllers[d.node];
@@ -216,10 +233,11 @@ impl Bus {
                 rec: c.fault.rec(),
             });
         }
-        // Events come out in time order; equal times keep the order they happened in.
-        events.sort_by_key(event_time);
+        // Events come out in time order, and at one time as the closed form gives them: the
+        // frame, its confirmations, then what receivers did with it.
+        events.sort_by_key(|e| (event_time(e), rank(e)));
         self.events.extend(events);
-        self.idle_at = busy_until;
+        self.idle_at = self.idle_at.max(busy_to);
         self.committed = self.committed.max(sof);
     }
 
@@ -479,6 +497,15 @@ impl Bus {
         let from = self.events.len();
         self.note_events(node, at, changes);
         events.extend(self.events.drain(from..));
+    }
+}
+
+/// Order among events at the same time.
+fn rank(e: &Event) -> u8 {
+    match e {
+        Event::Frame { .. } | Event::ErrorFrame { .. } => 0,
+        Event::TxDone { .. } | Event::TxAborted { .. } => 1,
+        _ => 2,
     }
 }
 
