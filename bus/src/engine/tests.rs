@@ -725,3 +725,40 @@ proptest::proptest! {
         }
     }
 }
+
+/// docs/CAN.md, section 6, worked example: `0300A0F5#0101`, a wire flip at stuffed bit 51 (the
+/// transmitter sends 1 there), all nodes error active. Bits 47..=50 read 1000 and the flipped bit
+/// makes r = 4 dominant bits: the transmitter flags from 52, the receivers see their sixth
+/// dominant bit at 53 and flag from 54 to 59, the delimiter is 60..=67, intermission 68..=70,
+/// and the retransmission starts at bit 71 (284 µs).
+#[test]
+fn the_worked_error_frame_of_can_md() {
+    let frame = f("0300A0F5#0101");
+    let stuffed = crate::bits::encode(&frame).stuffed;
+    let bits: String = (47..=51).map(|i| if stuffed.get(i) == Some(true) { '1' } else { '0' }).collect();
+    assert_eq!(bits, "10001");
+    let mut b = bus();
+    let tx = b.attach(ControllerConfig::named("tx"));
+    let rx: Vec<NodeId> = (0..3).map(|i| b.attach(ControllerConfig::named(format!("rx{i}")))).collect();
+    b.injector_mut()
+        .add(Rule::bit_errors(Target::Node(tx), Schedule::Once, BitPosition::At(51)));
+    b.submit(tx, frame, BusTime(0)).unwrap();
+    let events = run(&mut b, 2_000_000);
+    let seen: Vec<(NodeId, u64, BusError)> = events
+        .iter()
+        .filter_map(|e| match *e {
+            Event::BusError { node, at, error, .. } => Some((node, at.0 / BIT, error)),
+            _ => None,
+        })
+        .collect();
+    let mut expected = vec![(tx, 52, BusError::Bit)];
+    expected.extend(rx.iter().map(|&r| (r, 54, BusError::Stuff)));
+    assert_eq!(seen, expected);
+    let retransmitted = frames(&events);
+    assert_eq!(retransmitted.len(), 1);
+    assert_eq!(retransmitted[0].0, 71 * BIT, "284 µs");
+    assert_eq!(b.controller(tx).unwrap().fault().tec(), 8 - 1, "+8, then -1 for the success");
+    for r in rx {
+        assert_eq!(b.controller(r).unwrap().fault().rec(), 0, "+1, then -1 for the success");
+    }
+}
