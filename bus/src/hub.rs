@@ -295,7 +295,11 @@ impl Hub {
             if let Some(out) = self.trace.as_mut() {
                 self.line.clear();
                 let controllers = self.bus.controllers();
-                let name = |n: NodeId| controllers.get(n.index()).map_or("?", |c| c.config().name.as_str());
+                let name = |n: NodeId| {
+                    controllers
+                        .get(n.index())
+                        .map_or("?", |c| c.config().name.as_str())
+                };
                 trace::event_line(&mut self.line, &self.iface, name, &event);
                 if !self.line.is_empty()
                     && let Err(e) = out.write_all(self.line.as_bytes())

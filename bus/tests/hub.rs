@@ -253,7 +253,8 @@ fn same_seed_same_trace_byte_for_byte() {
     assert!(text.lines().count() > 1000);
     // SocketCAN error frames: CAN_ERR_FLAG | PROT | BUSERROR | CNT.
     assert!(
-        text.lines().any(|l| l.contains(" harv0.") && l.contains(" 20000288#")),
+        text.lines()
+            .any(|l| l.contains(" harv0.") && l.contains(" 20000288#")),
         "bit errors are in the trace, on the controllers' interfaces"
     );
 }

@@ -171,7 +171,16 @@ impl Bus {
                     continue;
                 }
                 let detected = self.controllers[i].mac.sample(drives[i], sampled);
-                self.react(i, detected, sof, next, &mut events, &mut destroyed, &mut deferred_3a, &mut sent_frame);
+                self.react(
+                    i,
+                    detected,
+                    sof,
+                    next,
+                    &mut events,
+                    &mut destroyed,
+                    &mut deferred_3a,
+                    &mut sent_frame,
+                );
             }
             k += 1;
             // Disturbances act while something is on the bus, not on an idle one.
@@ -216,8 +225,11 @@ impl Bus {
         let busy_from = sof.max(self.stats.busy_until);
         let busy_to = busy_to.max(busy_from);
         self.stats.advance_to(end);
-        self.stats
-            .busy(busy_from, busy_to, ((busy_to - busy_from) / bit).min(u64::from(u32::MAX)) as u32);
+        self.stats.busy(
+            busy_from,
+            busy_to,
+            ((busy_to - busy_from) / bit).min(u64::from(u32::MAX)) as u32,
+        );
         for d in &destroyed {
             self.stats.error(d.error.name());
             let c = &self.controllers[d.node];
@@ -359,7 +371,9 @@ impl Bus {
                 } else {
                     Role::Receiver
                 };
-                let changes = c.fault.dominant_bits_after_flag(flag.first_penalty_bit(), flag, role);
+                let changes = c
+                    .fault
+                    .dominant_bits_after_flag(flag.first_penalty_bit(), flag, role);
                 self.counted(i, next, changes, events);
             }
             Detected::Overload => {
@@ -424,8 +438,13 @@ impl Bus {
                     } else {
                         32
                     };
-                    self.stats
-                        .frame(crate::filter::kernel_can_id(&frame), frame.data(), priority, end, latency);
+                    self.stats.frame(
+                        crate::filter::kernel_can_id(&frame),
+                        frame.data(),
+                        priority,
+                        end,
+                        latency,
+                    );
                     events.push(Event::Frame {
                         start: sof,
                         end,
@@ -493,7 +512,13 @@ impl Bus {
     }
 
     /// Like `note_events`, into an episode's list.
-    fn note_into(&mut self, node: NodeId, at: BusTime, changes: crate::fault::Changes, events: &mut Vec<Event>) {
+    fn note_into(
+        &mut self,
+        node: NodeId,
+        at: BusTime,
+        changes: crate::fault::Changes,
+        events: &mut Vec<Event>,
+    ) {
         let from = self.events.len();
         self.note_events(node, at, changes);
         events.extend(self.events.drain(from..));

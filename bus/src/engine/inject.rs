@@ -267,9 +267,9 @@ impl Injector {
                             .copied()
                             .find(|&c| c >= b)
                             .or(candidates.last().copied()),
-                        BitPosition::Random => {
-                            candidates.get(self.rng.random_range(0..candidates.len())).copied()
-                        }
+                        BitPosition::Random => candidates
+                            .get(self.rng.random_range(0..candidates.len()))
+                            .copied(),
                     };
                     if let Some(bit) = bit {
                         r.fired += 1;
@@ -301,17 +301,13 @@ mod tests {
     fn schedules() {
         let mut inj = Injector::new(7);
         let once = inj.add(rule(Schedule::Once));
-        let hits: Vec<bool> = (0..4)
-            .map(|_| flip(&mut inj, 1, 0, 33, 100).is_some())
-            .collect();
+        let hits: Vec<bool> = (0..4).map(|_| flip(&mut inj, 1, 0, 33, 100).is_some()).collect();
         assert_eq!(hits, [true, false, false, false]);
         assert_eq!(inj.fired(once), Some(1));
         assert!(inj.remove(once));
 
         inj.add(rule(Schedule::EveryNth(3)));
-        let hits: Vec<bool> = (0..7)
-            .map(|_| flip(&mut inj, 1, 0, 33, 100).is_some())
-            .collect();
+        let hits: Vec<bool> = (0..7).map(|_| flip(&mut inj, 1, 0, 33, 100).is_some()).collect();
         assert_eq!(hits, [false, false, true, false, false, true, false]);
         // Other nodes are not looked at.
         assert!((0..10).all(|_| flip(&mut inj, 2, 0, 33, 100).is_none()));
@@ -334,7 +330,11 @@ mod tests {
         }
         assert!(flip(&mut inj, 0, 0x0000_00D1, 33, 90).is_none());
         let mut at = Injector::new(1);
-        at.add(Rule::bit_errors(Target::Any, Schedule::Always, BitPosition::At(500)));
+        at.add(Rule::bit_errors(
+            Target::Any,
+            Schedule::Always,
+            BitPosition::At(500),
+        ));
         assert_eq!(
             flip(&mut at, 0, 0, 33, 90),
             Some(90),
@@ -351,9 +351,7 @@ mod tests {
                 Schedule::Probability(0.3),
                 BitPosition::Random,
             ));
-            (0..100)
-                .map(|_| flip(&mut inj, 0, 0, 10, 80))
-                .collect::<Vec<_>>()
+            (0..100).map(|_| flip(&mut inj, 0, 0, 10, 80)).collect::<Vec<_>>()
         };
         assert_eq!(run(5), run(5));
         assert_ne!(run(5), run(6));

@@ -457,9 +457,7 @@ impl Bus {
         self.controllers
             .iter()
             .filter(|c| c.on_bus())
-            .filter_map(|c| {
-                c.tx.front().map(|p| p.submitted.max(c.ready_at))
-            })
+            .filter_map(|c| c.tx.front().map(|p| p.submitted.max(c.ready_at)))
             .min()
     }
 
@@ -622,8 +620,7 @@ impl Bus {
         let stuffed_len = bits::stuffed_len(&frame);
         let total_bits = stuffed_len + bits::TAIL_BITS;
         let horizon = sof + u64::from(total_bits) * bit;
-        self.disturbances
-            .retain(|d| d.at + u64::from(d.bits) * bit > sof);
+        self.disturbances.retain(|d| d.at + u64::from(d.bits) * bit > sof);
         let disturbed = self.disturbances.iter().any(|d| d.at < horizon);
         let decision = if self.injector.is_empty() {
             inject::Decision::default()
@@ -631,13 +628,10 @@ impl Bus {
             let arb_bits: u16 = if frame.is_extended() { 33 } else { 13 };
             let last = (stuffed_len - 1) as u16;
             let first = (arb_bits + arb_bits / 4).min(last);
-            self.injector.decide(
-                NodeId(w as u16),
-                frame.raw_id(),
-                first,
-                last,
-                &mut |effect| positions(&frame, effect, first),
-            )
+            self.injector
+                .decide(NodeId(w as u16), frame.raw_id(), first, last, &mut |effect| {
+                    positions(&frame, effect, first)
+                })
         };
         // Identical frames go out together; the same identifier with other contents collides.
         let clash = starters.iter().any(|&i| {
@@ -801,7 +795,6 @@ impl Bus {
         }
         self.idle_at = idle;
     }
-
 }
 
 /// Bits of `frame` where an injected `effect` can fall: stuff bits for a stuff error, data and
@@ -811,7 +804,10 @@ fn positions(frame: &Frame, effect: Effect, first: u16) -> Vec<u16> {
     let stuffed = bits::encode(frame).stuffed;
     let len = stuffed.len() as u16;
     match effect {
-        Effect::Stuff => wire::stuff_bits(&stuffed).into_iter().filter(|&b| b >= 1).collect(),
+        Effect::Stuff => wire::stuff_bits(&stuffed)
+            .into_iter()
+            .filter(|&b| b >= 1)
+            .collect(),
         Effect::Crc => (first..len)
             .filter(|&b| wire::receiver_outcome(&stuffed, u32::from(b)) == wire::Outcome::Crc)
             .collect(),

@@ -173,7 +173,11 @@ fn bus_off_and_recovery_after_128_times_11_recessive_bits() {
     let mut b = bus();
     let bad = b.attach(ControllerConfig::named("bad"));
     let good = b.attach(ControllerConfig::named("good"));
-    b.injector_mut().add(Rule::bit_errors(Target::Node(bad), Schedule::Always, BitPosition::At(40)));
+    b.injector_mut().add(Rule::bit_errors(
+        Target::Node(bad),
+        Schedule::Always,
+        BitPosition::At(40),
+    ));
     b.submit(bad, f("0601F5D0#0101341EEA2BEF2C"), BusTime(0)).unwrap();
     let events = run(&mut b, 1_000_000_000);
     let errors: Vec<&Event> = events
@@ -207,14 +211,20 @@ fn bus_off_and_recovery_after_128_times_11_recessive_bits() {
     let Event::ErrorFrame { flag, start, .. } = errors[31] else {
         unreachable!()
     };
-    assert_eq!(flag.0 - start.0, 41 * BIT, "bus off at the first bit after the error");
+    assert_eq!(
+        flag.0 - start.0,
+        41 * BIT,
+        "bus off at the first bit after the error"
+    );
     let stuffed = crate::bits::encode(&f("0601F5D0#0101341EEA2BEF2C")).stuffed;
     let level = |i: usize| match i {
         40 => !stuffed.get(40).unwrap(),
         i if i > 40 => true,
         i => stuffed.get(i).unwrap(),
     };
-    let sixth_equal = (41..).find(|&p| (p - 5..p).all(|q| level(q) == level(p))).unwrap() as u64;
+    let sixth_equal = (41..)
+        .find(|&p| (p - 5..p).all(|q| level(q) == level(p)))
+        .unwrap() as u64;
     let recovered = events
         .iter()
         .find_map(|e| match e {
@@ -227,7 +237,10 @@ fn bus_off_and_recovery_after_128_times_11_recessive_bits() {
             _ => None,
         })
         .unwrap();
-    assert_eq!(recovered.0, start.0 + (sixth_equal + 1 + 6) * BIT + 128 * 11 * BIT);
+    assert_eq!(
+        recovered.0,
+        start.0 + (sixth_equal + 1 + 6) * BIT + 128 * 11 * BIT
+    );
     // The frame it was sending when it went bus off was dropped.
     assert_eq!(
         events
@@ -247,7 +260,11 @@ fn recovery_counts_recessive_runs_between_frames() {
     let bad = b.attach(ControllerConfig::named("bad"));
     let good = b.attach(ControllerConfig::named("good"));
     let _third = b.attach(ControllerConfig::named("third"));
-    b.injector_mut().add(Rule::bit_errors(Target::Node(bad), Schedule::Always, BitPosition::At(40)));
+    b.injector_mut().add(Rule::bit_errors(
+        Target::Node(bad),
+        Schedule::Always,
+        BitPosition::At(40),
+    ));
     b.submit(bad, f("0601F5D0#01"), BusTime(0)).unwrap();
     for k in 0..200u64 {
         b.submit(good, f("0601F5D1#01"), BusTime(k * 2_000_000)).unwrap();
@@ -430,7 +447,9 @@ fn identical_frames_go_out_together_different_ones_collide() {
     let first_difference = (0..one.len()).find(|&i| one.get(i) != two.get(i)).unwrap();
     assert_eq!(two.get(first_difference), Some(true), "y sends recessive there");
     assert_eq!(lost(y), Some(first_difference), "{events:?}");
-    let x_sees = (first_difference + 1..).find(|&i| one.get(i) == Some(true)).unwrap();
+    let x_sees = (first_difference + 1..)
+        .find(|&i| one.get(i) == Some(true))
+        .unwrap();
     assert!(x_sees <= first_difference + 6);
     assert_eq!(lost(x), Some(x_sees), "{events:?}");
     assert_eq!(b.controller(x).unwrap().fault().tec(), 8);
@@ -480,7 +499,11 @@ fn random_injection_is_deterministic_under_a_seed() {
             ..ControllerConfig::named("a")
         });
         let _r = b.attach(ControllerConfig::named("r"));
-        b.injector_mut().add(Rule::bit_errors(Target::Any, Schedule::BitErrorRate(1e-3), BitPosition::Random));
+        b.injector_mut().add(Rule::bit_errors(
+            Target::Any,
+            Schedule::BitErrorRate(1e-3),
+            BitPosition::Random,
+        ));
         for k in 0..500u64 {
             b.submit(a, f("0601F5D0#0101341EEA2BEF2C"), BusTime(k * 1_000_000))
                 .unwrap();
@@ -513,7 +536,11 @@ fn error_counters_are_kept_over_time() {
     let mut b = bus();
     let a = b.attach(ControllerConfig::named("a"));
     let _rx = b.attach(ControllerConfig::named("rx"));
-    let rule = b.injector_mut().add(Rule::bit_errors(Target::Node(a), Schedule::Always, BitPosition::At(40)));
+    let rule = b.injector_mut().add(Rule::bit_errors(
+        Target::Node(a),
+        Schedule::Always,
+        BitPosition::At(40),
+    ));
     b.submit(a, f("123#01"), BusTime(0)).unwrap();
     // Four errors, then the rule goes and the frame and four more go through.
     for _ in 0..4 {
@@ -735,13 +762,20 @@ proptest::proptest! {
 fn the_worked_error_frame_of_can_md() {
     let frame = f("0300A0F5#0101");
     let stuffed = crate::bits::encode(&frame).stuffed;
-    let bits: String = (47..=51).map(|i| if stuffed.get(i) == Some(true) { '1' } else { '0' }).collect();
+    let bits: String = (47..=51)
+        .map(|i| if stuffed.get(i) == Some(true) { '1' } else { '0' })
+        .collect();
     assert_eq!(bits, "10001");
     let mut b = bus();
     let tx = b.attach(ControllerConfig::named("tx"));
-    let rx: Vec<NodeId> = (0..3).map(|i| b.attach(ControllerConfig::named(format!("rx{i}")))).collect();
-    b.injector_mut()
-        .add(Rule::bit_errors(Target::Node(tx), Schedule::Once, BitPosition::At(51)));
+    let rx: Vec<NodeId> = (0..3)
+        .map(|i| b.attach(ControllerConfig::named(format!("rx{i}"))))
+        .collect();
+    b.injector_mut().add(Rule::bit_errors(
+        Target::Node(tx),
+        Schedule::Once,
+        BitPosition::At(51),
+    ));
     b.submit(tx, frame, BusTime(0)).unwrap();
     let events = run(&mut b, 2_000_000);
     let seen: Vec<(NodeId, u64, BusError)> = events
@@ -757,8 +791,16 @@ fn the_worked_error_frame_of_can_md() {
     let retransmitted = frames(&events);
     assert_eq!(retransmitted.len(), 1);
     assert_eq!(retransmitted[0].0, 71 * BIT, "284 µs");
-    assert_eq!(b.controller(tx).unwrap().fault().tec(), 8 - 1, "+8, then -1 for the success");
+    assert_eq!(
+        b.controller(tx).unwrap().fault().tec(),
+        8 - 1,
+        "+8, then -1 for the success"
+    );
     for r in rx {
-        assert_eq!(b.controller(r).unwrap().fault().rec(), 0, "+1, then -1 for the success");
+        assert_eq!(
+            b.controller(r).unwrap().fault().rec(),
+            0,
+            "+1, then -1 for the success"
+        );
     }
 }

@@ -510,7 +510,9 @@ impl Mac {
             }
             Phase::Frame => self.sample_frame(sent, bit),
             Phase::ErrorFlag {
-                active: true, sent: n, ..
+                active: true,
+                sent: n,
+                ..
             } => {
                 if bit == REC {
                     self.enter_flag();
@@ -838,7 +840,13 @@ mod tests {
 
     #[test]
     fn a_clean_frame_decodes_with_its_crc() {
-        for text in ["0300A0F5#0101", "123#R", "1FFFFFFF#FFFFFFFFFFFFFFFF", "000#", "7FF#00000000"] {
+        for text in [
+            "0300A0F5#0101",
+            "123#R",
+            "1FFFFFFF#FFFFFFFFFFFFFFFF",
+            "000#",
+            "7FF#00000000",
+        ] {
             let f = parse_frame(text).unwrap();
             let e = encode(&f);
             assert_eq!(receiver_outcome(&e.stuffed, u32::MAX), Outcome::Ok, "{text}");
