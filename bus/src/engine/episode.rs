@@ -383,11 +383,12 @@ impl Bus {
             Detected::Received => {
                 // The frame ends with the next bit (EOF 7); receivers have it from then.
                 let end = next + bit;
-                // The frame on the bus is the one its transmitter is still sending.
+                // The frame on the bus is its transmitter's, which stays transmitter through its
+                // own error flag (a passive flag after an ACK error leaves the frame intact).
                 let Some(frame) = self
                     .controllers
                     .iter()
-                    .find(|c| c.mac.sending.is_some())
+                    .find(|c| c.mac.tx_role && c.mac.transmitter)
                     .and_then(|c| c.tx.front())
                     .map(|p| p.frame)
                 else {

@@ -733,16 +733,17 @@ impl Bus {
             c.ready_at = c.ready_at.max(idle);
             let Some(p) = c.tx.pop_front() else { continue };
             c.counters.tx_frames += 1;
-            // Suspend transmission: an error-passive node waits 8 more bits after anything it
-            // sent, unless somebody else starts first.
-            if c.fault.state() == ErrorState::Passive {
-                c.ready_at = c.ready_at.max(suspend_end);
-            }
+
             if c.config.filter.accepts(&frame) {
                 c.counters.rx_own += 1;
             }
             let recovering = c.fault.tec() > 0;
             let changes = c.fault.transmit_success();
+            // Suspend transmission: a node still error passive after what it sent waits 8 more
+            // bits, unless somebody else starts first.
+            if c.fault.state() == ErrorState::Passive {
+                c.ready_at = c.ready_at.max(suspend_end);
+            }
             self.events.push(Event::TxDone {
                 node: NodeId(t as u16),
                 at: end,

@@ -457,7 +457,7 @@ impl Mac {
         }
     }
 
-    fn to_error(&mut self, found: Found) -> Detected {
+    fn signal_error(&mut self, found: Found) -> Detected {
         // A receiver that is not ready has no frame to delay any more.
         self.overloads = 0;
         self.enter_flag();
@@ -609,7 +609,7 @@ impl Mac {
                         self.phase = Phase::OverloadFlag { sent: 0 };
                         return Detected::Overload;
                     }
-                    return self.to_error(Found {
+                    return self.signal_error(Found {
                         kind: crate::fault::TxErrorKind::Form,
                         location: Location::Delimiter,
                         arbitration_stuff: false,
@@ -673,7 +673,7 @@ impl Mac {
             let in_arbitration = tail.is_none() && (1..=s.arbitration_end).contains(&index);
             if tail == Some(tail::ACK) {
                 if bit == REC {
-                    return self.to_error(Found {
+                    return self.signal_error(Found {
                         kind: crate::fault::TxErrorKind::Ack,
                         location: Location::Ack,
                         arbitration_stuff: false,
@@ -681,7 +681,7 @@ impl Mac {
                 }
             } else if sent != bit {
                 if sent == REC && in_arbitration && stuff_bit {
-                    return self.to_error(Found {
+                    return self.signal_error(Found {
                         kind: crate::fault::TxErrorKind::Stuff,
                         location,
                         arbitration_stuff: true,
@@ -694,7 +694,7 @@ impl Mac {
                     self.dec.feed(bit);
                     return Detected::LostArbitration;
                 }
-                return self.to_error(Found {
+                return self.signal_error(Found {
                     kind: crate::fault::TxErrorKind::Bit,
                     location,
                     arbitration_stuff: false,
@@ -709,19 +709,19 @@ impl Mac {
         }
         // A receiver: its own ACK is the only bit it drives.
         if sent == DOM && bit == REC {
-            return self.to_error(Found {
+            return self.signal_error(Found {
                 kind: crate::fault::TxErrorKind::Bit,
                 location,
                 arbitration_stuff: false,
             });
         }
         match self.dec.feed(bit) {
-            Decoded::StuffError => self.to_error(Found {
+            Decoded::StuffError => self.signal_error(Found {
                 kind: crate::fault::TxErrorKind::Stuff,
                 location,
                 arbitration_stuff: false,
             }),
-            Decoded::FormError => self.to_error(Found {
+            Decoded::FormError => self.signal_error(Found {
                 kind: crate::fault::TxErrorKind::Form,
                 location,
                 arbitration_stuff: false,
