@@ -387,7 +387,10 @@ fn tail_error_case(p: u64, tx_loc: Location) {
     );
     assert!(locations(&ev).contains(&(tx, tx_loc)), "{:?}", locations(&ev));
     assert_eq!(error_frame(&ev), (p, p + 1, p + 7, BusError::Bit));
-    assert!(delivered(&ev).is_empty(), "an error up to EOF 6 loses the frame for the receivers");
+    assert!(
+        delivered(&ev).is_empty(),
+        "an error up to EOF 6 loses the frame for the receivers"
+    );
     assert_eq!((n.tec(tx), n.rec(r0), n.rec(r1)), (8, 1, 1));
     // Flags p + 1..p + 6, delimiter p + 7..p + 14, intermission p + 15..p + 17.
     assert_eq!(frames(&n.run_for(1000)), [(tx, p + 18)], "p = {p}");
@@ -432,7 +435,11 @@ fn bit_error_in_last_eof_bit_gives_retransmission_and_receiver_overload() {
     assert_eq!((n.tec(tx), n.rec(r0), n.rec(r1)), (8, 0, 0));
     let ev = n.run_for(1000);
     assert_eq!(frames(&ev), [(tx, 73)]);
-    assert_eq!(delivered(&ev), [(r0, 73 + 56), (r1, 73 + 56)], "received a second time");
+    assert_eq!(
+        delivered(&ev),
+        [(r0, 73 + 56), (r1, 73 + 56)],
+        "received a second time"
+    );
     assert_eq!((n.tec(tx), n.rec(r0), n.rec(r1)), (7, 0, 0));
 }
 
@@ -449,7 +456,11 @@ fn bit_error_in_ack_slot_for_a_receiver() {
     let ev = n.step();
     assert_eq!(
         bus_errors(&ev),
-        [(r0, 48, BusError::Bit), (tx, 49, BusError::Bit), (r1, 49, BusError::Form)]
+        [
+            (r0, 48, BusError::Bit),
+            (tx, 49, BusError::Bit),
+            (r1, 49, BusError::Form)
+        ]
     );
     assert!(locations(&ev).contains(&(r0, Location::Ack)));
     assert_eq!((n.tec(tx), n.rec(r0), n.rec(r1)), (8, 9, 1));
@@ -568,7 +579,11 @@ fn crc_error_flag_starts_after_ack_delimiter() {
     let ev = n.step();
     assert_eq!(
         bus_errors(&ev),
-        [(r0, 49, BusError::Crc), (tx, 50, BusError::Bit), (r1, 50, BusError::Form)]
+        [
+            (r0, 49, BusError::Crc),
+            (tx, 50, BusError::Bit),
+            (r1, 50, BusError::Form)
+        ]
     );
     assert!(locations(&ev).contains(&(r1, Location::Eof)));
     assert_eq!(error_frame(&ev), (49, 50, 56, BusError::Bit));
@@ -594,7 +609,11 @@ fn crc_error_at_every_receiver_is_overtaken_by_ack_error() {
     let ev = n.step();
     assert_eq!(
         bus_errors(&ev),
-        [(tx, 48, BusError::Ack), (r0, 49, BusError::Form), (r1, 49, BusError::Form)]
+        [
+            (tx, 48, BusError::Ack),
+            (r0, 49, BusError::Form),
+            (r1, 49, BusError::Form)
+        ]
     );
     assert!(locations(&ev).contains(&(r0, Location::AckDel)));
     assert_eq!((n.tec(tx), n.rec(r0), n.rec(r1)), (8, 1, 1));
@@ -752,7 +771,10 @@ fn passive_error_flag_is_not_seen_by_others() {
             attempt + 1
         );
     }
-    assert_eq!((n.tec(tx), n.rec(r0), n.state(tx)), (128, 16, ErrorState::Passive));
+    assert_eq!(
+        (n.tec(tx), n.rec(r0), n.state(tx)),
+        (128, 16, ErrorState::Passive)
+    );
     let ev = n.step();
     assert_eq!(bus_errors(&ev), [(tx, 1064 + 48, BusError::Ack)]);
     assert_eq!(delivered(&ev), [(r0, 1064 + 56)]);
@@ -794,7 +816,11 @@ fn dominant_last_error_delimiter_bit_is_overload() {
     let ev = n.step();
     assert_eq!(
         bus_errors(&ev),
-        [(tx, 17, BusError::Bit), (r0, 23, BusError::Stuff), (r1, 23, BusError::Stuff)]
+        [
+            (tx, 17, BusError::Bit),
+            (r0, 23, BusError::Stuff),
+            (r1, 23, BusError::Stuff)
+        ]
     );
     assert_eq!(overloads(&ev), [(tx, 37), (r0, 37), (r1, 37)]);
     assert_eq!((n.tec(tx), n.rec(r0), n.rec(r1)), (8, 1, 1));
@@ -929,7 +955,11 @@ fn rule_3_exception_stuff_error_on_recessive_arbitration_stuff_bit() {
     let ev = n.step();
     assert_eq!(
         bus_errors(&ev),
-        [(tx, 6, BusError::Stuff), (r0, 6, BusError::Stuff), (r1, 6, BusError::Stuff)]
+        [
+            (tx, 6, BusError::Stuff),
+            (r0, 6, BusError::Stuff),
+            (r1, 6, BusError::Stuff)
+        ]
     );
     assert!(ev.iter().any(|e| matches!(
         e,
@@ -957,7 +987,11 @@ fn rule_4_transmitter_bit_error_in_active_flag() {
     let ev = n.step();
     assert_eq!(
         bus_errors(&ev),
-        [(tx, 17, BusError::Bit), (tx, 18, BusError::Bit), (r0, 23, BusError::Stuff)]
+        [
+            (tx, 17, BusError::Bit),
+            (tx, 18, BusError::Bit),
+            (r0, 23, BusError::Stuff)
+        ]
     );
     assert!(locations(&ev).contains(&(tx, Location::Flag)));
     assert_eq!((n.tec(tx), n.rec(r0)), (16, 1));
@@ -978,7 +1012,11 @@ fn rule_5_receiver_bit_error_in_active_flag() {
     let ev = n.step();
     assert_eq!(
         bus_errors(&ev),
-        [(tx, 17, BusError::Bit), (r0, 23, BusError::Stuff), (r0, 24, BusError::Bit)]
+        [
+            (tx, 17, BusError::Bit),
+            (r0, 23, BusError::Stuff),
+            (r0, 24, BusError::Bit)
+        ]
     );
     assert_eq!((n.tec(tx), n.rec(r0)), (8, 9));
     assert_eq!(frames(&n.run_for(1000)), [(tx, 41)]);
@@ -1017,7 +1055,11 @@ fn rule_6_dominant_bits_after_active_error_flag() {
         n.disturb(54, dominant, DOMINANT, Some(vec![tx]));
         n.step();
         assert_eq!(n.tec(tx), tec, "{dominant} dominant bits");
-        assert_eq!(destroyed(&n.step()), [65 + u64::from(dominant)], "{dominant} dominant bits");
+        assert_eq!(
+            destroyed(&n.step()),
+            [65 + u64::from(dominant)],
+            "{dominant} dominant bits"
+        );
     }
 }
 
@@ -1138,12 +1180,17 @@ fn rule_8_rec_above_127_becomes_119() {
 ///   dropped. The receiver's flag is 22..27 again; from 28 the bus is recessive, and after 128
 ///   sequences of 11 recessive bits (1408 bits) the node is error active with TEC = REC = 0
 ///   (rule 12): at 1353 + 28 + 1408 = 2789.
+///
 /// The receiver counts REC + 1 per attempt: 32.
 #[test]
 fn rules_9_10_12_error_passive_bus_off_and_recovery() {
     let mut n = net(1);
     let (tx, r0) = (n.tx, n.rx[0]);
-    n.b.injector_mut().add(Rule::bit_errors(Target::Node(tx), Schedule::Always, BitPosition::At(16)));
+    n.b.injector_mut().add(Rule::bit_errors(
+        Target::Node(tx),
+        Schedule::Always,
+        BitPosition::At(16),
+    ));
     let ev = n.run_for(100_000);
     let mut sof = Vec::new();
     let mut s = 0;
@@ -1194,9 +1241,10 @@ fn rules_9_10_12_error_passive_bus_off_and_recovery() {
         _ => None,
     });
     assert_eq!(warning, Some((sof[11] + 17, 96)));
-    assert!(ev.iter().any(|e| matches!(e, Event::TxAborted { node, .. } if *node == tx)));
-    // No flag from the transmitter on attempt 32.
-    assert!(!bus_errors(&ev).contains(&(tx, sof[31] + 17, BusError::Bit)));
+    assert!(
+        ev.iter()
+            .any(|e| matches!(e, Event::TxAborted { node, .. } if *node == tx))
+    );
     assert_eq!((n.tec(tx), n.rec(tx), n.state(tx)), (0, 0, ErrorState::Active));
     assert_eq!(n.rec(r0), 32);
 }
@@ -1208,10 +1256,11 @@ fn rules_9_10_12_error_passive_bus_off_and_recovery() {
 fn rule_11_back_to_error_active() {
     let mut n = net(1);
     let tx = n.tx;
-    let rule = n
-        .b
-        .injector_mut()
-        .add(Rule::bit_errors(Target::Node(tx), Schedule::Always, BitPosition::At(16)));
+    let rule = n.b.injector_mut().add(Rule::bit_errors(
+        Target::Node(tx),
+        Schedule::Always,
+        BitPosition::At(16),
+    ));
     for _ in 0..16 {
         n.step();
     }
@@ -1230,9 +1279,12 @@ fn rule_11_back_to_error_active() {
 // Overload frames (Bosch 2.0B §3.1.4).
 // ---------------------------------------------------------------------------------------------
 
-/// Overload frames of receivers that are not ready, `k` requested: returns the overload flags
-/// and the start of the transmitter's next frame.
-fn not_ready(k: u8) -> (Vec<(NodeId, u64)>, Vec<(NodeId, u64)>, [NodeId; 3]) {
+/// (node, bit) pairs: overload flags, frame starts.
+type At = Vec<(NodeId, u64)>;
+
+/// Overload frames of receivers that are not ready, `k` requested: returns the overload flags,
+/// the start of the transmitter's next frame and the nodes.
+fn not_ready(k: u8) -> (At, At, [NodeId; 3]) {
     let mut n = net(2);
     let (tx, r0, r1) = (n.tx, n.rx[0], n.rx[1]);
     n.b.submit(tx, f(), BusTime::ZERO).unwrap();
@@ -1246,7 +1298,11 @@ fn not_ready(k: u8) -> (Vec<(NodeId, u64)>, Vec<(NodeId, u64)>, [NodeId; 3]) {
     let ev = n.step();
     assert_eq!(bus_errors(&ev), []);
     let next = frames(&n.run_for(1000));
-    assert_eq!((n.tec(tx), n.rec(r0), n.rec(r1)), (0, 0, 0), "overload changes no counter");
+    assert_eq!(
+        (n.tec(tx), n.rec(r0), n.rec(r1)),
+        (0, 0, 0),
+        "overload changes no counter"
+    );
     (overloads(&ev), next, [tx, r0, r1])
 }
 
@@ -1310,7 +1366,11 @@ fn dominant_third_intermission_bit_is_start_of_frame() {
     assert_eq!(overloads(&ev), []);
     assert_eq!(
         bus_errors(&ev),
-        [(tx, 65, BusError::Stuff), (r0, 65, BusError::Stuff), (r1, 65, BusError::Stuff)]
+        [
+            (tx, 65, BusError::Stuff),
+            (r0, 65, BusError::Stuff),
+            (r1, 65, BusError::Stuff)
+        ]
     );
     assert_eq!((n.tec(tx), n.rec(tx), n.rec(r0), n.rec(r1)), (0, 1, 1, 1));
 }
@@ -1319,37 +1379,46 @@ fn dominant_third_intermission_bit_is_start_of_frame() {
 // Suspend transmission (Bosch 2.0B §3.2.3 and §8).
 // ---------------------------------------------------------------------------------------------
 
-/// Suspend after a failed transmission, and another node starting meanwhile. A lone passive
-/// node (TEC 128) tries at 1048; a second node r0 has been attached but does not acknowledge,
-/// so the attempt is again an ACK error with a passive flag (48..53), delimiter 54..61 and
-/// intermission 62..64. r0 has a frame waiting and is not suspended: it starts at 1048 + 65,
-/// during the 8 suspend bits; the passive node becomes its receiver and acknowledges it. After
-/// it (59 bits, to 1172) the passive node, which was a receiver, starts at once.
+/// Suspend after a failed transmission, and another node starting meanwhile. tx is error
+/// passive after 17 bit errors at DLC3 (see `passive_by_bit_errors`); its 18th attempt, at 695,
+/// has the same bit error: passive flag from 17, r0's stuff error at 21 and flag 22..27, which
+/// completes tx's passive flag; both read 28 recessive: delimiter 28..35, intermission 36..38.
+/// r0 has a frame waiting (submitted at 700) and is not suspended: it starts at 695 + 39 = 734,
+/// during tx's 8 suspend bits (39..46), and tx becomes its receiver. After r0's frame (59 bits,
+/// to 793) tx, which was a receiver, tries again at once: 793.
 #[test]
 fn suspend_after_failed_transmission_lets_another_node_start() {
-    let mut n = net(0);
-    let tx = n.tx;
-    lone_passive(&mut n);
-    let r0 = n.b.attach(ControllerConfig::named("r0"));
-    n.b.set_ack(r0, false).unwrap();
-    n.b.submit(r0, f(), at(LONE_17TH_SOF + 10)).unwrap();
+    let mut n = net(1);
+    let (tx, r0) = (n.tx, n.rx[0]);
+    n.b.injector_mut().add(Rule::bit_errors(
+        Target::Node(tx),
+        Schedule::Always,
+        BitPosition::At(16),
+    ));
+    for _ in 0..17 {
+        n.step();
+    }
+    assert_eq!((n.tec(tx), n.state(tx)), (136, ErrorState::Passive), "setup");
+    n.b.submit(r0, f(), at(700)).unwrap();
     let ev = n.step();
-    assert_eq!(destroyed(&ev), [LONE_17TH_SOF]);
+    assert_eq!(destroyed(&ev), [695]);
+    assert_eq!(n.tec(tx), 144);
     let ev = n.step();
-    assert_eq!(frames(&ev), [(r0, LONE_17TH_SOF + 65)]);
-    assert_eq!(delivered(&ev), [(tx, LONE_17TH_SOF + 65 + 56)]);
+    assert_eq!(frames(&ev), [(r0, 734)]);
+    assert_eq!(delivered(&ev), [(tx, 734 + 56)]);
     let ev = n.step();
-    assert_eq!(destroyed(&ev), [LONE_17TH_SOF + 65 + F_BITS]);
+    assert_eq!(destroyed(&ev), [734 + F_BITS]);
 }
 
 /// Brings tx to TEC 136 (error passive) with 17 bit errors at DLC3 (16 active attempts of 40
 /// bits, the 16th followed by the suspend, then one passive attempt of 47 bits, see
 /// `rules_9_10_12_error_passive_bus_off_and_recovery`); its frame then goes at 648 + 47 = 695.
 fn passive_by_bit_errors(n: &mut Net) {
-    let rule = n
-        .b
-        .injector_mut()
-        .add(Rule::bit_errors(Target::Node(n.tx), Schedule::Always, BitPosition::At(16)));
+    let rule = n.b.injector_mut().add(Rule::bit_errors(
+        Target::Node(n.tx),
+        Schedule::Always,
+        BitPosition::At(16),
+    ));
     for _ in 0..17 {
         n.step();
     }
@@ -1489,38 +1558,35 @@ fn bus_time_never_goes_backwards() {
         b.submit(node, frame, at(k * 300)).unwrap();
     }
     let mut last = BusTime::ZERO;
-    let mut attempt_end = BusTime::ZERO;
+    // The attempt seen last: its start, and the latest end of a frame or error frame in it.
+    let (mut attempt_start, mut attempt_end) = (None, BusTime::ZERO);
     let mut count = 0;
     let mut until = 0;
     while until < 400_000 {
         until += 5_000;
         b.run_until(at(until));
-        let ev: Vec<Event> = b.take_events().collect();
-        for e in &ev {
-            let t = event_time(e);
+        for e in b.take_events() {
+            let t = event_time(&e);
             assert!(t >= last, "{e:?} at {t:?} before {last:?}");
             last = t;
             count += 1;
-            match *e {
-                Event::Frame { start, end, .. } => {
-                    assert!(start >= attempt_end && start < end, "{e:?}");
-                    attempt_end = end;
-                }
+            let (start, end) = match e {
+                Event::Frame { start, end, .. } => (start, end),
                 Event::ErrorFrame { start, flag, end, .. } => {
-                    assert!(start >= attempt_end || start == b_start(&ev, e), "{e:?}");
-                    assert!(start <= flag && flag <= end, "{e:?}");
+                    assert!(start < flag && flag < end, "{e:?}");
+                    (start, end)
                 }
-                _ => {}
+                _ => continue,
+            };
+            assert!(start < end, "{e:?}");
+            if attempt_start != Some(start) {
+                // Several transmitters of one attempt share its start; a new attempt starts
+                // after the previous one has ended.
+                assert!(start >= attempt_end, "{e:?} starts before {attempt_end:?}");
+                attempt_start = Some(start);
             }
+            attempt_end = attempt_end.max(end);
         }
     }
     assert!(count > 1000, "{count} events");
-}
-
-/// The start of an error frame (several transmitters of one attempt share it).
-fn b_start(_: &[Event], e: &Event) -> BusTime {
-    match *e {
-        Event::ErrorFrame { start, .. } => start,
-        _ => BusTime::ZERO,
-    }
 }
