@@ -1000,9 +1000,9 @@ fn rule_4_transmitter_bit_error_in_active_flag() {
 
 /// Rule 5: a receiver that detects a bit error while sending an active error flag adds 8 (and
 /// rule 1 does not apply to that error). Bit error at 16: r0 flags from 23 (REC 1) and reads 23
-/// recessive: REC 1 + 8 = 9, new flag 24..29. The transmitter reads 23..29 dominant after its
-/// flag (17..22): 7 bits, still tolerated by rule 6: TEC 8. Delimiter 30..37, intermission
-/// 38..40, next SOF 41.
+/// recessive: REC 1 + 8 = 9, and a new flag from the next bit (as ISO 16845-1 expects),
+/// 24..29. The transmitter reads 23..29 dominant after its flag (17..22): 7 bits, still
+/// tolerated by rule 6: TEC 8. Delimiter 30..37, intermission 38..40, next SOF 41.
 #[test]
 fn rule_5_receiver_bit_error_in_active_flag() {
     let mut n = net(1);
