@@ -783,6 +783,42 @@ fn passive_error_flag_is_not_seen_by_others() {
     assert_eq!(destroyed(&ev), [1064 + 73]);
 }
 
+/// A passive receiver's error flag is not seen by the others either. r0 is made error passive
+/// as in `rule_8_rec_above_127_becomes_119` (bit error at 16, then 120 dominant bits that r0
+/// alone reads after its flag: REC 1 + 8 + 15 × 8 = 129; r1 has REC 1). On the retransmission
+/// r0 alone reads EOF 1 (49) dominant: a form error, REC 130, and a passive flag from 50 that
+/// leaves the bus recessive. The transmitter sends the frame (TEC 8 − 1 = 7) and r1 takes it
+/// (REC 0); r0 does not get it.
+#[test]
+fn passive_receiver_flag_is_not_seen_by_others() {
+    let mut n = net(2);
+    let (tx, r0, r1) = (n.tx, n.rx[0], n.rx[1]);
+    n.disturb(16, 1, INVERT, None);
+    n.disturb(29, 120, DOMINANT, Some(vec![r0]));
+    n.disturb(149, 12, RECESSIVE, Some(vec![r0]));
+    n.step();
+    assert_eq!(
+        (n.rec(r0), n.state(r0), n.rec(r1)),
+        (129, ErrorState::Passive, 1),
+        "setup"
+    );
+    n.b.injector_mut().add(Rule {
+        target: Target::Node(tx),
+        schedule: Schedule::Once,
+        bit: BitPosition::At((S + 3) as u16),
+        effect: Effect::Form,
+        seen_by: SeenBy::Nodes(vec![r0]),
+    });
+    let ev = n.step();
+    let sof = match frames(&ev)[..] {
+        [(node, sof)] if node == tx => sof,
+        _ => panic!("the frame goes through: {ev:?}"),
+    };
+    assert_eq!(bus_errors(&ev), [(r0, sof + 50, BusError::Form)]);
+    assert_eq!(delivered(&ev), [(r1, sof + 56)]);
+    assert_eq!((n.tec(tx), n.rec(r0), n.rec(r1)), (7, 130, 0));
+}
+
 /// A passive error flag is complete after 6 consecutive equal bits, however long that takes,
 /// and (exception 3a not applying) a dominant bit during it costs TEC + 8. A lone node at TEC
 /// 128 (17th attempt, at 1048) reads its ACK slot recessive and sends its passive flag from 48.
