@@ -183,13 +183,10 @@ impl Bus {
                 );
             }
             k += 1;
-            // Disturbances act while something is on the bus, not on an idle one.
+            // An episode lasts as long as a disturbance that reaches it: no frame starts within
+            // it (a limit of the model, documented with `Disturbance`).
             let quiet = self.controllers.iter().all(|c| !c.on_bus() || c.mac.quiet());
-            let idle = self
-                .controllers
-                .iter()
-                .all(|c| !c.on_bus() || matches!(c.mac.phase, Phase::Idle | Phase::Suspend { .. }));
-            let done = quiet && (k >= last_flip || idle);
+            let done = quiet && k >= last_flip;
             if done || k >= MAX_EPISODE_BITS {
                 break;
             }

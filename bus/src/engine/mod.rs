@@ -115,7 +115,8 @@ impl BusError {
 /// disturbances that injection rules cannot express: from `at` for `bits` bit times, the
 /// controllers named (all when `nodes` is `None`) sample `level` (`Some(true)` recessive,
 /// `Some(false)` dominant) or the inverse of the bus level (`None`). It acts only during
-/// attempts: an idle bus is not disturbed.
+/// attempts (an idle bus is not disturbed), and an attempt it reaches lasts until it is over: no
+/// frame starts while it lasts, even where a node would have been ready to.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Disturbance {
     /// First bit time it covers (bits that start at or after it).

@@ -650,7 +650,7 @@ fn bit_by_bit_and_closed_form_agree_on_clean_frames() {
             if bit_level {
                 b.disturb(Disturbance {
                     at,
-                    bits: 200,
+                    bits: 1,
                     level: None,
                     nodes: Some(Vec::new()),
                 });
