@@ -715,7 +715,7 @@ proptest::proptest! {
         for step in 0..60u64 {
             let at = BusTime(step * 300_000);
             for (i, &n) in nodes.iter().enumerate() {
-                if (step + i as u64) % 3 == 0 {
+                if (step + i as u64).is_multiple_of(3) {
                     let frame = Frame::extended(0x0600_0000 | (i as u32) << 8 | step as u32 & 0xFF, &[step as u8, i as u8]).unwrap();
                     if b.submit(n, frame, at).unwrap().is_some() {
                         submitted += 1;
