@@ -123,6 +123,12 @@ pub fn validate(file: &str, s: &NodeScript, signals: &dyn Signals) -> Vec<Proble
         }
         if let Some(ack) = &m.ack {
             state_ok(&mut c, format!("{at}.ack.state"), &ack.state);
+            if ack.limit == 0 {
+                c.problem(format!("{at}.ack.limit"), "limit 0");
+            }
+            if ack.timeout_ms == 0 {
+                c.problem(format!("{at}.ack.timeout_ms"), "timeout 0");
+            }
             if let Some(v) = &ack.count_var
                 && !vars.contains(v.as_str())
             {

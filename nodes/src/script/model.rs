@@ -113,16 +113,20 @@ fn default_check() -> u64 {
     20
 }
 
-/// Acknowledgement tracking: every send of every entry with an `ack` counts as unacknowledged
-/// until an `Acknowledged` action; after `limit` in a row the node enters `state`.
+/// Acknowledgement tracking: every send of every entry with an `ack` awaits an acknowledgement
+/// (an `Acknowledged` action, which answers every send before it). A send whose acknowledgement
+/// has not come `timeout_ms` after it counts as missed; when `limit` sends in a row are missed
+/// the node enters `state`. A send whose acknowledgement is merely on its way is not missed.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct AckDef {
-    /// Unacknowledged sends in a row that are tolerated.
+    /// Missed acknowledgements in a row that make the node give up.
     pub limit: u32,
-    /// State entered when the limit is passed.
+    /// How long after a send its acknowledgement is due, ms.
+    pub timeout_ms: u64,
+    /// State entered when the limit is reached.
     pub state: String,
-    /// Variable that holds the count (for status messages).
+    /// Variable that holds the count of missed acknowledgements (for status messages).
     #[serde(default)]
     pub count_var: Option<String>,
 }
@@ -192,7 +196,8 @@ pub enum Action {
     Write(String, Expr),
     /// Set a variable.
     Set(String, Expr),
-    /// Reset acknowledgement tracking of every message (an acknowledgement arrived).
+    /// An acknowledgement arrived: every send so far is answered, and the count of missed
+    /// acknowledgements starts again from 0.
     Acknowledged,
     /// Restart a timer.
     Restart(String),

@@ -219,7 +219,7 @@ NodeScript(
         (message: "flow.part1", fields: {"status": Const(1), "unit1": Signal("row3.unit1"), "unit2": Const(2), "unit3": Const(3)}),
         (message: "flow.part2", fields: {"unit4": Const(4), "unit5": Const(5), "aux": Const(0)})],
         when: Periodic(period_ms: 100), states: ["running"],
-        ack: Some((limit: 3, state: "no acknowledgement", count_var: Some("missed"))))],
+        ack: Some((limit: 3, timeout_ms: 50, state: "no acknowledgement", count_var: Some("missed"))))],
     reactions: [
         (message: "flow.ack", actions: [Acknowledged]),
         (message: "flow.calibrate", when: {"command": 2}, actions: [Acknowledged, SetState("running")]),
@@ -244,6 +244,51 @@ fn unacknowledged_groups_stop_the_stream() {
     let resume = parse_frame("0601D2F5#1002102705").unwrap();
     let sent = drive(&mut n, at(1750), &[(at(1550), resume)]);
     assert_eq!(sent.len(), 6, "groups at 1600 and 1700");
+}
+
+/// Each group acknowledged 5 ms after it went out, well within the 50 ms timeout: at no moment
+/// does the node count a missed acknowledgement.
+#[test]
+fn acknowledgements_on_their_way_are_not_missed() {
+    let (mut n, _) = node(FLOW, &[("row3.unit1", 77.0)]);
+    let ack = parse_frame("0601D2F5#210D01").unwrap();
+    let mut inbox: Vec<(BusTime, Frame)> = (0..10)
+        .map(|g| (BusTime::from_millis(505 + 100 * g), ack))
+        .collect();
+    let mut groups = 0;
+    for ms in 500..1500 {
+        let due: Vec<_> = inbox
+            .iter()
+            .filter(|(t, _)| t.as_nanos() <= ms * 1_000_000)
+            .copied()
+            .collect();
+        inbox.retain(|(t, _)| t.as_nanos() > ms * 1_000_000);
+        groups += drive(&mut n, BusTime::from_millis(ms), &due).len() / 3;
+        assert_eq!(n.var("missed"), Some(0.0), "at {ms} ms");
+    }
+    assert_eq!(groups, 10, "groups at 500, 600, ... 1400 ms");
+    assert_eq!(n.state(), "running");
+}
+
+/// A group's acknowledgement is due 50 ms after it: it counts as missed at that moment, not
+/// before, and an acknowledgement clears the count.
+#[test]
+fn a_group_is_missed_once_its_acknowledgement_is_overdue() {
+    let (mut n, _) = node(FLOW, &[("row3.unit1", 77.0)]);
+    let at = BusTime::from_millis;
+    assert_eq!(drive(&mut n, at(549), &[]).len(), 3, "the group at 500 ms");
+    assert_eq!(n.var("missed"), Some(0.0), "due at 550 ms");
+    drive(&mut n, at(550), &[]);
+    assert_eq!(n.var("missed"), Some(1.0));
+    // The group at 600 ms is acknowledged late but within its time: the count starts again.
+    let ack = parse_frame("0601D2F5#210D02").unwrap();
+    drive(&mut n, at(640), &[(at(640), ack)]);
+    assert_eq!(n.var("missed"), Some(0.0));
+    drive(&mut n, at(749), &[]);
+    assert_eq!(n.var("missed"), Some(0.0), "the group at 700 ms is due at 750 ms");
+    drive(&mut n, at(750), &[]);
+    assert_eq!(n.var("missed"), Some(1.0));
+    assert_eq!(n.state(), "running");
 }
 
 #[test]
