@@ -183,13 +183,24 @@ pub fn bad(e: Error) -> anyhow::Error {
     BadInput(e.to_string()).into()
 }
 
-/// A controller that keeps frames addressed to `me`.
-fn controller(name: &str, me: Address) -> ControllerConfig {
-    let filter = SocketCanFilterSet(vec![SocketCanFilter::new(
-        CAN_EFF_FLAG | (u32::from(me.0) << 8),
-        CAN_EFF_FLAG | 0xFF00,
-    )]);
-    ControllerConfig::named(name).with_filter(Filter::SocketCan(filter))
+/// The controller of a node: a field node's as its script declares it; the monitor's keeps every
+/// extended frame addressed to it (a PC-side CAN interface filtering on the destination byte).
+fn controller(name: &str, spec: &Spec) -> anyhow::Result<ControllerConfig> {
+    let filter = match spec {
+        Spec::Monitor => Filter::SocketCan(SocketCanFilterSet(vec![SocketCanFilter::new(
+            CAN_EFF_FLAG | (u32::from(Address::MONITOR.0) << 8),
+            CAN_EFF_FLAG | 0xFF00,
+        )])),
+        // Loaded scripts have been validated, so this only fails for a script built in code.
+        Spec::Script(script) => script.filter.to_filter().map_err(|problems| {
+            let what: Vec<String> = problems
+                .iter()
+                .map(|p| format!("filter{}: {}", p.field, p.message))
+                .collect();
+            BadInput(format!("node {name}: {}", what.join("; ")))
+        })?,
+    };
+    Ok(ControllerConfig::named(name).with_filter(filter))
 }
 
 /// How crashed nodes are restarted (the `restart` section of the harvester config).
@@ -307,13 +318,7 @@ pub async fn start(h: &Harvester, trace: Option<Box<dyn Write>>) -> anyhow::Resu
     };
     if c.monitor.enabled {
         running
-            .attach(
-                "F5",
-                Address::MONITOR,
-                Spec::Monitor,
-                c.monitor.reaction_us,
-                BusTime::ZERO,
-            )
+            .attach("F5", Spec::Monitor, c.monitor.reaction_us, BusTime::ZERO)
             .await?;
     }
     // Start-up as in the source: the monitor first, then the time relay starts every node.
@@ -322,13 +327,7 @@ pub async fn start(h: &Harvester, trace: Option<Box<dyn Write>>) -> anyhow::Resu
     for script in &h.scripts {
         let spec = Spec::Script(Box::new(script.clone()));
         running
-            .attach(
-                &script.name,
-                Address(script.address),
-                spec,
-                c.reaction_us,
-                h.relay(),
-            )
+            .attach(&script.name, spec, c.reaction_us, h.relay())
             .await?;
     }
     Ok(running)
@@ -338,17 +337,17 @@ impl Running {
     async fn attach(
         &mut self,
         name: &str,
-        address: Address,
         spec: Spec,
         reaction_us: u64,
         power_on: BusTime,
     ) -> anyhow::Result<()> {
+        let controller = controller(name, &spec)?;
         let logic = build(&self.harvester, &spec, &self.plant, &self.display, power_on);
         let actor = NodeActor::new(name, logic).start();
         let id = self
             .hub
             .send(Attach {
-                controller: controller(name, address),
+                controller,
                 node: Some(actor.clone().recipient()),
                 reaction: Duration::from_micros(reaction_us),
             })

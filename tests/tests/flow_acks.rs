@@ -35,8 +35,8 @@ fn sensors_give_up_without_acknowledgements_and_resume() {
             })
             .count()
     };
-    // Streaming (10 groups a second) before; a sensor gives up after three unacknowledged groups
-    // (the flow and reference groups of one cycle, then the next cycle's first); silence after.
+    // Streaming (10 groups a second) before; a sensor gives up once a third group in a row is
+    // overdue, 50 ms after the next cycle's first group; silence after.
     assert_eq!(markers(4000, 5000), 10);
     let around: Vec<(u64, &str)> = decoded
         .iter()

@@ -506,7 +506,7 @@ pub static MESSAGES: &[MessageDef] = &[
         fields: &[
             Field::u8("state", 1, "sensor state").values(FLOW_STATES),
             Field::u8("firmware", 2, "firmware version"),
-            Field::u8("missed_acks", 3, "groups sent since the last acknowledgement"),
+            Field::u8("missed_acks", 3, "groups overdue for acknowledgement"),
         ],
         doc: "Sensor state: sent when it changes and at least every 250 ms, so that the monitor sees a sensor waiting for calibration or one that gave up for lack of acknowledgements.",
     },

@@ -3,7 +3,9 @@
 
 use super::model::*;
 use crate::{Error, Problem};
+use bus::Frame;
 use bus::catalogue::{self, Direction, MessageDef};
+use bus::filter::AcceptanceFilter;
 use bus::ident::Address;
 use std::collections::BTreeSet;
 use std::path::Path;
@@ -123,6 +125,12 @@ pub fn validate(file: &str, s: &NodeScript, signals: &dyn Signals) -> Vec<Proble
         }
         if let Some(ack) = &m.ack {
             state_ok(&mut c, format!("{at}.ack.state"), &ack.state);
+            if ack.limit == 0 {
+                c.problem(format!("{at}.ack.limit"), "limit 0");
+            }
+            if ack.timeout_ms == 0 {
+                c.problem(format!("{at}.ack.timeout_ms"), "timeout 0");
+            }
             if let Some(v) = &ack.count_var
                 && !vars.contains(v.as_str())
             {
@@ -213,6 +221,7 @@ pub fn validate(file: &str, s: &NodeScript, signals: &dyn Signals) -> Vec<Proble
             &mut c, &at, &t.actions, &states, &sends, &timers, &vars, signals, None,
         );
     }
+    filter(&mut c, s, address);
     for (i, f) in s.faults.iter().enumerate() {
         if !signals.is_signal(&f.signal) {
             c.problem(
@@ -222,6 +231,57 @@ pub fn validate(file: &str, s: &NodeScript, signals: &dyn Signals) -> Vec<Proble
         }
     }
     c.problems
+}
+
+/// The declared acceptance filter: its registers must read, and it must pass every frame the
+/// script reacts to, or the node would never see them.
+fn filter(c: &mut Checker, s: &NodeScript, node: Address) {
+    let filter = match s.filter.to_filter() {
+        Ok(f) => f,
+        Err(problems) => {
+            for p in problems {
+                c.problem(format!("filter{}", p.field), p.message);
+            }
+            return;
+        }
+    };
+    let mut checked = BTreeSet::new();
+    for (i, r) in s.reactions.iter().enumerate() {
+        // Unknown messages, and messages of other nodes or going the other way, are reported
+        // with the reaction.
+        let Some(def) = catalogue::by_name(&r.message) else {
+            continue;
+        };
+        if !def.nodes.contains(node) || def.direction != Direction::FromMonitor {
+            continue;
+        }
+        let Some(frame) = example_frame(def, node, r) else {
+            continue;
+        };
+        if checked.insert(frame.raw_id()) && !filter.accepts(&frame) {
+            c.problem(
+                "filter",
+                format!(
+                    "rejects {} (identifier {:08X}), which reactions[{i}] answers",
+                    def.name,
+                    frame.raw_id()
+                ),
+            );
+        }
+    }
+}
+
+/// The frame the monitor sends to `node` for reaction `r`: the fields `r` matches on at those
+/// values, the others at their lowest valid value.
+fn example_frame(def: &MessageDef, node: Address, r: &Reaction) -> Option<Frame> {
+    let value = |name: &str| {
+        let field = def.field(name)?;
+        let raw = r.when.get(name).map(|&raw| field.physical(raw as i64));
+        Some(raw.unwrap_or(field.min))
+    };
+    def.encode(node, value)
+        .or_else(|_| Frame::new_data(def.app_id(node).emit(), &[def.number]))
+        .ok()
 }
 
 fn duplicates<'a>(c: &mut Checker, field: &str, names: impl Iterator<Item = &'a str>) {

@@ -6,14 +6,18 @@
 //! of each message is bound to (a plant signal, a constant, a variable, the state code, a field of
 //! the frame being answered), its reactions to received frames (match on message and field
 //! values; reply, set state, start or stop messages, write a plant input, set a variable), timers
-//! (watchdogs), a boot delay, acknowledgement tracking, and per-signal fault hooks (stuck, drift,
-//! noise, offset, dropout). Scaling, byte order and ranges come from the message catalogue, never
-//! from the script. The format is documented in `docs/BEHAVIOUR.md`.
+//! (watchdogs), a boot delay, acknowledgement tracking, per-signal fault hooks (stuck, drift,
+//! noise, offset, dropout), and the acceptance filter of its CAN controller in the registers of
+//! its chip (Atmel CANIDT/CANIDM, SJA1000 ACR/AMR, or a SocketCAN filter list). Scaling, byte
+//! order and ranges come from the message catalogue, never from the script. The format is
+//! documented in `docs/BEHAVIOUR.md`.
 
+mod filter;
 mod load;
 mod model;
 mod run;
 
+pub use filter::FilterProblem;
 pub use load::{Signals, from_text, load, parse, validate};
 pub use model::*;
 pub use run::{Environment, ScriptedNode, SharedEnv};

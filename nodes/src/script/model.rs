@@ -1,5 +1,6 @@
 //! The script format (deserialized with serde from RON; unknown fields are errors).
 
+use bus::filter::Sja1000Mode;
 use bus::ident::NodeKind;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -14,6 +15,8 @@ pub struct NodeScript {
     pub name: String,
     /// Node kind; must agree with the address.
     pub kind: NodeKind,
+    /// The acceptance filter of the node's CAN controller, as its firmware sets it up.
+    pub filter: FilterDef,
     /// Time from power-on to the end of boot, ms.
     #[serde(default)]
     pub boot_delay_ms: u64,
@@ -37,6 +40,45 @@ pub struct NodeScript {
     /// Sensor faults active from the start (scenarios add more at run time).
     #[serde(default)]
     pub faults: Vec<SignalFault>,
+}
+
+/// A CAN controller's acceptance filter, in the registers of the chip the node is built on
+/// (the semantics are `bus::filter`'s; register values are hex text, see `FilterDef::to_filter`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum FilterDef {
+    /// One receive message object of an Atmel AT89C51CC01/CC03 on-chip CAN controller.
+    Atmel {
+        /// CANIDT1..4: the identifier, left-aligned (ID28..0 in bits 31..3 of the four bytes),
+        /// RTRTAG in CANIDT4 bit 2, RB1TAG and RB0TAG in bits 1 and 0.
+        canidt: String,
+        /// CANIDM1..4: 1 = compare the bit; RTRMSK is CANIDM4 bit 2, IDEMSK CANIDM4 bit 0.
+        canidm: String,
+        /// IDE of CANCDMOB: the message object takes extended (true) or base frames.
+        ide: bool,
+    },
+    /// A Philips SJA1000 in PeliCAN mode.
+    Sja1000 {
+        /// AFM of the MOD register: `Single` or `Dual` filter.
+        mode: Sja1000Mode,
+        /// ACR0..3, acceptance code.
+        acr: String,
+        /// AMR0..3, acceptance mask: 1 = don't care.
+        amr: String,
+    },
+    /// A Linux raw CAN socket's filter list (`CAN_RAW_FILTER`): a frame passes if any matches.
+    SocketCan(Vec<SocketCanDef>),
+}
+
+/// One `struct can_filter`: `can_id` and `can_mask` as 32-bit hex words, with the kernel's flag
+/// bits (`0x80000000` EFF, `0x40000000` RTR, `0x20000000` inverted filter).
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SocketCanDef {
+    /// The identifier to match, with flags.
+    pub can_id: String,
+    /// Which bits of a received `can_id` are compared.
+    pub can_mask: String,
 }
 
 /// A state and its code.
@@ -113,16 +155,20 @@ fn default_check() -> u64 {
     20
 }
 
-/// Acknowledgement tracking: every send of every entry with an `ack` counts as unacknowledged
-/// until an `Acknowledged` action; after `limit` in a row the node enters `state`.
+/// Acknowledgement tracking: every send of every entry with an `ack` awaits an acknowledgement
+/// (an `Acknowledged` action, which answers every send before it). A send whose acknowledgement
+/// has not come `timeout_ms` after it counts as missed; when `limit` sends in a row are missed
+/// the node enters `state`. A send whose acknowledgement is merely on its way is not missed.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct AckDef {
-    /// Unacknowledged sends in a row that are tolerated.
+    /// Missed acknowledgements in a row that make the node give up.
     pub limit: u32,
-    /// State entered when the limit is passed.
+    /// How long after a send its acknowledgement is due, ms.
+    pub timeout_ms: u64,
+    /// State entered when the limit is reached.
     pub state: String,
-    /// Variable that holds the count (for status messages).
+    /// Variable that holds the count of missed acknowledgements (for status messages).
     #[serde(default)]
     pub count_var: Option<String>,
 }
@@ -192,7 +238,8 @@ pub enum Action {
     Write(String, Expr),
     /// Set a variable.
     Set(String, Expr),
-    /// Reset acknowledgement tracking of every message (an acknowledgement arrived).
+    /// An acknowledgement arrived: every send so far is answered, and the count of missed
+    /// acknowledgements starts again from 0.
     Acknowledged,
     /// Restart a timer.
     Restart(String),

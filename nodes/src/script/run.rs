@@ -64,6 +64,38 @@ impl Resolved {
 /// A sensor was read through a dropout fault: the message is not sent.
 struct Dropout;
 
+/// The acknowledgement state of the node's connection: one connection, however many entries
+/// (groups) it is made of, so one count.
+///
+/// A send is awaited from the moment it goes out until its acknowledgement is due (send time +
+/// its entry's `timeout_ms`); only then, if no acknowledgement came, is it missed. Counting at
+/// the send instead would count every group whose acknowledgement is simply still on the bus, and
+/// the count would flip between 0 and the number of groups of a cycle every cycle.
+#[derive(Clone, Debug, Default)]
+struct Acks {
+    /// Sends not yet acknowledged whose acknowledgement is not yet due: (due, entry), in sending
+    /// order.
+    awaited: VecDeque<(BusTime, usize)>,
+    /// Sends in a row whose acknowledgement is overdue.
+    missed: u32,
+}
+
+impl Acks {
+    /// The earliest time an awaited acknowledgement falls due.
+    fn next_due(&self) -> Option<BusTime> {
+        self.awaited.iter().map(|&(due, _)| due).min()
+    }
+
+    /// Takes out one send whose acknowledgement is overdue at `now`, counts it as missed and
+    /// returns its entry.
+    fn take_overdue(&mut self, now: BusTime) -> Option<usize> {
+        let i = self.awaited.iter().position(|&(due, _)| due <= now)?;
+        let (_, k) = self.awaited.remove(i)?;
+        self.missed = self.missed.saturating_add(1);
+        Some(k)
+    }
+}
+
 /// A behaviour script running as a node.
 pub struct ScriptedNode {
     /// Shared so that building a frame can borrow its spec while the node changes.
@@ -80,14 +112,14 @@ pub struct ScriptedNode {
     sends: Vec<SendState>,
     timers: Vec<Option<BusTime>>,
     faults: Vec<(SignalFault, BusTime)>,
-    /// Acknowledged sends of any entry since the last acknowledgement: a connection is one
-    /// stream, however many groups it is made of.
-    unacked: u32,
+    /// Acknowledgement tracking of the sends of entries with an `ack`.
+    acks: Acks,
     out: VecDeque<Frame>,
     /// A frame buffer to build into (see `build`).
     spare: Vec<Frame>,
-    /// The send being handled in the sends pass of `handle_timeout`.
-    in_pass: Option<usize>,
+    /// Within `handle_timeout`: the first send entry whose check at `now` is still ahead (the
+    /// entries before it have been handled); None outside the sends pass and what precedes it.
+    unchecked_from: Option<usize>,
     rng: ChaCha8Rng,
     now: BusTime,
     sent: u64,
@@ -128,10 +160,10 @@ impl ScriptedNode {
             booted: false,
             state: 0,
             faults,
-            unacked: 0,
+            acks: Acks::default(),
             out: VecDeque::new(),
             spare: Vec::new(),
-            in_pass: None,
+            unchecked_from: None,
             rng: ChaCha8Rng::seed_from_u64(
                 seed ^ 0x5eed_0000_0000_0000 ^ u64::from(power_on.as_nanos() as u32),
             ),
@@ -293,14 +325,25 @@ impl ScriptedNode {
         self.out.extend(frames.iter().copied());
         self.spare = std::mem::replace(&mut self.sends[k].last, frames);
         self.sends[k].last_sent = Some(self.now);
+        if let Some(ack) = &self.s.messages[k].ack {
+            let due = self.now + ack.timeout_ms.saturating_mul(MS);
+            self.acks.awaited.push_back((due, k));
+        }
+    }
+
+    /// Counts every send whose acknowledgement is overdue at `now` as missed, in the order they
+    /// fell due; the entry of each says which count variable shows it and when to give up.
+    fn count_overdue(&mut self, now: BusTime) {
         let script = Rc::clone(&self.s);
-        if let Some(ack) = &script.messages[k].ack {
-            self.unacked += 1;
-            let count = self.unacked;
+        while let Some(k) = self.acks.take_overdue(now) {
+            let Some(ack) = &script.messages[k].ack else {
+                continue;
+            };
+            let missed = self.acks.missed;
             if let Some(v) = &ack.count_var {
-                self.set_var(v, f64::from(count));
+                self.set_var(v, f64::from(missed));
             }
-            if count >= ack.limit {
+            if missed >= ack.limit {
                 self.set_state(&ack.state);
             }
         }
@@ -320,8 +363,8 @@ impl ScriptedNode {
 
     /// Something of the node's own changed (state, a variable, a send switched on or off): idle
     /// on-change entries check again from the grid point a check that never stopped would be
-    /// at. Within the sends pass at `now`, entries after the one being handled have their check
-    /// at `now` still ahead; every other check at `now` is behind.
+    /// at. Within `handle_timeout` at `now`, entries from `unchecked_from` on have their check at
+    /// `now` still ahead; every other check at `now` is behind.
     fn touch(&mut self) {
         let now = self.now;
         for (j, st) in self.sends.iter_mut().enumerate() {
@@ -332,7 +375,7 @@ impl ScriptedNode {
             let When::OnChange { check_ms, .. } = self.s.messages[j].when else {
                 continue;
             };
-            let from = if self.in_pass.is_some_and(|k| j > k) {
+            let from = if self.unchecked_from.is_some_and(|first| j >= first) {
                 now
             } else {
                 now + 1
@@ -368,7 +411,7 @@ impl ScriptedNode {
                     }
                 }
                 Action::Acknowledged => {
-                    self.unacked = 0;
+                    self.acks = Acks::default();
                     let script = Rc::clone(&self.s);
                     for m in &script.messages {
                         if let Some(v) = m.ack.as_ref().and_then(|a| a.count_var.as_ref()) {
@@ -445,11 +488,15 @@ impl NodeLogic for ScriptedNode {
                 return;
             }
         }
+        // Acknowledgements overdue by now count before anything is sent: a node that gives up
+        // sends nothing more of its connection.
+        self.unchecked_from = Some(0);
+        self.count_overdue(now);
         for k in 0..self.sends.len() {
             if self.sends[k].next > now {
                 continue;
             }
-            self.in_pass = Some(k);
+            self.unchecked_from = Some(k + 1);
             let m = &self.s.messages[k];
             let go = self.sends[k].enabled && self.active(&m.states);
             match m.when {
@@ -481,8 +528,8 @@ impl NodeLogic for ScriptedNode {
                         // What a check built is what goes out: the node sends the values it saw.
                         let checked = if checking { self.build(k, None) } else { None };
                         let changed = checked.as_ref().is_some_and(|f| *f != self.sends[k].last);
-                        // Set before sending: a send that changes the node (an acknowledgement
-                        // count) wakes it again through `touch`.
+                        // Set before sending, so that whatever the send changes in the node wakes
+                        // it again through `touch`.
                         // (Idle and not on the grid: nothing changed, so it stays idle.)
                         self.sends[k].idle = self.sends[k].internal
                             && (checked.is_some() && !changed || was_idle && checked.is_none());
@@ -509,7 +556,7 @@ impl NodeLogic for ScriptedNode {
                 When::OnRequest => self.sends[k].next = BusTime::NEVER,
             }
         }
-        self.in_pass = None;
+        self.unchecked_from = None;
         for k in 0..self.timers.len() {
             if self.timers[k].is_some_and(|t| t <= now) {
                 self.timers[k] = Some(now + self.s.timers[k].after_ms.saturating_mul(MS));
@@ -534,6 +581,11 @@ impl NodeLogic for ScriptedNode {
         }
         let sends = self.sends.iter().map(|s| s.next);
         let timers = self.timers.iter().flatten().copied();
-        sends.chain(timers).filter(|&t| t < BusTime::NEVER).min()
+        let acks = self.acks.next_due();
+        sends
+            .chain(timers)
+            .chain(acks)
+            .filter(|&t| t < BusTime::NEVER)
+            .min()
     }
 }

@@ -50,6 +50,7 @@ impl Signals for FakeSignals {
 const B1: &str = r#"
 NodeScript(
     address: 0xB1, name: "B1", kind: Parameter, boot_delay_ms: 10,
+    filter: Atmel(canidt: "28 05 8F A8", canidm: "FF FF FF FD", ide: true),
     states: [(name: "boot", code: 0), (name: "running", code: 1)],
     initial: "running",
     messages: [(name: "p", frames: [(message: "param.engine", fields: {"engine_rpm": Signal("engine.rpm")})],
@@ -156,6 +157,7 @@ fn fault_hooks_change_what_the_node_reads() {
 const E0: &str = r#"
 NodeScript(
     address: 0xE0, name: "E0", kind: SpeedControl,
+    filter: Sja1000(mode: Single, acr: "10 07 07 A8", amr: "00 00 00 03"),
     states: [(name: "boot", code: 0), (name: "manual", code: 0), (name: "cruise", code: 1)],
     initial: "manual",
     vars: {"timeout": 0},
@@ -211,6 +213,7 @@ fn reactions_write_inputs_and_watchdogs_fire() {
 const FLOW: &str = r#"
 NodeScript(
     address: 0xD2, name: "D2", kind: FlowSensor, boot_delay_ms: 0,
+    filter: SocketCan([(can_id: "0x8601D2F5", can_mask: "0xDFFFFFFF")]),
     states: [(name: "boot", code: 0), (name: "running", code: 3), (name: "no acknowledgement", code: 4)],
     initial: "running",
     vars: {"missed": 0},
@@ -219,7 +222,7 @@ NodeScript(
         (message: "flow.part1", fields: {"status": Const(1), "unit1": Signal("row3.unit1"), "unit2": Const(2), "unit3": Const(3)}),
         (message: "flow.part2", fields: {"unit4": Const(4), "unit5": Const(5), "aux": Const(0)})],
         when: Periodic(period_ms: 100), states: ["running"],
-        ack: Some((limit: 3, state: "no acknowledgement", count_var: Some("missed"))))],
+        ack: Some((limit: 3, timeout_ms: 50, state: "no acknowledgement", count_var: Some("missed"))))],
     reactions: [
         (message: "flow.ack", actions: [Acknowledged]),
         (message: "flow.calibrate", when: {"command": 2}, actions: [Acknowledged, SetState("running")]),
@@ -246,11 +249,57 @@ fn unacknowledged_groups_stop_the_stream() {
     assert_eq!(sent.len(), 6, "groups at 1600 and 1700");
 }
 
+/// Each group acknowledged 5 ms after it went out, well within the 50 ms timeout: at no moment
+/// does the node count a missed acknowledgement.
+#[test]
+fn acknowledgements_on_their_way_are_not_missed() {
+    let (mut n, _) = node(FLOW, &[("row3.unit1", 77.0)]);
+    let ack = parse_frame("0601D2F5#210D01").unwrap();
+    let mut inbox: Vec<(BusTime, Frame)> = (0..10)
+        .map(|g| (BusTime::from_millis(505 + 100 * g), ack))
+        .collect();
+    let mut groups = 0;
+    for ms in 500..1500 {
+        let due: Vec<_> = inbox
+            .iter()
+            .filter(|(t, _)| t.as_nanos() <= ms * 1_000_000)
+            .copied()
+            .collect();
+        inbox.retain(|(t, _)| t.as_nanos() > ms * 1_000_000);
+        groups += drive(&mut n, BusTime::from_millis(ms), &due).len() / 3;
+        assert_eq!(n.var("missed"), Some(0.0), "at {ms} ms");
+    }
+    assert_eq!(groups, 10, "groups at 500, 600, ... 1400 ms");
+    assert_eq!(n.state(), "running");
+}
+
+/// A group's acknowledgement is due 50 ms after it: it counts as missed at that moment, not
+/// before, and an acknowledgement clears the count.
+#[test]
+fn a_group_is_missed_once_its_acknowledgement_is_overdue() {
+    let (mut n, _) = node(FLOW, &[("row3.unit1", 77.0)]);
+    let at = BusTime::from_millis;
+    assert_eq!(drive(&mut n, at(549), &[]).len(), 3, "the group at 500 ms");
+    assert_eq!(n.var("missed"), Some(0.0), "due at 550 ms");
+    drive(&mut n, at(550), &[]);
+    assert_eq!(n.var("missed"), Some(1.0));
+    // The group at 600 ms is acknowledged late but within its time: the count starts again.
+    let ack = parse_frame("0601D2F5#210D02").unwrap();
+    drive(&mut n, at(640), &[(at(640), ack)]);
+    assert_eq!(n.var("missed"), Some(0.0));
+    drive(&mut n, at(749), &[]);
+    assert_eq!(n.var("missed"), Some(0.0), "the group at 700 ms is due at 750 ms");
+    drive(&mut n, at(750), &[]);
+    assert_eq!(n.var("missed"), Some(1.0));
+    assert_eq!(n.state(), "running");
+}
+
 #[test]
 fn every_problem_is_reported_at_once() {
     let bad = r#"
 NodeScript(
     address: 0xB1, name: "B1", kind: Alarm,
+    filter: Atmel(canidt: "18 05 07", canidm: "FF FF FF FG", ide: true),
     states: [(name: "boot", code: 0), (name: "boot", code: 1)],
     initial: "runing",
     messages: [
@@ -284,6 +333,8 @@ NodeScript(
         "unknown message 'zz'",
         "(t).after_ms: delay 0",
         "unknown timer 'u'",
+        "filter.canidt: '18 05 07' has 3 bytes: the filter has four registers",
+        "filter.canidm: 'FF FF FF FG': 'FG' is not a hex byte",
     ];
     for e in expect {
         assert!(
@@ -298,6 +349,152 @@ NodeScript(
     );
 }
 
+/// E0's test script with another filter line.
+fn e0_with_filter(filter: &str) -> NodeScript {
+    let text = E0.replace(
+        r#"filter: Sja1000(mode: Single, acr: "10 07 07 A8", amr: "00 00 00 03"),"#,
+        &format!("filter: {filter},"),
+    );
+    assert!(text.contains(&format!("filter: {filter},")));
+    parse("test.ron", &text).unwrap()
+}
+
+fn problems_of(script: &NodeScript) -> Vec<String> {
+    validate("test.ron", script, &FakeSignals)
+        .iter()
+        .map(|p| p.to_string())
+        .collect()
+}
+
+#[test]
+fn declared_filters_become_the_chips_registers() {
+    use bus::engine::Filter;
+    use bus::filter::{AtmelFilter, Sja1000Filter, Sja1000Mode, SocketCanFilter, SocketCanFilterSet};
+    let filter = |text: &str| e0_with_filter(text).filter.to_filter().unwrap();
+    // The seed's A0 registers, in three spellings.
+    let seed = Filter::Atmel(AtmelFilter {
+        idt: [0x18, 0x05, 0x07, 0xA8],
+        idm: [0xFF, 0xFF, 0xFF, 0xFD],
+        ide: true,
+        ide_mask: true,
+    });
+    for idt in ["18 05 07 A8", "0x18 0x05 0x07 0xA8", "180507a8", "0x180507A8"] {
+        let text = format!(r#"Atmel(canidt: "{idt}", canidm: "FF FF FF FD", ide: true)"#);
+        assert_eq!(filter(&text), seed, "{idt}");
+    }
+    // IDEMSK is CANIDM4 bit 0: clear, the message object takes either format.
+    let Filter::Atmel(open) = filter(r#"Atmel(canidt: "18 05 07 A8", canidm: "FF FF FF FC", ide: true)"#)
+    else {
+        panic!("an Atmel filter");
+    };
+    assert!(!open.ide_mask);
+    assert_eq!(
+        filter(r#"Sja1000(mode: Dual, acr: "10 07 10 07", amr: "00 00 00 00")"#),
+        Filter::Sja1000(Sja1000Filter {
+            mode: Sja1000Mode::Dual,
+            acr: [0x10, 0x07, 0x10, 0x07],
+            amr: [0; 4],
+        })
+    );
+    assert_eq!(
+        filter(
+            r#"SocketCan([(can_id: "0x8200E0F5", can_mask: "DFFFFFFF"), (can_id: "0", can_mask: "0x0")])"#
+        ),
+        Filter::SocketCan(SocketCanFilterSet(vec![
+            SocketCanFilter::new(0x8200_E0F5, 0xDFFF_FFFF),
+            SocketCanFilter::new(0, 0),
+        ]))
+    );
+}
+
+#[test]
+fn bad_filter_registers_are_reported_with_file_node_and_field() {
+    let cases = [
+        (
+            r#"Atmel(canidt: "18 05 07 A8 00", canidm: "FF FF FF FD", ide: true)"#,
+            vec![
+                "test.ron: node E0: filter.canidt: '18 05 07 A8 00' has 5 bytes: the filter has four registers",
+            ],
+        ),
+        (
+            r#"Atmel(canidt: "180507A", canidm: "FF FF FF FD", ide: true)"#,
+            vec![
+                r#"test.ron: node E0: filter.canidt: '180507A' is not four register bytes: write them as "18 05 07 A8""#,
+            ],
+        ),
+        (
+            r#"Sja1000(mode: Single, acr: "10 07 07 A8", amr: "00 00 0 003")"#,
+            vec!["test.ron: node E0: filter.amr: '00 00 0 003': '0' is not a hex byte"],
+        ),
+        (
+            r#"Sja1000(mode: Single, acr: "1O 07 07 A8", amr: "")"#,
+            vec![
+                "test.ron: node E0: filter.acr: '1O 07 07 A8': '1O' is not a hex byte",
+                "test.ron: node E0: filter.amr: '' has 0 bytes: the filter has four registers",
+            ],
+        ),
+        (
+            r#"SocketCan([(can_id: "0x8200E0F5", can_mask: "0x1DFFFFFFF"), (can_id: "E0F5h", can_mask: "0x")])"#,
+            vec![
+                "test.ron: node E0: filter[0].can_mask: '0x1DFFFFFFF' is wider than the 32 bits of a can_id",
+                "test.ron: node E0: filter[1].can_id: 'E0F5h' is not a hex number",
+                "test.ron: node E0: filter[1].can_mask: '0x' is not a hex number",
+            ],
+        ),
+        (
+            "SocketCan([])",
+            vec![
+                "test.ron: node E0: filter: an empty filter list receives nothing: list at least one filter",
+            ],
+        ),
+    ];
+    for (filter, expected) in cases {
+        assert_eq!(problems_of(&e0_with_filter(filter)), expected, "{filter}");
+    }
+}
+
+/// E0 reacts to `speed.mode` and `speed.setpoint`, both on identifier 0200E0F5: a filter that
+/// drops that identifier is a problem, reported once for it.
+#[test]
+fn a_filter_that_rejects_the_scripts_own_frames_is_reported() {
+    let rejected =
+        "test.ron: node E0: filter: rejects speed.mode (identifier 0200E0F5), which reactions[0] answers";
+    let cases = [
+        // A0's registers from the seed.
+        r#"Atmel(canidt: "18 05 07 A8", canidm: "FF FF FF FD", ide: true)"#,
+        // E0's identifier, but a base-frame message object that compares IDE.
+        r#"Atmel(canidt: "10 07 07 A8", canidm: "FF FF FF FD", ide: false)"#,
+        // E0's identifier, remote frames only (RTRTAG set, RTRMSK set).
+        r#"Atmel(canidt: "10 07 07 AC", canidm: "FF FF FF FD", ide: true)"#,
+        // ACR off by the lowest source bit, compared.
+        r#"Sja1000(mode: Single, acr: "10 07 07 B0", amr: "00 00 00 03")"#,
+        // Dual mode compares ID28..13: 0200E0F5 >> 13 = 0x1007; 0x1008 in both halves.
+        r#"Sja1000(mode: Dual, acr: "10 08 10 08", amr: "00 00 00 00")"#,
+        // The kernel's exact filter, for a base frame.
+        r#"SocketCan([(can_id: "0x0F5", can_mask: "0xC00007FF")])"#,
+        // The exact filter, inverted.
+        r#"SocketCan([(can_id: "0xA200E0F5", can_mask: "0xDFFFFFFF")])"#,
+    ];
+    for filter in cases {
+        assert_eq!(problems_of(&e0_with_filter(filter)), [rejected], "{filter}");
+    }
+    let accepted = [
+        r#"Atmel(canidt: "10 07 07 A8", canidm: "FF FF FF FD", ide: true)"#,
+        // Only the destination byte compared (ID15..8 = CANIDT2 bits 2:0, CANIDT3 bits 7:3).
+        r#"Atmel(canidt: "00 07 07 00", canidm: "00 07 F8 00", ide: true)"#,
+        r#"Sja1000(mode: Single, acr: "10 07 07 A8", amr: "00 00 00 03")"#,
+        r#"Sja1000(mode: Dual, acr: "FF FF 10 07", amr: "00 00 00 00")"#,
+        r#"SocketCan([(can_id: "0x8601D0F5", can_mask: "0xDFFFFFFF"), (can_id: "0x8000E000", can_mask: "0x8000FF00")])"#,
+    ];
+    for filter in accepted {
+        assert_eq!(
+            problems_of(&e0_with_filter(filter)),
+            Vec::<String>::new(),
+            "{filter}"
+        );
+    }
+}
+
 #[test]
 fn syntax_errors_have_a_position() {
     let err = parse("x.ron", "NodeScript(\n  address: 0xB1,\n  nmae: \"B1\",\n)").unwrap_err();
@@ -308,6 +505,7 @@ fn syntax_errors_have_a_position() {
 const C1: &str = r#"
 NodeScript(
     address: 0xC1, name: "C1", kind: Alarm,
+    filter: Atmel(canidt: "20 06 0F A8", canidm: "FF FF FF FD", ide: true),
     states: [(name: "boot", code: 0), (name: "running", code: 1)],
     initial: "running",
     messages: [(name: "a", frames: [(message: "alarm.clutches", fields: {
@@ -343,6 +541,7 @@ fn on_change_sends_changes_within_a_check_and_keeps_an_exact_heartbeat() {
 const STATUS: &str = r#"
 NodeScript(
     address: 0xD1, name: "D1", kind: FlowSensor, boot_delay_ms: 10,
+    filter: Atmel(canidt: "30 0E 8F A8", canidm: "FF FF FF FD", ide: true),
     states: [(name: "waiting", code: 0), (name: "running", code: 1)],
     initial: "waiting",
     vars: {"missed": 0},
