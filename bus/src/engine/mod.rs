@@ -283,6 +283,9 @@ pub struct Bus {
     idle_at: BusTime,
     /// Disturbances still to come, in the order given.
     disturbances: Vec<Disturbance>,
+    /// Some controller may be in a state other than idle (left by an episode, a reset or a
+    /// reconnection): the next attempt settles them first.
+    carried: bool,
     /// Start of the last committed event: nothing may be submitted before it.
     committed: BusTime,
     controllers: Vec<Controller>,
@@ -308,6 +311,7 @@ impl Bus {
             bit_ns,
             idle_at: BusTime::ZERO,
             disturbances: Vec::new(),
+            carried: false,
             committed: BusTime::ZERO,
             controllers: Vec::new(),
             injector: Injector::new(config.seed),
@@ -613,9 +617,14 @@ impl Bus {
             return;
         };
         let frame = self.controllers[w].tx[0].frame;
-        for i in 0..self.controllers.len() {
-            if self.controllers[i].on_bus() {
-                self.settle(i, sof);
+        // After a clean frame every controller is idle: only an episode leaves states to carry.
+        let mut all_idle = true;
+        if self.carried {
+            for i in 0..self.controllers.len() {
+                if self.controllers[i].on_bus() {
+                    self.settle(i, sof);
+                    all_idle &= self.controllers[i].mac.idle_for_sof();
+                }
             }
         }
         let stuffed_len = bits::stuffed_len(&frame);
@@ -640,17 +649,12 @@ impl Bus {
             other.arbitration() == key && other != frame
         });
         let sends_it = |c: &Controller| c.tx.front().is_some_and(|p| p.frame == frame);
-        let ackers = self
+        let acked = self
             .controllers
             .iter()
             .enumerate()
-            .filter(|&(i, c)| c.on_bus() && c.acks && !(starters.contains(&i) && sends_it(c)))
-            .count();
-        let all_idle = self
-            .controllers
-            .iter()
-            .all(|c| !c.on_bus() || c.mac.idle_for_sof());
-        if decision.is_none() && !disturbed && !clash && ackers > 0 && all_idle {
+            .any(|(i, c)| c.acks && c.on_bus() && !(starters.contains(&i) && sends_it(c)));
+        if decision.is_none() && !disturbed && !clash && acked && all_idle {
             // Starters sending another frame lose arbitration; the rest go out together.
             let mut k = 0;
             while k < starters.len() {
@@ -661,6 +665,13 @@ impl Bus {
                     c.counters.arbitration_lost += 1;
                     starters.swap_remove(k);
                 }
+            }
+            if self.carried {
+                // Whatever was left (a suspend, the last intermission bit) ends with this frame.
+                for c in &mut self.controllers {
+                    c.mac = wire::Mac::default();
+                }
+                self.carried = false;
             }
             self.succeed(sof, w, &starters, frame, total_bits);
         } else {
@@ -699,6 +710,7 @@ impl Bus {
                 }
             }
             self.episode(sof, &starters, plan);
+            self.carried = true;
         }
         self.transmitters = starters;
     }
