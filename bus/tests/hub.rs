@@ -4,7 +4,7 @@ mod common;
 
 use actix::prelude::*;
 use bus::candump::parse_frame;
-use bus::engine::{BitPosition, BusConfig, ControllerConfig, Rule, Schedule, Target};
+use bus::engine::{BitPosition, BusConfig, ControllerConfig, Effect, Rule, Schedule, SeenBy, Target};
 use bus::hub::{Attach, Control, GetSnapshot, Hub, HubConfig, RunUntil, runtime};
 use bus::node::{NodeActor, NodeLogic};
 use bus::time::BusTime;
@@ -203,6 +203,17 @@ fn a_hung_node_overruns_and_resumes() {
 }
 
 fn run_with_faults(seed: u64) -> Vec<u8> {
+    run_with(
+        seed,
+        vec![Rule::bit_errors(
+            Target::Any,
+            Schedule::BitErrorRate(2e-4),
+            BitPosition::Random,
+        )],
+    )
+}
+
+fn run_with(seed: u64, rules: Vec<Rule>) -> Vec<u8> {
     let trace = Shared::default();
     let t = trace.clone();
     in_virtual_time(async move {
@@ -234,14 +245,71 @@ fn run_with_faults(seed: u64) -> Vec<u8> {
             200,
         )
         .await;
-        let rule = Rule::bit_errors(Target::Any, Schedule::BitErrorRate(2e-4), BitPosition::Random);
-        hub.send(Control::AddRule(rule)).await.unwrap().unwrap();
+        for rule in rules {
+            hub.send(Control::AddRule(rule)).await.unwrap().unwrap();
+        }
         hub.send(RunUntil(BusTime::from_millis(3000)))
             .await
             .unwrap()
             .unwrap();
     });
     trace.0.take()
+}
+
+/// Every kind of injected fault, bus off and recovery included: the trace's times never go
+/// backwards, and every controller's error lines carry its own name.
+#[test]
+fn trace_time_never_goes_backwards() {
+    let every = |effect, schedule| Rule {
+        target: Target::Any,
+        schedule,
+        bit: BitPosition::Random,
+        effect,
+        seen_by: SeenBy::All,
+    };
+    let rules = vec![
+        every(Effect::Bit, Schedule::EveryNth(7)),
+        every(Effect::Stuff, Schedule::EveryNth(11)),
+        every(Effect::Crc, Schedule::EveryNth(13)),
+        every(Effect::Form, Schedule::EveryNth(17)),
+        every(Effect::Overload(2), Schedule::EveryNth(5)),
+        // n2 is corrupted until it goes bus off, again and again.
+        Rule::bit_errors(
+            Target::Node(bus::engine::NodeId(2)),
+            Schedule::Always,
+            BitPosition::Random,
+        ),
+    ];
+    let text = String::from_utf8(run_with(4, rules)).unwrap();
+    let mut last = 0.0f64;
+    let mut bus_off = 0;
+    let mut kinds = std::collections::BTreeSet::new();
+    for line in text.lines() {
+        let (time, rest) = line.strip_prefix('(').unwrap().split_once(") ").unwrap();
+        let t: f64 = time.parse().unwrap();
+        assert!(t >= last, "{line} after {last}");
+        last = t;
+        let (iface, frame) = rest.split_once(' ').unwrap();
+        if let Some(node) = iface.strip_prefix("harv0.") {
+            assert!(["n0", "n1", "n2", "n3", "m"].contains(&node), "{line}");
+            let id = u32::from_str_radix(frame.split_once('#').unwrap().0, 16).unwrap();
+            assert_ne!(id & 0x2000_0000, 0, "an error frame: {line}");
+            if id & 0x40 != 0 {
+                bus_off += 1;
+            }
+            if id & 0x88 == 0x88 {
+                kinds.insert(&frame[frame.len() - 12..frame.len() - 10]);
+            }
+        } else {
+            assert_eq!(iface, "harv0", "{line}");
+        }
+    }
+    assert!(bus_off >= 2, "n2 went bus off {bus_off} times");
+    // Bit (0x01), form (0x02) and stuff (0x04) errors, with or without CAN_ERR_PROT_TX, and
+    // CRC errors (no type).
+    for kind in ["81", "02", "04", "00"] {
+        assert!(kinds.contains(kind), "type {kind} in {kinds:?}");
+    }
 }
 
 #[test]
