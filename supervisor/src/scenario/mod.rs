@@ -851,3 +851,6 @@ async fn sensor(
         .await?;
     Ok(())
 }
+
+#[cfg(test)]
+mod tests;
