@@ -101,6 +101,46 @@ fn a_bad_scenario_lists_every_problem_and_runs_nothing() {
 }
 
 #[test]
+fn bad_thresholds_windows_and_fault_options_give_exit_2_with_file_index_and_field() {
+    let dir = scratch("bad-thresholds");
+    let file = dir.join("thresholds.ron");
+    std::fs::write(
+        &file,
+        format!(
+            r#"Scenario(name: "bad thresholds", config: "{}", duration_s: 20.0,
+                 timeline: [
+                   (at_s: 1.0, action: BitErrors(target: Any, hits: Once, seen_by: Nodes(["F5"]))),
+                   (at_s: 2.0, action: Overload(target: Any, hits: Once, frames: 3)),
+                 ],
+                 expect: [
+                   BusLoadBelow(1000.0),
+                   NodeStateNever(node: "E0", state: BusOff, from_s: 15.0, to_s: 5.0),
+                   RecMax(node: "F5", max: 16, from_s: 0.0, to_s: 25.0),
+                   BusOffCount(node: "D9", min: 1, max: 1),
+                 ])"#,
+            config()
+        ),
+    )
+    .unwrap();
+    for command in ["validate", "scenario"] {
+        let out = harvemu(&[command, file.to_str().unwrap()]);
+        assert_eq!(out.status.code(), Some(2), "{command}");
+        let err = String::from_utf8(out.stderr).unwrap();
+        for needle in [
+            "timeline[0].action.seen_by: a bit error is a bit flipped on the wire",
+            "timeline[1].action.frames: 3 overload frames in a row",
+            "expect[0]: a load limit of 1000 % is outside (0, 100]",
+            "expect[1].to_s: the window 15 s to 5 s is empty",
+            "expect[2].to_s: time 25 s is after the end of the run (20 s)",
+            "expect[3].node: unknown node 'D9'",
+        ] {
+            let line = format!("{}: {needle}", file.display());
+            assert!(err.contains(&line), "missing {line} in:\n{err}");
+        }
+    }
+}
+
+#[test]
 fn validate_accepts_every_shipped_file() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs");
     let mut files = vec![root.join("harvester.ron")];

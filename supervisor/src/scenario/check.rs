@@ -1,6 +1,7 @@
 //! Verdicts: each expectation against what the run produced.
 
 use super::books::Books;
+use super::states::{Seen, Timeline};
 use super::{Expect, Scenario};
 use crate::harvester::Running;
 use bus::fault::ErrorState;
@@ -236,6 +237,110 @@ fn one(e: &Expect, r: &Running, snap: &Snapshot, books: &Books) -> Verdict {
             }
             None => verdict(e, false, None, "no emulated monitor".into()),
         },
+        Expect::NodeStateNever {
+            node,
+            state,
+            from_s,
+            to_s,
+        } => {
+            let Some(t) = timeline(r, snap, node) else {
+                return no_node(e, node);
+            };
+            let (from, to) = window(*from_s, *to_s);
+            match t.first(from, to, |p| p.state == *state) {
+                Some(seen) => verdict(e, false, Some(seen.at), was(node, &seen, &state.to_string())),
+                None => judged(
+                    e,
+                    &t,
+                    node,
+                    Some(to),
+                    format!("{node} never {state} from {from} s to {to} s"),
+                ),
+            }
+        }
+        Expect::NodeStateHolds {
+            node,
+            state,
+            from_s,
+            to_s,
+        } => {
+            let Some(t) = timeline(r, snap, node) else {
+                return no_node(e, node);
+            };
+            let (from, to) = window(*from_s, *to_s);
+            match t.first(from, to, |p| p.state != *state) {
+                Some(seen) => verdict(
+                    e,
+                    false,
+                    Some(seen.at),
+                    was(node, &seen, &seen.point.state.to_string()),
+                ),
+                None => judged(
+                    e,
+                    &t,
+                    node,
+                    Some(to),
+                    format!("{node} {state} throughout, {from} s to {to} s"),
+                ),
+            }
+        }
+        Expect::BusOffCount { node, min, max } => {
+            let Some(t) = timeline(r, snap, node) else {
+                return no_node(e, node);
+            };
+            let times = t.entries(ErrorState::BusOff);
+            let n = times.len();
+            let listed: Vec<String> = times.iter().take(5).map(|t| format!("{t} s")).collect();
+            let more = if n > 5 { ", ..." } else { "" };
+            let observed = match n {
+                0 => format!("{node} never went bus off"),
+                _ => format!("{node} went bus off {n} time(s), at {}{more}", listed.join(", ")),
+            };
+            let passed = (u64::from(*min)..=u64::from(*max)).contains(&(n as u64));
+            if passed {
+                judged(e, &t, node, times.last().copied(), observed)
+            } else {
+                verdict(e, false, times.last().copied(), observed)
+            }
+        }
+        Expect::RecMax {
+            node,
+            max,
+            from_s,
+            to_s,
+        }
+        | Expect::TecMax {
+            node,
+            max,
+            from_s,
+            to_s,
+        } => {
+            let Some(t) = timeline(r, snap, node) else {
+                return no_node(e, node);
+            };
+            let rec = matches!(e, Expect::RecMax { .. });
+            let name = if rec { "REC" } else { "TEC" };
+            let counter = |p: super::states::Point| if rec { p.rec } else { p.tec };
+            let (from, to) = window(*from_s, *to_s);
+            match t.first(from, to, |p| counter(p) > *max) {
+                Some(seen) => verdict(
+                    e,
+                    false,
+                    Some(seen.at),
+                    format!("{node}'s {name} was {} at {} s", counter(seen.point), seen.at),
+                ),
+                None => {
+                    let (highest, at) = t.highest(from, to, counter);
+                    judged(
+                        e,
+                        &t,
+                        node,
+                        Some(at),
+                        format!("{node}'s {name} at most {highest} (first at {at} s)"),
+                    )
+                }
+            }
+        }
         Expect::TraceComplete => match (books.trace, books.trace_complete()) {
             (Some(t), Some(ok)) => verdict(
                 e,
@@ -248,5 +353,48 @@ fn one(e: &Expect, r: &Running, snap: &Snapshot, books: &Books) -> Verdict {
             ),
             _ => verdict(e, false, None, "the trace was not counted".into()),
         },
+    }
+}
+
+/// A node's error history, by name.
+fn timeline<'a>(r: &Running, snap: &'a Snapshot, node: &str) -> Option<Timeline<'a>> {
+    let id = r.node(node)?;
+    Some(Timeline::new(
+        snap.stats.nodes.get(id.index()).map(|h| &h.counters),
+    ))
+}
+
+fn no_node(e: &Expect, node: &str) -> Verdict {
+    verdict(e, false, None, format!("no node {node} in the harvester"))
+}
+
+/// A window in bus time, both ends included.
+fn window(from_s: f64, to_s: f64) -> (BusTime, BusTime) {
+    (BusTime::from_secs_f64(from_s), BusTime::from_secs_f64(to_s))
+}
+
+/// "E0 was bus off at 7.204 s" (or, when it already was on entering the window, since when).
+fn was(node: &str, seen: &Seen, what: &str) -> String {
+    match (seen.entering, seen.since) {
+        (false, _) => format!("{node} was {what} at {} s", seen.at),
+        (true, Some(since)) => format!("{node} was {what} at {} s (since {since} s)", seen.at),
+        (true, None) => format!("{node} was {what} at {} s (since the start)", seen.at),
+    }
+}
+
+/// A pass that rests on nothing having happened: it stands only if the history is whole.
+fn judged(e: &Expect, t: &Timeline, node: &str, at: Option<BusTime>, observed: String) -> Verdict {
+    if t.is_whole() {
+        verdict(e, true, at, observed)
+    } else {
+        verdict(
+            e,
+            false,
+            at,
+            format!(
+                "cannot tell: the hub kept only part of {node}'s {} error points; {observed} among them",
+                t.len()
+            ),
+        )
     }
 }

@@ -8,6 +8,7 @@ pub mod junit;
 mod model;
 pub mod random;
 pub mod series;
+mod states;
 pub mod trace_count;
 
 pub use check::Verdict;
@@ -112,6 +113,17 @@ fn node_names(h: &Harvester) -> Vec<String> {
         .collect()
 }
 
+/// Overload frames a receiver may send in a row: the CAN 2.0 specification allows at most two to
+/// delay the next data or remote frame.
+pub const MAX_OVERLOAD_FRAMES: u8 = 2;
+
+/// Bits a bus-off node must see recessive before it is error active again (128 sequences of 11):
+/// no node can go bus off more often than once per this many bit times.
+const RECOVERY_BITS: u64 = bus::fault::RECOVERY_SEQUENCES as u64 * bus::fault::RECOVERY_SEQUENCE_BITS as u64;
+
+/// TEC stops counting at bus off, at most one penalty (8) past the limit: no TEC is ever higher.
+const TEC_CEILING: u16 = bus::fault::BUS_OFF_LIMIT + 7;
+
 /// Checks names, times and values of a scenario against its harvester.
 pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
     let mut p = Vec::new();
@@ -145,6 +157,59 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
             ));
         }
     };
+    // The end of a fault: a time in the run, after its start.
+    let end_ok = |p: &mut Vec<Problem>, field: String, start: f64, end: f64| {
+        time_ok(p, field.clone(), end);
+        if end.is_finite() && start.is_finite() && end <= start {
+            p.push(Problem::at(
+                file,
+                field,
+                format!("the fault ends at {end} s, not after it starts ({start} s)"),
+            ));
+        }
+    };
+    // A window of an expectation: two times in the run, the first before the second.
+    let window_ok = |p: &mut Vec<Problem>, at: &str, from: f64, to: f64| {
+        time_ok(p, format!("{at}.from_s"), from);
+        time_ok(p, format!("{at}.to_s"), to);
+        if from.is_finite() && to.is_finite() && from >= to {
+            p.push(Problem::at(
+                file,
+                format!("{at}.to_s"),
+                format!("the window {from} s to {to} s is empty: to_s must be after from_s"),
+            ));
+        }
+    };
+    // Which frames a fault selects.
+    let frames_ok = |p: &mut Vec<Problem>, at: &str, target: &Target, hits: &Hits| {
+        match target {
+            Target::Node(n) => node_ok(p, format!("{at}.action.target"), n),
+            Target::Id(id)
+                if id.len() != 8 || u32::from_str_radix(id, 16).map_or(true, |v| v > 0x1FFF_FFFF) =>
+            {
+                p.push(Problem::at(
+                    file,
+                    format!("{at}.action.target"),
+                    format!("'{id}' is not an 8-digit 29-bit identifier"),
+                ))
+            }
+            Target::Priority(pr) if *pr > 31 => p.push(Problem::at(
+                file,
+                format!("{at}.action.target"),
+                format!("priority {pr} is over 31"),
+            )),
+            _ => {}
+        }
+        match hits {
+            Hits::EveryNth(0) => p.push(Problem::at(file, format!("{at}.action.hits"), "EveryNth(0)")),
+            Hits::BitErrorRate(r) if !(0.0..=1.0).contains(r) => p.push(Problem::at(
+                file,
+                format!("{at}.action.hits"),
+                format!("bit-error rate {r} is outside 0..1"),
+            )),
+            _ => {}
+        }
+    };
     if !(s.duration_s.is_finite() && s.duration_s > 0.0) {
         p.push(Problem::at(
             file,
@@ -169,38 +234,57 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
                 target,
                 hits,
                 until_s,
+                kind,
+                seen_by,
             } => {
-                match target {
-                    Target::Node(n) => node_ok(&mut p, format!("{at}.action.target"), n),
-                    Target::Id(id)
-                        if id.len() != 8 || u32::from_str_radix(id, 16).map_or(true, |v| v > 0x1FFF_FFFF) =>
-                    {
+                frames_ok(&mut p, &at, target, hits);
+                if let Some(u) = until_s {
+                    end_ok(&mut p, format!("{at}.action.until_s"), step.at_s, *u);
+                }
+                if let SeenBy::Nodes(nodes) = seen_by {
+                    if nodes.is_empty() {
                         p.push(Problem::at(
                             file,
-                            format!("{at}.action.target"),
-                            format!("'{id}' is not an 8-digit 29-bit identifier"),
-                        ))
+                            format!("{at}.action.seen_by"),
+                            "Nodes([]): name at least one node, or leave seen_by out for All",
+                        ));
                     }
-                    Target::Priority(pr) if *pr > 31 => p.push(Problem::at(
-                        file,
-                        format!("{at}.action.target"),
-                        format!("priority {pr} is over 31"),
-                    )),
-                    _ => {}
-                }
-                match hits {
-                    Hits::EveryNth(0) => {
-                        p.push(Problem::at(file, format!("{at}.action.hits"), "EveryNth(0)"))
+                    for (k, n) in nodes.iter().enumerate() {
+                        node_ok(&mut p, format!("{at}.action.seen_by[{k}]"), n);
                     }
-                    Hits::BitErrorRate(r) if !(0.0..=1.0).contains(r) => p.push(Problem::at(
-                        file,
-                        format!("{at}.action.hits"),
-                        format!("bit-error rate {r} is outside 0..1"),
-                    )),
-                    _ => {}
+                    if *kind == ErrorKind::Bit {
+                        p.push(Problem::at(
+                            file,
+                            format!("{at}.action.seen_by"),
+                            "a bit error is a bit flipped on the wire, which every node sees: \
+                             seen_by: Nodes(..) needs kind Stuff, Crc or Form",
+                        ));
+                    }
                 }
+            }
+            Action::Overload {
+                target,
+                hits,
+                until_s,
+                by,
+                frames,
+            } => {
+                frames_ok(&mut p, &at, target, hits);
                 if let Some(u) = until_s {
-                    time_ok(&mut p, format!("{at}.action.until_s"), *u);
+                    end_ok(&mut p, format!("{at}.action.until_s"), step.at_s, *u);
+                }
+                for (k, n) in by.iter().enumerate() {
+                    node_ok(&mut p, format!("{at}.action.by[{k}]"), n);
+                }
+                if !(1..=MAX_OVERLOAD_FRAMES).contains(frames) {
+                    p.push(Problem::at(
+                        file,
+                        format!("{at}.action.frames"),
+                        format!(
+                            "{frames} overload frames in a row: a receiver may send 1 or \
+                             {MAX_OVERLOAD_FRAMES} (CAN 2.0, overload frame)"
+                        ),
+                    ));
                 }
             }
             Action::AckFailure(n)
@@ -214,7 +298,7 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
                 if let Err(e) = parse_frame(frame) {
                     p.push(Problem::at(file, format!("{at}.action.frame"), e.to_string()));
                 }
-                time_ok(&mut p, format!("{at}.action.until_s"), *until_s);
+                end_ok(&mut p, format!("{at}.action.until_s"), step.at_s, *until_s);
             }
             Action::SendFrame { node, frame } => {
                 node_ok(&mut p, format!("{at}.action.node"), node);
@@ -256,6 +340,24 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
     }
     for (i, e) in s.expect.iter().enumerate() {
         let at = format!("expect[{i}]");
+        let bounds_ok = |p: &mut Vec<Problem>, min: f64, max: f64| {
+            for (name, v) in [("min", min), ("max", max)] {
+                if !v.is_finite() {
+                    p.push(Problem::at(
+                        file,
+                        format!("{at}.{name}"),
+                        format!("{v} is not a number"),
+                    ));
+                }
+            }
+            if min > max {
+                p.push(Problem::at(
+                    file,
+                    format!("{at}.min"),
+                    format!("min {min} is above max {max}"),
+                ));
+            }
+        };
         match e {
             Expect::AlarmRaised { node, after_s, .. } | Expect::AlarmCleared { node, after_s, .. } => {
                 node_ok(&mut p, format!("{at}.node"), node);
@@ -265,20 +367,104 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
                 node_ok(&mut p, format!("{at}.node"), node);
                 time_ok(&mut p, format!("{at}.after_s"), *after_s);
             }
-            Expect::Restarts { node, .. } => node_ok(&mut p, format!("{at}.node"), node),
-            Expect::Display { field, .. } if display_fields.get(field).is_none() => p.push(Problem::at(
-                file,
-                format!("{at}.field"),
-                format!("the display has no field '{field}'"),
-            )),
-            Expect::Plant { signal, .. } if !signals.iter().any(|s| s == signal) => p.push(Problem::at(
-                file,
-                format!("{at}.signal"),
-                format!("unknown plant signal '{signal}'"),
-            )),
-            Expect::ErrorFrames { min, max } if min > max => {
-                p.push(Problem::at(file, at, format!("min {min} is above max {max}")))
+            Expect::NodeStateNever {
+                node, from_s, to_s, ..
             }
+            | Expect::NodeStateHolds {
+                node, from_s, to_s, ..
+            } => {
+                node_ok(&mut p, format!("{at}.node"), node);
+                window_ok(&mut p, &at, *from_s, *to_s);
+            }
+            Expect::RecMax {
+                node,
+                max,
+                from_s,
+                to_s,
+            }
+            | Expect::TecMax {
+                node,
+                max,
+                from_s,
+                to_s,
+            } => {
+                node_ok(&mut p, format!("{at}.node"), node);
+                window_ok(&mut p, &at, *from_s, *to_s);
+                let (name, ceiling) = if matches!(e, Expect::RecMax { .. }) {
+                    ("REC", bus::fault::REC_MAX)
+                } else {
+                    ("TEC", TEC_CEILING)
+                };
+                if *max >= ceiling {
+                    p.push(Problem::at(
+                        file,
+                        format!("{at}.max"),
+                        format!("{name} never exceeds {ceiling}: a maximum of {max} cannot fail"),
+                    ));
+                }
+            }
+            Expect::BusOffCount { node, min, max } => {
+                node_ok(&mut p, format!("{at}.node"), node);
+                if min > max {
+                    p.push(Problem::at(
+                        file,
+                        format!("{at}.min"),
+                        format!("min {min} is above max {max}"),
+                    ));
+                }
+                // Each bus-off but the last is followed by a recovery of RECOVERY_BITS.
+                if s.duration_s.is_finite() && h.config.bitrate > 0 {
+                    let bits = s.duration_s * f64::from(h.config.bitrate);
+                    let most = (bits / RECOVERY_BITS as f64).floor() + 1.0;
+                    if f64::from(*min) > most {
+                        p.push(Problem::at(
+                            file,
+                            format!("{at}.min"),
+                            format!(
+                                "{min} bus-offs cannot fit in {} s: each recovery takes \
+                                 {RECOVERY_BITS} bit times, at most {most} in the run",
+                                s.duration_s
+                            ),
+                        ));
+                    }
+                }
+            }
+            Expect::Restarts { node, .. } => node_ok(&mut p, format!("{at}.node"), node),
+            Expect::Display { field, min, max } => {
+                if display_fields.get(field).is_none() {
+                    p.push(Problem::at(
+                        file,
+                        format!("{at}.field"),
+                        format!("the display has no field '{field}'"),
+                    ));
+                }
+                bounds_ok(&mut p, *min, *max);
+            }
+            Expect::Plant { signal, min, max } => {
+                if !signals.iter().any(|s| s == signal) {
+                    p.push(Problem::at(
+                        file,
+                        format!("{at}.signal"),
+                        format!("unknown plant signal '{signal}'"),
+                    ));
+                }
+                bounds_ok(&mut p, *min, *max);
+            }
+            Expect::ErrorFrames { min, max } if min > max => p.push(Problem::at(
+                file,
+                format!("{at}.min"),
+                format!("min {min} is above max {max}"),
+            )),
+            Expect::BusLoadBelow(limit) if !(*limit > 0.0 && *limit <= 100.0) => p.push(Problem::at(
+                file,
+                at.clone(),
+                format!("a load limit of {limit} % is outside (0, 100]: it would always pass or never"),
+            )),
+            Expect::YieldWithin(percent) if !(*percent >= 0.0 && *percent <= 100.0) => p.push(Problem::at(
+                file,
+                at.clone(),
+                format!("{percent} % is not a tolerance in 0..=100"),
+            )),
             _ => {}
         }
         let needs_monitor = matches!(
@@ -568,6 +754,7 @@ async fn act(
                 rules.insert(index, r);
             }
         }
+        Action::Overload { .. } => {}
         Action::AckFailure(n) => drop(running.hub.send(Control::SetAck(id(&n)?, false)).await??),
         Action::AckRestored(n) => drop(running.hub.send(Control::SetAck(id(&n)?, true)).await??),
         Action::Disconnect(n) => drop(running.hub.send(Control::SetConnected(id(&n)?, false)).await??),
@@ -660,3 +847,6 @@ async fn sensor(
         .await?;
     Ok(())
 }
+
+#[cfg(test)]
+mod tests;

@@ -34,6 +34,10 @@ pub struct Scenario {
     pub expect: Vec<Expect>,
 }
 
+fn one_overload_frame() -> u8 {
+    1
+}
+
 fn default_config() -> String {
     "../harvester.ron".to_string()
 }
@@ -74,6 +78,32 @@ pub enum Hits {
     BitErrorRate(f64),
 }
 
+/// What kind of error a hit frame meets.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ErrorKind {
+    /// A bit flipped on the wire: the transmitter reads back what it did not send, and every
+    /// node sees the same wrong bit.
+    #[default]
+    Bit,
+    /// Six equal bits in a row where stuffing applies.
+    Stuff,
+    /// The frame's CRC does not match.
+    Crc,
+    /// A fixed-form field holds an illegal bit.
+    Form,
+}
+
+/// Which nodes detect the error a hit frame meets.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum SeenBy {
+    /// Every node on the bus.
+    #[default]
+    All,
+    /// Only these receivers (a local disturbance at their transceivers); the others see the
+    /// frame as it was sent until the error flag destroys it.
+    Nodes(Vec<String>),
+}
+
 /// Stimuli and faults.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub enum Action {
@@ -86,6 +116,29 @@ pub enum Action {
         /// End of the fault, s.
         #[serde(default)]
         until_s: Option<f64>,
+        /// The kind of error.
+        #[serde(default)]
+        kind: ErrorKind,
+        /// Who detects it (only `All` for a bit error).
+        #[serde(default)]
+        seen_by: SeenBy,
+    },
+    /// Receivers that are not ready send overload frames after the frames `target` and `hits`
+    /// select (until `until_s`, if given).
+    Overload {
+        /// Which frames.
+        target: Target,
+        /// Which of them.
+        hits: Hits,
+        /// End of the fault, s.
+        #[serde(default)]
+        until_s: Option<f64>,
+        /// The nodes that raise the overload frames; empty: every receiver of the frame.
+        #[serde(default)]
+        by: Vec<String>,
+        /// Overload frames in a row after each hit frame (the CAN rules allow at most 2).
+        #[serde(default = "one_overload_frame")]
+        frames: u8,
     },
     /// A node stops acknowledging frames.
     AckFailure(String),
@@ -147,6 +200,7 @@ impl Action {
     pub fn name(&self) -> &'static str {
         match self {
             Action::BitErrors { .. } => "BitErrors",
+            Action::Overload { .. } => "Overload",
             Action::AckFailure(_) => "AckFailure",
             Action::AckRestored(_) => "AckRestored",
             Action::Disconnect(_) => "Disconnect",
@@ -245,4 +299,57 @@ pub enum Expect {
     FramesAccounted,
     /// Every frame that completed on the bus is a frame line of the trace.
     TraceComplete,
+    /// A node is never in `state` from `from_s` to `to_s` (both included), not even for a moment.
+    NodeStateNever {
+        /// Node.
+        node: String,
+        /// Error state.
+        state: ErrorState,
+        /// From, s.
+        from_s: f64,
+        /// To, s.
+        to_s: f64,
+    },
+    /// A node is in `state` from `from_s` to `to_s` (both included), without a moment elsewhere.
+    NodeStateHolds {
+        /// Node.
+        node: String,
+        /// Error state.
+        state: ErrorState,
+        /// From, s.
+        from_s: f64,
+        /// To, s.
+        to_s: f64,
+    },
+    /// A node went bus off between `min` and `max` times over the whole run.
+    BusOffCount {
+        /// Node.
+        node: String,
+        /// At least.
+        min: u32,
+        /// At most.
+        max: u32,
+    },
+    /// A node's receive error counter stays at or below `max` from `from_s` to `to_s`.
+    RecMax {
+        /// Node.
+        node: String,
+        /// Highest REC allowed.
+        max: u16,
+        /// From, s.
+        from_s: f64,
+        /// To, s.
+        to_s: f64,
+    },
+    /// A node's transmit error counter stays at or below `max` from `from_s` to `to_s`.
+    TecMax {
+        /// Node.
+        node: String,
+        /// Highest TEC allowed.
+        max: u16,
+        /// From, s.
+        from_s: f64,
+        /// To, s.
+        to_s: f64,
+    },
 }

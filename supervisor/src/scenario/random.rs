@@ -12,7 +12,7 @@
 //! - a node has one fault at a time and then rests `node_rest_s` (so that crashes never exhaust
 //!   the restart policy); babbling idiots never overlap. A fault with no node free is skipped.
 
-use super::{Action, Hits, Step, Target};
+use super::{Action, ErrorKind, Hits, SeenBy, Step, Target};
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -229,11 +229,15 @@ pub fn expand(r: &RandomFaults, seed: u64, duration_s: f64, nodes: &[String]) ->
                 target: Target::Any,
                 hits: Hits::BitErrorRate(f64::from(rng.random_range(10u32..=100)) * 1e-6),
                 until_s: Some(until),
+                kind: ErrorKind::Bit,
+                seen_by: SeenBy::All,
             })),
             RandomFault::ErrorPassive => steps.push(step(Action::BitErrors {
                 target: Target::Node(node),
                 hits: Hits::EveryNth(2),
                 until_s: Some(until),
+                kind: ErrorKind::Bit,
+                seen_by: SeenBy::All,
             })),
             RandomFault::Crash => steps.push(step(Action::Crash(node))),
             RandomFault::Hang => {

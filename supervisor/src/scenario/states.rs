@@ -1,0 +1,283 @@
+//! A node's error state and counters over a run, read from the hub's history of them.
+//!
+//! The hub records a node's (TEC, REC, state) at every error it takes part in, at every state
+//! change (bus-off recovery, a reset) and at every good frame while a counter is above zero. The
+//! counters only rise at errors and the state only changes at recorded points, so between two
+//! points nothing happens that the checks care about: a window's highest counter and every
+//! visit to a state, however brief, are at points. Before its first point a node is error active
+//! with both counters at zero, as every controller starts.
+//!
+//! That holds while the history is whole. Past 4096 points the hub keeps every other point (see
+//! `bus::engine::stats::History`); a [`Timeline`] knows whether that happened, and the checks
+//! then say they cannot judge instead of passing on what was dropped.
+
+use bus::engine::stats::History;
+use bus::fault::ErrorState;
+use bus::time::BusTime;
+
+/// (TEC, REC, state) at one moment.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Point {
+    /// Transmit error counter.
+    pub tec: u16,
+    /// Receive error counter.
+    pub rec: u16,
+    /// Error state.
+    pub state: ErrorState,
+}
+
+/// What every controller is at power-up.
+const START: Point = Point {
+    tec: 0,
+    rec: 0,
+    state: ErrorState::Active,
+};
+
+/// One node's recorded points, oldest first.
+#[derive(Clone, Copy, Debug)]
+pub struct Timeline<'a> {
+    points: &'a [(BusTime, (u16, u16, ErrorState))],
+    whole: bool,
+}
+
+/// Where a condition was first seen in a window.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Seen {
+    /// When: the window's start if the condition already held on entering it.
+    pub at: BusTime,
+    /// It already held on entering the window.
+    pub entering: bool,
+    /// If it held on entering, since when (`None`: since the run's start).
+    pub since: Option<BusTime>,
+    /// The node's counters and state then.
+    pub point: Point,
+}
+
+impl<'a> Timeline<'a> {
+    /// The timeline of a node with this history (`None`: no point was ever recorded).
+    pub fn new(history: Option<&'a History<(u16, u16, ErrorState)>>) -> Timeline<'a> {
+        match history {
+            Some(h) => Timeline {
+                points: &h.points,
+                whole: is_whole(h),
+            },
+            None => Timeline {
+                points: &[],
+                whole: true,
+            },
+        }
+    }
+
+    /// Points recorded, kept or not.
+    pub fn len(&self) -> usize {
+        self.points.len()
+    }
+
+    /// Whether every recorded point was kept (judging needs it).
+    pub fn is_whole(&self) -> bool {
+        self.whole
+    }
+
+    fn point(&self, i: usize) -> (BusTime, Point) {
+        let (t, (tec, rec, state)) = self.points[i];
+        (t, Point { tec, rec, state })
+    }
+
+    /// What the node was on entering a window that starts at `t`, if no point is at `t` itself
+    /// (points at `t` are the window's first word on it), and the index of the window's first
+    /// point.
+    fn entering(&self, t: BusTime) -> (Option<Point>, usize) {
+        let n = self.points.partition_point(|(at, _)| *at < t);
+        if self.points.get(n).is_some_and(|(at, _)| *at == t) {
+            return (None, n);
+        }
+        (Some(n.checked_sub(1).map_or(START, |i| self.point(i).1)), n)
+    }
+
+    /// The first moment in `[from, to]` at which `cond` holds: `from` itself if it held on
+    /// entering the window. Points at `from` belong to the window: a state that ends exactly at
+    /// `from` is not in it.
+    pub fn first(&self, from: BusTime, to: BusTime, cond: impl Fn(Point) -> bool) -> Option<Seen> {
+        let (entering, n) = self.entering(from);
+        if let Some(entering) = entering.filter(|p| cond(*p)) {
+            // Since when: back over the points where it held, to the start if it always did.
+            let mut i = n;
+            let mut since = None;
+            while let Some(j) = i.checked_sub(1) {
+                let (at, p) = self.point(j);
+                if !cond(p) {
+                    break;
+                }
+                since = Some(at);
+                i = j;
+            }
+            if i == 0 && cond(START) {
+                since = None;
+            }
+            return Some(Seen {
+                at: from,
+                entering: true,
+                since,
+                point: entering,
+            });
+        }
+        (n..self.points.len())
+            .map(|i| self.point(i))
+            .take_while(|(at, _)| *at <= to)
+            .find(|(_, p)| cond(*p))
+            .map(|(at, point)| Seen {
+                at,
+                entering: false,
+                since: None,
+                point,
+            })
+    }
+
+    /// The highest value of `counter` in `[from, to]` and the first moment it had it.
+    pub fn highest(&self, from: BusTime, to: BusTime, counter: impl Fn(Point) -> u16) -> (u16, BusTime) {
+        let (entering, start) = self.entering(from);
+        let mut best = (entering.map_or(0, &counter), from);
+        for (at, p) in (start..self.points.len())
+            .map(|i| self.point(i))
+            .take_while(|(at, _)| *at <= to)
+        {
+            if counter(p) > best.0 {
+                best = (counter(p), at);
+            }
+        }
+        best
+    }
+
+    /// The moments the node entered `state` over the whole run.
+    pub fn entries(&self, state: ErrorState) -> Vec<BusTime> {
+        let mut previous = START.state;
+        let mut times = Vec::new();
+        for i in 0..self.points.len() {
+            let (at, p) = self.point(i);
+            if p.state == state && previous != state {
+                times.push(at);
+            }
+            previous = p.state;
+        }
+        times
+    }
+}
+
+/// Whether the hub kept every point it was given. The history does not say so in its API; its
+/// serialised form counts the points seen, so that a report can show what was thinned.
+fn is_whole<T: serde::Serialize>(h: &History<T>) -> bool {
+    let seen = serde_json::to_value(h)
+        .ok()
+        .and_then(|v| v.get("seen").and_then(|s| s.as_u64()));
+    match seen {
+        Some(seen) => seen == h.points.len() as u64,
+        // No count to compare with: only a history too short ever to have been halved is whole.
+        None => h.points.len() <= THINNED_AT_LEAST / 2,
+    }
+}
+
+/// The hub halves a history when it reaches this many points (`HISTORY_POINTS` in the bus's
+/// statistics), leaving half of them: a shorter one was never halved.
+const THINNED_AT_LEAST: usize = 4096;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ErrorState::*;
+
+    fn history(points: &[(u64, u16, u16, ErrorState)]) -> History<(u16, u16, ErrorState)> {
+        let mut h = History::default();
+        for &(ms, tec, rec, s) in points {
+            h.push(BusTime(ms * 1_000_000), (tec, rec, s));
+        }
+        h
+    }
+
+    fn ms(ms: u64) -> BusTime {
+        BusTime(ms * 1_000_000)
+    }
+
+    /// E0 error passive at 5.1 s, bus off for 6 ms at 7.2 s, active again at 12 s.
+    fn sample() -> History<(u16, u16, ErrorState)> {
+        history(&[
+            (5000, 8, 0, Active),
+            (5100, 128, 0, Passive),
+            (7200, 256, 0, BusOff),
+            (7206, 0, 0, Active),
+            (7300, 8, 0, Active),
+            (7310, 128, 0, Passive),
+            (12000, 127, 0, Active),
+            (12001, 126, 0, Active),
+        ])
+    }
+
+    #[test]
+    fn a_brief_visit_inside_a_window_is_found() {
+        let h = sample();
+        let t = Timeline::new(Some(&h));
+        assert!(t.is_whole());
+        let seen = t.first(ms(5000), ms(20000), |p| p.state == BusOff).unwrap();
+        assert_eq!((seen.at, seen.entering, seen.point.tec), (ms(7200), false, 256));
+        // Not before it, and not after it.
+        assert_eq!(t.first(ms(0), ms(7199), |p| p.state == BusOff), None);
+        assert_eq!(t.first(ms(7206), ms(20000), |p| p.state == BusOff), None);
+    }
+
+    #[test]
+    fn a_state_held_on_entering_the_window_counts_from_the_window_start() {
+        let h = sample();
+        let t = Timeline::new(Some(&h));
+        let seen = t.first(ms(6000), ms(7000), |p| p.state == Passive).unwrap();
+        assert_eq!(
+            (seen.at, seen.entering, seen.since),
+            (ms(6000), true, Some(ms(5100)))
+        );
+        // Active since the start of the run: no point before the window, or only active ones.
+        let seen = t.first(ms(1000), ms(2000), |p| p.state == Active).unwrap();
+        assert_eq!((seen.entering, seen.since), (true, None));
+        let seen = t.first(ms(5050), ms(5060), |p| p.state == Active).unwrap();
+        assert_eq!((seen.entering, seen.since), (true, None));
+        let seen = t.first(ms(5050), ms(5060), |p| p.tec > 0).unwrap();
+        assert_eq!((seen.entering, seen.since), (true, Some(ms(5000))));
+        // Held: active from 12 s on, but 7.3 s is no proof of it.
+        assert_eq!(t.first(ms(12000), ms(20000), |p| p.state != Active), None);
+        let off = t.first(ms(7300), ms(20000), |p| p.state != Active).unwrap();
+        assert_eq!((off.at, off.point.state), (ms(7310), Passive));
+    }
+
+    #[test]
+    fn a_node_without_history_was_active_with_clear_counters() {
+        let t = Timeline::new(None);
+        assert!(t.is_whole());
+        assert_eq!(t.first(ms(0), ms(10), |p| p.state != Active), None);
+        assert_eq!(t.highest(ms(0), ms(10), |p| p.rec), (0, ms(0)));
+        assert!(t.entries(BusOff).is_empty());
+    }
+
+    #[test]
+    fn entries_and_highest_counters() {
+        let h = sample();
+        let t = Timeline::new(Some(&h));
+        assert_eq!(t.entries(BusOff), vec![ms(7200)]);
+        assert_eq!(t.entries(Passive), vec![ms(5100), ms(7310)]);
+        assert_eq!(t.entries(Active), vec![ms(7206), ms(12000)]);
+        assert_eq!(t.highest(ms(5000), ms(20000), |p| p.tec), (256, ms(7200)));
+        // Entering the window with a counter counts.
+        assert_eq!(t.highest(ms(11000), ms(20000), |p| p.tec), (128, ms(11000)));
+        assert_eq!(t.highest(ms(12000), ms(20000), |p| p.tec), (127, ms(12000)));
+    }
+
+    #[test]
+    fn a_thinned_history_is_not_whole() {
+        let mut h = History::default();
+        for i in 0..THINNED_AT_LEAST as u64 + 1 {
+            h.push(BusTime(i), (0, 1, Active));
+        }
+        assert!(!Timeline::new(Some(&h)).is_whole());
+        let mut h = History::default();
+        for i in 0..THINNED_AT_LEAST as u64 {
+            h.push(BusTime(i), (0, 1, Active));
+        }
+        assert!(Timeline::new(Some(&h)).is_whole());
+    }
+}

@@ -1,0 +1,211 @@
+//! Validation: every problem of a scenario is found, named by its field, and nothing else is.
+
+use super::*;
+
+fn harvester(_: &Path) -> Result<Harvester, Error> {
+    Harvester::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs/harvester.ron"))
+}
+
+/// The problems of a scenario with this timeline and these expectations, as "field: message".
+fn problems(duration_s: f64, timeline: &str, expect: &str) -> Vec<String> {
+    let text = format!(
+        "Scenario(name: \"t\", duration_s: {duration_s:?}, timeline: [{timeline}], expect: [{expect}])"
+    );
+    match from_text(Path::new("t.ron"), &text, None, harvester) {
+        Ok(_) => Vec::new(),
+        Err(Error::Invalid(p)) => p
+            .iter()
+            .map(|p| {
+                assert_eq!(p.file, "t.ron");
+                format!("{}: {}", p.field.as_deref().unwrap_or("-"), p.message)
+            })
+            .collect(),
+        Err(e) => panic!("{e}"),
+    }
+}
+
+/// Asserts that the problems are exactly these, each given by the start of its text.
+#[track_caller]
+fn assert_problems(found: &[String], expected: &[&str]) {
+    for e in expected {
+        assert!(
+            found.iter().any(|f| f.starts_with(e)),
+            "missing '{e}' in {found:#?}"
+        );
+    }
+    assert_eq!(found.len(), expected.len(), "{found:#?}");
+}
+
+const OK: &str = "NoFrameLost";
+
+#[test]
+fn a_sound_scenario_with_every_new_expectation_passes_validation() {
+    let found = problems(
+        20.0,
+        r#"(at_s: 5.0, action: BitErrors(target: Node("D2"), hits: Always, until_s: Some(5.2),
+               kind: Crc, seen_by: Nodes(["F5", "D0"]))),
+           (at_s: 6.0, action: Overload(target: Any, hits: EveryNth(3), until_s: Some(7.0),
+               by: ["F5"], frames: 2)),
+           (at_s: 8.0, action: Overload(target: Id("0601F5D0"), hits: Once))"#,
+        r#"NodeStateNever(node: "E0", state: BusOff, from_s: 5.0, to_s: 20.0),
+           NodeStateHolds(node: "E0", state: Active, from_s: 10.1, to_s: 20.0),
+           BusOffCount(node: "D2", min: 1, max: 1),
+           RecMax(node: "F5", max: 16, from_s: 0.0, to_s: 20.0),
+           TecMax(node: "E0", max: 128, from_s: 0.0, to_s: 20.0),
+           BusLoadBelow(100.0), YieldWithin(0.0)"#,
+    );
+    assert_problems(&found, &[]);
+}
+
+#[test]
+fn windows_must_be_in_the_run_and_not_empty() {
+    let found = problems(
+        20.0,
+        "",
+        r#"NodeStateNever(node: "E0", state: BusOff, from_s: 10.0, to_s: 10.0),
+           NodeStateHolds(node: "E0", state: Active, from_s: -1.0, to_s: 30.0),
+           RecMax(node: "F5", max: 16, from_s: NaN, to_s: 5.0),
+           TecMax(node: "E0", max: 16, from_s: 8.0, to_s: 2.0),
+           NodeStateNever(node: "E9", state: Passive, from_s: 0.0, to_s: inf)"#,
+    );
+    assert_problems(
+        &found,
+        &[
+            "expect[0].to_s: the window 10 s to 10 s is empty",
+            "expect[1].from_s: time -1 s is negative",
+            "expect[1].to_s: time 30 s is after the end of the run (20 s)",
+            "expect[2].from_s: time NaN s is negative or not a number",
+            "expect[3].to_s: the window 8 s to 2 s is empty",
+            "expect[4].node: unknown node 'E9'",
+            "expect[4].to_s: time inf s is negative or not a number",
+        ],
+    );
+}
+
+#[test]
+fn thresholds_that_cannot_fail_or_cannot_pass_are_refused() {
+    let found = problems(
+        10.0,
+        "",
+        r#"BusLoadBelow(1000.0), BusLoadBelow(0.0), BusLoadBelow(-5.0), BusLoadBelow(NaN),
+           YieldWithin(NaN), YieldWithin(-1.0),
+           Display(field: "engine_rpm", min: NaN, max: 1.0),
+           Display(field: "engine_rpm", min: 3.0, max: 1.0),
+           Plant(signal: "engine.rpm", min: 0.0, max: inf),
+           ErrorFrames(min: 5, max: 1),
+           RecMax(node: "F5", max: 255, from_s: 0.0, to_s: 1.0),
+           TecMax(node: "F5", max: 263, from_s: 0.0, to_s: 1.0),
+           TecMax(node: "F5", max: 262, from_s: 0.0, to_s: 1.0),
+           BusOffCount(node: "D2", min: 2, max: 1),
+           BusOffCount(node: "D2", min: 5000, max: 5000)"#,
+    );
+    assert_problems(
+        &found,
+        &[
+            "expect[0]: a load limit of 1000 % is outside (0, 100]",
+            "expect[1]: a load limit of 0 % is outside (0, 100]",
+            "expect[2]: a load limit of -5 % is outside (0, 100]",
+            "expect[3]: a load limit of NaN % is outside (0, 100]",
+            "expect[4]: NaN % is not a tolerance in 0..=100",
+            "expect[5]: -1 % is not a tolerance in 0..=100",
+            "expect[6].min: NaN is not a number",
+            "expect[7].min: min 3 is above max 1",
+            "expect[8].max: inf is not a number",
+            "expect[9].min: min 5 is above max 1",
+            "expect[10].max: REC never exceeds 255",
+            "expect[11].max: TEC never exceeds 263",
+            "expect[13].min: min 2 is above max 1",
+            // 10 s at 250 kbit/s is 2,500,000 bit times, 1408 per recovery: 1775 recoveries.
+            "expect[14].min: 5000 bus-offs cannot fit in 10 s: each recovery takes 1408 bit times, at most 1776",
+        ],
+    );
+}
+
+#[test]
+fn seen_by_names_receivers_of_errors_other_than_bit_errors() {
+    let found = problems(
+        10.0,
+        r#"(at_s: 1.0, action: BitErrors(target: Any, hits: Once, seen_by: Nodes(["F5"]))),
+           (at_s: 1.0, action: BitErrors(target: Any, hits: Once, kind: Bit, seen_by: Nodes(["F5"]))),
+           (at_s: 1.0, action: BitErrors(target: Any, hits: Once, kind: Stuff, seen_by: Nodes([]))),
+           (at_s: 1.0, action: BitErrors(target: Any, hits: Once, kind: Form, seen_by: Nodes(["F5", "X1"]))),
+           (at_s: 1.0, action: BitErrors(target: Any, hits: Once, kind: Crc)),
+           (at_s: 1.0, action: BitErrors(target: Any, hits: Once, kind: Crc, seen_by: All))"#,
+        OK,
+    );
+    assert_problems(
+        &found,
+        &[
+            "timeline[0].action.seen_by: a bit error is a bit flipped on the wire, which every node sees",
+            "timeline[1].action.seen_by: a bit error is a bit flipped on the wire, which every node sees",
+            "timeline[2].action.seen_by: Nodes([]): name at least one node",
+            "timeline[3].action.seen_by[1]: unknown node 'X1'",
+        ],
+    );
+}
+
+#[test]
+fn overload_frames_come_one_or_two_at_a_time_from_known_nodes() {
+    let found = problems(
+        10.0,
+        r#"(at_s: 1.0, action: Overload(target: Node("Q1"), hits: EveryNth(0), frames: 0)),
+           (at_s: 1.0, action: Overload(target: Priority(32), hits: BitErrorRate(2.0), frames: 3)),
+           (at_s: 2.0, action: Overload(target: Any, hits: Always, until_s: Some(1.0), by: ["F5", "F6"])),
+           (at_s: 2.0, action: Overload(target: Any, hits: Always, until_s: Some(11.0)))"#,
+        OK,
+    );
+    assert_problems(
+        &found,
+        &[
+            "timeline[0].action.target: unknown node 'Q1'",
+            "timeline[0].action.hits: EveryNth(0)",
+            "timeline[0].action.frames: 0 overload frames in a row",
+            "timeline[1].action.target: priority 32 is over 31",
+            "timeline[1].action.hits: bit-error rate 2 is outside 0..1",
+            "timeline[1].action.frames: 3 overload frames in a row",
+            "timeline[2].action.until_s: the fault ends at 1 s, not after it starts (2 s)",
+            "timeline[2].action.by[1]: unknown node 'F6'",
+            "timeline[3].action.until_s: time 11 s is after the end of the run",
+        ],
+    );
+}
+
+#[test]
+fn faults_end_after_they_start() {
+    let found = problems(
+        10.0,
+        r#"(at_s: 3.0, action: BitErrors(target: Any, hits: Always, until_s: Some(3.0))),
+           (at_s: 3.0, action: Babble(frame: "00000000#00", until_s: 2.0)),
+           (at_s: 3.0, action: BitErrors(target: Any, hits: Always, until_s: Some(NaN)))"#,
+        OK,
+    );
+    assert_problems(
+        &found,
+        &[
+            "timeline[0].action.until_s: the fault ends at 3 s, not after it starts (3 s)",
+            "timeline[1].action.until_s: the fault ends at 2 s, not after it starts (3 s)",
+            "timeline[2].action.until_s: time NaN s is negative or not a number",
+        ],
+    );
+}
+
+#[test]
+fn the_new_fields_have_their_defaults() {
+    let text = r#"Scenario(name: "t", duration_s: 10.0, expect: [NoFrameLost], timeline: [
+        (at_s: 1.0, action: BitErrors(target: Any, hits: Once)),
+        (at_s: 1.0, action: Overload(target: Any, hits: Once)),
+    ])"#;
+    let loaded = from_text(Path::new("t.ron"), text, None, harvester).unwrap();
+    match &loaded.scenario.timeline[0].action {
+        Action::BitErrors { kind, seen_by, .. } => {
+            assert_eq!((*kind, seen_by), (ErrorKind::Bit, &SeenBy::All))
+        }
+        other => panic!("{other:?}"),
+    }
+    match &loaded.scenario.timeline[1].action {
+        Action::Overload {
+            by, frames, until_s, ..
+        } => assert_eq!((by.len(), *frames, *until_s), (0, 1, None)),
+        other => panic!("{other:?}"),
+    }
+}
