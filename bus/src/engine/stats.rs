@@ -185,8 +185,92 @@ impl<T: Copy> History<T> {
 /// Per-node error history.
 #[derive(Clone, Debug, Default, Serialize, PartialEq)]
 pub struct NodeHistory {
-    /// (time, TEC, REC, state) at each change.
+    /// (time, TEC, REC, state) at each change, thinned past 4096 points (for plots).
     pub counters: History<(u16, u16, ErrorState)>,
+    /// The same points for judging: never thinned across a change of state.
+    pub spans: Spans,
+}
+
+/// Most spans a node keeps before it merges neighbours in the same state.
+const SPANS: usize = 8192;
+
+/// One or more consecutive history points in one error state: from `from` to `to` (the times
+/// of its first and last point), with the highest TEC and REC among them.
+#[derive(Clone, Copy, Debug, Serialize, PartialEq, Eq)]
+pub struct Span {
+    /// First point.
+    pub from: BusTime,
+    /// Last point (`from` for a single point).
+    pub to: BusTime,
+    /// Highest TEC.
+    pub tec: u16,
+    /// Highest REC.
+    pub rec: u16,
+    /// The state throughout.
+    pub state: ErrorState,
+}
+
+/// A node's history for judging, in memory that does not grow with the run: every point until
+/// there are [`SPANS`] of them, then neighbours in the same state merge, keeping the highest
+/// counters. A change of state is never merged away, so when and how long a node was in each
+/// state stays exact; counters stay exact where no merged span is.
+#[derive(Clone, Debug, Default, Serialize, PartialEq)]
+pub struct Spans {
+    /// Oldest first.
+    pub list: Vec<Span>,
+    /// Some spans hold more than one point.
+    pub merged: bool,
+    /// Changes of state were so many that some were lost (past 4 × [`SPANS`] spans that could
+    /// not merge); state judgements are then no longer exact.
+    pub lost: bool,
+}
+
+impl Spans {
+    /// Adds a point.
+    pub fn push(&mut self, at: BusTime, tec: u16, rec: u16, state: ErrorState) {
+        if self.list.len() >= SPANS {
+            self.merge();
+        }
+        if self.list.len() >= 4 * SPANS {
+            // Only alternating states can get here; keep the newest.
+            self.list.remove(0);
+            self.lost = true;
+        }
+        self.list.push(Span {
+            from: at,
+            to: at,
+            tec,
+            rec,
+            state,
+        });
+    }
+
+    /// Merges pairs of neighbours in the same state.
+    fn merge(&mut self) {
+        let mut out: Vec<Span> = Vec::with_capacity(self.list.len());
+        let mut i = 0;
+        while i < self.list.len() {
+            let a = self.list[i];
+            match self.list.get(i + 1) {
+                Some(b) if b.state == a.state => {
+                    out.push(Span {
+                        from: a.from,
+                        to: b.to,
+                        tec: a.tec.max(b.tec),
+                        rec: a.rec.max(b.rec),
+                        state: a.state,
+                    });
+                    self.merged = true;
+                    i += 2;
+                }
+                _ => {
+                    out.push(a);
+                    i += 1;
+                }
+            }
+        }
+        self.list = out;
+    }
 }
 
 /// Everything the bus measures.
@@ -317,7 +401,9 @@ impl Stats {
         if self.nodes.len() <= node.index() {
             self.nodes.resize_with(node.index() + 1, NodeHistory::default);
         }
-        self.nodes[node.index()].counters.push(at, (tec, rec, state));
+        let h = &mut self.nodes[node.index()];
+        h.counters.push(at, (tec, rec, state));
+        h.spans.push(at, tec, rec, state);
     }
 
     /// Load over the whole run, 0..=1.

@@ -20,7 +20,7 @@ use crate::BadInput;
 use crate::harvester::{self, Harvester, Running};
 use actix::prelude::*;
 use bus::candump::parse_frame;
-use bus::engine::{BitPosition, ControllerConfig, Filter, Rule, Schedule};
+use bus::engine::{BitPosition, ControllerConfig, Effect, Filter, Rule, Schedule};
 use bus::hub::{Attach, Control, GetErrorCounters, GetSnapshot, Replace, Submit, runtime};
 use bus::node::{Apply, NodeActor, NodeLogic};
 use bus::time::BusTime;
@@ -573,7 +573,7 @@ pub fn run(
             Todo::Act(i, step.action.clone()),
         ));
         match &step.action {
-            Action::BitErrors { until_s: Some(u), .. } => {
+            Action::BitErrors { until_s: Some(u), .. } | Action::Overload { until_s: Some(u), .. } => {
                 todo.push((BusTime::from_secs_f64(*u), i, Todo::EndBitErrors(i)))
             }
             Action::Babble { until_s, .. } => {
@@ -720,6 +720,35 @@ struct Babblers {
     parked: Vec<bus::engine::NodeId>,
 }
 
+/// The engine's form of the frames a fault targets.
+fn engine_target(
+    target: &Target,
+    id: &dyn Fn(&str) -> anyhow::Result<bus::engine::NodeId>,
+) -> anyhow::Result<bus::engine::Target> {
+    Ok(match target {
+        Target::Any => bus::engine::Target::Any,
+        Target::Node(n) => bus::engine::Target::Node(id(n)?),
+        Target::Id(text) => bus::engine::Target::Id {
+            id: u32::from_str_radix(text, 16)?,
+            mask: 0x1FFF_FFFF,
+        },
+        Target::Priority(p) => bus::engine::Target::Id {
+            id: u32::from(*p) << 24,
+            mask: 0x1F00_0000,
+        },
+    })
+}
+
+/// The engine's form of which targeted frames are hit.
+fn engine_schedule(hits: Hits) -> Schedule {
+    match hits {
+        Hits::Once => Schedule::Once,
+        Hits::EveryNth(n) => Schedule::EveryNth(n),
+        Hits::Always => Schedule::Always,
+        Hits::BitErrorRate(r) => Schedule::BitErrorRate(r),
+    }
+}
+
 async fn act(
     running: &mut Running,
     index: usize,
@@ -729,32 +758,58 @@ async fn act(
 ) -> anyhow::Result<()> {
     let id = |n: &str| running.node(n).ok_or_else(|| anyhow::anyhow!("no node {n}"));
     match action {
-        Action::BitErrors { target, hits, .. } => {
-            let target = match target {
-                Target::Any => bus::engine::Target::Any,
-                Target::Node(n) => bus::engine::Target::Node(id(&n)?),
-                Target::Id(text) => bus::engine::Target::Id {
-                    id: u32::from_str_radix(&text, 16)?,
-                    mask: 0x1FFF_FFFF,
-                },
-                Target::Priority(p) => bus::engine::Target::Id {
-                    id: u32::from(p) << 24,
-                    mask: 0x1F00_0000,
-                },
+        Action::BitErrors {
+            target,
+            hits,
+            kind,
+            seen_by,
+            ..
+        } => {
+            let effect = match kind {
+                ErrorKind::Bit => Effect::Bit,
+                ErrorKind::Stuff => Effect::Stuff,
+                ErrorKind::Crc => Effect::Crc,
+                ErrorKind::Form => Effect::Form,
             };
-            let schedule = match hits {
-                Hits::Once => Schedule::Once,
-                Hits::EveryNth(n) => Schedule::EveryNth(n),
-                Hits::Always => Schedule::Always,
-                Hits::BitErrorRate(r) => Schedule::BitErrorRate(r),
+            let seen_by = match seen_by {
+                SeenBy::All => bus::engine::SeenBy::All,
+                SeenBy::Nodes(names) => bus::engine::SeenBy::Nodes(names.iter().map(|n| id(n)).collect::<Result<_, _>>()?),
             };
-            let rule = Rule::bit_errors(target, schedule, BitPosition::Random);
+            let rule = Rule {
+                target: engine_target(&target, &id)?,
+                schedule: engine_schedule(hits),
+                bit: BitPosition::Random,
+                effect,
+                seen_by,
+            };
             if let Some(r) = running.hub.send(Control::AddRule(rule)).await?? {
                 // Keyed by timeline entry, so that its `until_s` removes this rule.
                 rules.insert(index, r);
             }
         }
-        Action::Overload { .. } => {}
+        Action::Overload {
+            target,
+            hits,
+            by,
+            frames,
+            ..
+        } => {
+            let seen_by = if by.is_empty() {
+                bus::engine::SeenBy::All
+            } else {
+                bus::engine::SeenBy::Nodes(by.iter().map(|n| id(n)).collect::<Result<_, _>>()?)
+            };
+            let rule = Rule {
+                target: engine_target(&target, &id)?,
+                schedule: engine_schedule(hits),
+                bit: BitPosition::Random,
+                effect: Effect::Overload(frames),
+                seen_by,
+            };
+            if let Some(r) = running.hub.send(Control::AddRule(rule)).await?? {
+                rules.insert(index, r);
+            }
+        }
         Action::AckFailure(n) => drop(running.hub.send(Control::SetAck(id(&n)?, false)).await??),
         Action::AckRestored(n) => drop(running.hub.send(Control::SetAck(id(&n)?, true)).await??),
         Action::Disconnect(n) => drop(running.hub.send(Control::SetConnected(id(&n)?, false)).await??),

@@ -7,11 +7,13 @@
 //! visit to a state, however brief, are at points. Before its first point a node is error active
 //! with both counters at zero, as every controller starts.
 //!
-//! That holds while the history is whole. Past 4096 points the hub keeps every other point (see
-//! `bus::engine::stats::History`); a [`Timeline`] knows whether that happened, and the checks
-//! then say they cannot judge instead of passing on what was dropped.
+//! The history a timeline reads is the hub's [`Spans`]: every point until a node has thousands,
+//! then neighbouring points in the same state merge into spans that keep the highest counters.
+//! A change of state is never merged away, so the state checks stay exact on any run; a counter
+//! check is exact wherever no merged span is, and otherwise says that it cannot tell when the
+//! merged spans leave the answer open.
 
-use bus::engine::stats::History;
+use bus::engine::stats::{Span, Spans};
 use bus::fault::ErrorState;
 use bus::time::BusTime;
 
@@ -33,11 +35,12 @@ const START: Point = Point {
     state: ErrorState::Active,
 };
 
-/// One node's recorded points, oldest first.
+/// One node's recorded points (spans), oldest first.
 #[derive(Clone, Copy, Debug)]
 pub struct Timeline<'a> {
-    points: &'a [(BusTime, (u16, u16, ErrorState))],
+    points: &'a [Span],
     whole: bool,
+    lost: bool,
 }
 
 /// Where a condition was first seen in a window.
@@ -55,40 +58,65 @@ pub struct Seen {
 
 impl<'a> Timeline<'a> {
     /// The timeline of a node with this history (`None`: no point was ever recorded).
-    pub fn new(history: Option<&'a History<(u16, u16, ErrorState)>>) -> Timeline<'a> {
+    pub fn new(history: Option<&'a Spans>) -> Timeline<'a> {
         match history {
             Some(h) => Timeline {
-                points: &h.points,
-                whole: is_whole(h),
+                points: &h.list,
+                whole: !h.merged,
+                lost: h.lost,
             },
             None => Timeline {
                 points: &[],
                 whole: true,
+                lost: false,
             },
         }
     }
 
-    /// Points recorded, kept or not.
+    /// Spans recorded.
     pub fn len(&self) -> usize {
         self.points.len()
     }
 
-    /// Whether every recorded point was kept (judging needs it).
+    /// Whether every recorded point is there on its own.
+    #[cfg(test)]
     pub fn is_whole(&self) -> bool {
         self.whole
     }
 
+    /// Whether every change of state is there (state checks need it).
+    pub fn states_exact(&self) -> bool {
+        !self.lost
+    }
+
+    /// Whether the counters are exact between `from` and `to`: no merged span touches them.
+    pub fn counters_exact(&self, from: BusTime, to: BusTime) -> bool {
+        self.whole
+            || self
+                .points
+                .iter()
+                .filter(|s| s.from != s.to)
+                .all(|s| s.to < from || s.from > to)
+    }
+
     fn point(&self, i: usize) -> (BusTime, Point) {
-        let (t, (tec, rec, state)) = self.points[i];
-        (t, Point { tec, rec, state })
+        let s = self.points[i];
+        (
+            s.from,
+            Point {
+                tec: s.tec,
+                rec: s.rec,
+                state: s.state,
+            },
+        )
     }
 
     /// What the node was on entering a window that starts at `t`, if no point is at `t` itself
     /// (points at `t` are the window's first word on it), and the index of the window's first
     /// point.
     fn entering(&self, t: BusTime) -> (Option<Point>, usize) {
-        let n = self.points.partition_point(|(at, _)| *at < t);
-        if self.points.get(n).is_some_and(|(at, _)| *at == t) {
+        let n = self.points.partition_point(|s| s.from < t);
+        if self.points.get(n).is_some_and(|s| s.from == t) {
             return (None, n);
         }
         (Some(n.checked_sub(1).map_or(START, |i| self.point(i).1)), n)
@@ -163,32 +191,15 @@ impl<'a> Timeline<'a> {
     }
 }
 
-/// Whether the hub kept every point it was given. The history does not say so in its API; its
-/// serialised form counts the points seen, so that a report can show what was thinned.
-fn is_whole<T: serde::Serialize>(h: &History<T>) -> bool {
-    let seen = serde_json::to_value(h)
-        .ok()
-        .and_then(|v| v.get("seen").and_then(|s| s.as_u64()));
-    match seen {
-        Some(seen) => seen == h.points.len() as u64,
-        // No count to compare with: only a history too short ever to have been halved is whole.
-        None => h.points.len() <= THINNED_AT_LEAST / 2,
-    }
-}
-
-/// The hub halves a history when it reaches this many points (`HISTORY_POINTS` in the bus's
-/// statistics), leaving half of them: a shorter one was never halved.
-const THINNED_AT_LEAST: usize = 4096;
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use ErrorState::*;
 
-    fn history(points: &[(u64, u16, u16, ErrorState)]) -> History<(u16, u16, ErrorState)> {
-        let mut h = History::default();
+    fn history(points: &[(u64, u16, u16, ErrorState)]) -> Spans {
+        let mut h = Spans::default();
         for &(ms, tec, rec, s) in points {
-            h.push(BusTime(ms * 1_000_000), (tec, rec, s));
+            h.push(BusTime(ms * 1_000_000), tec, rec, s);
         }
         h
     }
@@ -198,7 +209,7 @@ mod tests {
     }
 
     /// E0 error passive at 5.1 s, bus off for 6 ms at 7.2 s, active again at 12 s.
-    fn sample() -> History<(u16, u16, ErrorState)> {
+    fn sample() -> Spans {
         history(&[
             (5000, 8, 0, Active),
             (5100, 128, 0, Passive),
@@ -268,16 +279,31 @@ mod tests {
     }
 
     #[test]
-    fn a_thinned_history_is_not_whole() {
-        let mut h = History::default();
-        for i in 0..THINNED_AT_LEAST as u64 + 1 {
-            h.push(BusTime(i), (0, 1, Active));
+    fn a_long_history_merges_counters_but_keeps_every_change_of_state() {
+        // 20,000 points: REC climbing by one per ms, passive from 128 to 10,000 ms, then bus
+        // off for 1 ms and active again.
+        let mut points = Vec::new();
+        for ms in 0..20_000u64 {
+            let rec = (ms % 200) as u16;
+            let state = match ms {
+                10_000 => BusOff,
+                _ if rec >= 128 => Passive,
+                _ => Active,
+            };
+            points.push((ms, 0, rec, state));
         }
-        assert!(!Timeline::new(Some(&h)).is_whole());
-        let mut h = History::default();
-        for i in 0..THINNED_AT_LEAST as u64 {
-            h.push(BusTime(i), (0, 1, Active));
-        }
-        assert!(Timeline::new(Some(&h)).is_whole());
+        let h = history(&points);
+        let t = Timeline::new(Some(&h));
+        assert!(!t.is_whole() && t.states_exact());
+        assert!(h.list.len() <= 2 * 8192, "{}", h.list.len());
+        assert_eq!(t.entries(BusOff), vec![ms(10_000)]);
+        // One visit per 200 ms (REC 128..=199); the bus off at 10 s falls on REC 0.
+        assert_eq!(t.entries(Passive).len(), 100);
+        let seen = t.first(ms(0), ms(20_000), |p| p.state == BusOff).unwrap();
+        assert_eq!(seen.at, ms(10_000));
+        assert_eq!(t.first(ms(10_001), ms(20_000), |p| p.state == BusOff), None);
+        // The highest REC survives merging.
+        assert_eq!(t.highest(ms(0), ms(20_000), |p| p.rec).0, 199);
+        assert!(!t.counters_exact(ms(0), ms(20_000)));
     }
 }
