@@ -104,7 +104,7 @@ fn a_bad_scenario_lists_every_problem_and_runs_nothing() {
 fn validate_accepts_every_shipped_file() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs");
     let mut files = vec![root.join("harvester.ron")];
-    for d in ["nodes", "scenarios"] {
+    for d in ["nodes", "scenarios", "soak"] {
         files.extend(
             std::fs::read_dir(root.join(d))
                 .unwrap()
