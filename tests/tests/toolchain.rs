@@ -24,10 +24,7 @@ impl RustVersion {
     fn parse(text: &str) -> RustVersion {
         let mut parts = [0; 3];
         let fields: Vec<&str> = text.split('.').collect();
-        assert!(
-            (1..=3).contains(&fields.len()),
-            "'{text}' is not a Rust version"
-        );
+        assert!((1..=3).contains(&fields.len()), "'{text}' is not a Rust version");
         for (part, field) in parts.iter_mut().zip(fields) {
             *part = field
                 .parse()
@@ -46,10 +43,7 @@ impl std::fmt::Display for RustVersion {
 
 /// The platform the tests run on, as rustc names it (`x86_64-unknown-linux-gnu`).
 fn host() -> String {
-    let out = Command::new("rustc")
-        .arg("-vV")
-        .output()
-        .expect("run rustc -vV");
+    let out = Command::new("rustc").arg("-vV").output().expect("run rustc -vV");
     String::from_utf8(out.stdout)
         .unwrap()
         .lines()
@@ -62,7 +56,14 @@ fn metadata(dir: &Path, host: &str) -> Value {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let out = Command::new(cargo)
         .current_dir(dir)
-        .args(["metadata", "--format-version", "1", "--locked", "--filter-platform", host])
+        .args([
+            "metadata",
+            "--format-version",
+            "1",
+            "--locked",
+            "--filter-platform",
+            host,
+        ])
         .output()
         .expect("run cargo metadata");
     assert!(
@@ -126,7 +127,10 @@ fn check(dir: &Path, host: &str) -> (RustVersion, String) {
         .filter(|p| !members.contains(p["id"].as_str().unwrap()))
         .filter_map(|p| {
             let version = RustVersion::parse(p["rust_version"].as_str()?);
-            Some((version, format!("{} {}", p["name"].as_str()?, p["version"].as_str()?)))
+            Some((
+                version,
+                format!("{} {}", p["name"].as_str()?, p["version"].as_str()?),
+            ))
         })
         .max()
         .expect("some dependency states a rust_version");
@@ -135,9 +139,9 @@ fn check(dir: &Path, host: &str) -> (RustVersion, String) {
         .filter(|p| members.contains(p["id"].as_str().unwrap()))
     {
         let name = member["name"].as_str().unwrap();
-        let declared = member["rust_version"].as_str().unwrap_or_else(|| {
-            panic!("{name} in {} declares no rust-version", dir.display())
-        });
+        let declared = member["rust_version"]
+            .as_str()
+            .unwrap_or_else(|| panic!("{name} in {} declares no rust-version", dir.display()));
         assert!(
             RustVersion::parse(declared) >= highest.0,
             "{name} in {} says rust-version {declared}, but {} needs Rust {}",

@@ -211,7 +211,10 @@ mod tests {
     #[test]
     fn hints_fit_the_kind_of_interface() {
         let missing_real = open_hint("can0", Some(19));
-        assert!(missing_real.contains("ip -details link show type can"), "{missing_real}");
+        assert!(
+            missing_real.contains("ip -details link show type can"),
+            "{missing_real}"
+        );
         assert!(!missing_real.contains("vcan"), "{missing_real}");
         assert!(open_hint("vcan1", Some(19)).contains("ip link add dev vcan1 type vcan"));
         assert!(open_hint("can1", Some(100)).contains("ip link set can1 up type can bitrate 250000"));
