@@ -24,13 +24,13 @@ pub struct Args {
     #[arg(default_value = "configs/soak/soak_24h.ron")]
     scenario: PathBuf,
     /// Virtual hours to run (default: the scenario's duration); the faults are drawn for this length.
-    #[arg(long)]
+    #[arg(long, value_name = "HOURS")]
     hours: Option<f64>,
     /// Seed of the run and of its faults (default: the scenario's, else its config's).
-    #[arg(long)]
+    #[arg(long, value_name = "N")]
     seed: Option<u64>,
     /// Write the trace here: Vector ASC when the name ends in .asc, else a candump log.
-    #[arg(long)]
+    #[arg(long, value_name = "FILE")]
     record: Option<PathBuf>,
 }
 
