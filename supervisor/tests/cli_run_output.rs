@@ -42,7 +42,7 @@ fn piped_output_is_plain_lines_every_ten_seconds_and_one_closing_summary() {
 
 #[test]
 fn ctrl_c_ends_a_real_time_run_with_one_summary() {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_harvemu"))
+    let child = Command::new(env!("CARGO_BIN_EXE_harvemu"))
         .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
         .args(["run", "--for", "60s"])
         .stdin(Stdio::null())

@@ -161,24 +161,26 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         let ctrl_c = tokio::signal::ctrl_c();
         tokio::pin!(ctrl_c);
         // The live display had its own loop; this one shows the summary instead.
-        while !tui {
-            let next = BusTime((t.as_nanos() / step.as_nanos() + 1) * step.as_nanos());
-            let next = end.map_or(next, |e| next.min(e));
-            tokio::select! {
-                r = running.run_until(next) => { r?; t = running.now(); }
-                _ = &mut ctrl_c => {
-                    interrupted = true;
+        if !tui {
+            loop {
+                let next = BusTime((t.as_nanos() / step.as_nanos() + 1) * step.as_nanos());
+                let next = end.map_or(next, |e| next.min(e));
+                tokio::select! {
+                    r = running.run_until(next) => { r?; t = running.now(); }
+                    _ = &mut ctrl_c => {
+                        interrupted = true;
+                        break;
+                    }
+                }
+                for e in &running.events[reported..] {
+                    console.event(&format!("harvemu: {} {} {}", e.at, e.node, e.what));
+                }
+                reported = running.events.len();
+                let snap = running.hub.send(GetSnapshot).await?;
+                console.update(&Summary::of(&snap, &running));
+                if end.is_some_and(|e| t >= e) {
                     break;
                 }
-            }
-            for e in &running.events[reported..] {
-                console.event(&format!("harvemu: {} {} {}", e.at, e.node, e.what));
-            }
-            reported = running.events.len();
-            let snap = running.hub.send(GetSnapshot).await?;
-            console.update(&Summary::of(&snap, &running));
-            if end.is_some_and(|e| t >= e) {
-                break;
             }
         }
         // Pausing the hub at the present flushes the trace.
