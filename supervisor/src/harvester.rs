@@ -178,9 +178,19 @@ impl Harvester {
     }
 }
 
-/// Turns a config error into bad input for the command line.
+/// Turns a config error into bad input for the command line. A default config (`configs/...`,
+/// relative to the working directory) that is not there gets told how to point at one: an
+/// installed harvemu run outside the repository does not find its defaults.
 pub fn bad(e: Error) -> anyhow::Error {
-    BadInput(e.to_string()).into()
+    let hint = match &e {
+        Error::Io { path, source }
+            if source.kind() == std::io::ErrorKind::NotFound && path.starts_with("configs/") =>
+        {
+            DEFAULT_CONFIG_HINT
+        }
+        _ => "",
+    };
+    BadInput(format!("{e}{hint}")).into()
 }
 
 /// The controller of a node: a field node's as its script declares it; the monitor's keeps every
@@ -202,6 +212,12 @@ fn controller(name: &str, spec: &Spec) -> anyhow::Result<ControllerConfig> {
     };
     Ok(ControllerConfig::named(name).with_filter(filter))
 }
+
+/// Appended to "configs/...: No such file or directory".
+pub const DEFAULT_CONFIG_HINT: &str = "; the default configs are read from configs/ in the \
+     current directory: run harvemu in the harvemu repository, or give a config's path \
+     (`harvemu run PATH/harvester.ron`, `--config FILE` for replay, dbc and bench, \
+     `harvemu soak PATH/soak_24h.ron`)";
 
 /// How crashed nodes are restarted (the `restart` section of the harvester config).
 #[derive(Clone, Debug, Deserialize, serde::Serialize)]

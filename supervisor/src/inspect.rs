@@ -13,9 +13,10 @@ use serde_json::{Value, json};
 pub struct Args {
     /// The frame as candump writes it: `0601F5D0#200D0002FFBFFF00` (8 hex digits = extended,
     /// 3 = base; `123#R` for a remote frame).
+    #[arg(value_name = "ID#DATA")]
     frame: String,
     /// Bit rate for the duration, in bit/s.
-    #[arg(long, default_value_t = 250_000)]
+    #[arg(long, value_name = "BPS", default_value_t = 250_000)]
     bitrate: u32,
     /// Print one JSON object instead of text.
     #[arg(long)]

@@ -17,25 +17,74 @@ struct Cli {
     command: Command,
 }
 
+// One example or more per subcommand, under its --help.
+const RUN_EXAMPLES: &str = "\
+Examples:
+  harvemu run                                        the default harvester, real time (Ctrl-C stops)
+  harvemu run --fast --for 10m --record harvest.log  10 minutes of virtual time, as fast as possible
+  harvemu run my-harvester.ron --seed 7 --for 120s   another config and seed, two minutes";
+
+const REPLAY_EXAMPLES: &str = "\
+Examples:
+  harvemu replay harvest.asc --without D3 --skip-emulated --fast";
+
+const SCENARIO_EXAMPLES: &str = "\
+Examples:
+  harvemu scenario configs/scenarios/*.ron --junit report.xml
+  harvemu scenario configs/scenarios/bus_off.ron --seed 7 --report bus_off.html";
+
+const SOAK_EXAMPLES: &str = "\
+Examples:
+  harvemu soak --hours 1 --seed 7";
+
+const VALIDATE_EXAMPLES: &str = "\
+Examples:
+  harvemu validate configs/harvester.ron configs/nodes/*.ron configs/scenarios/*.ron";
+
+const INSPECT_EXAMPLES: &str = "\
+Examples:
+  harvemu inspect 0300A0F5#0101 --json";
+
+const BENCH_EXAMPLES: &str = "\
+Examples:
+  harvemu bench --only harvester --json";
+
+const DBC_EXAMPLES: &str = "\
+Examples:
+  harvemu dbc -o harvester.dbc";
+
+const PROTOCOL_EXAMPLES: &str = "\
+Examples:
+  harvemu protocol --markdown";
+
 #[derive(Subcommand)]
 enum Command {
     /// Run the emulated harvester on the virtual hub.
+    #[command(after_help = RUN_EXAMPLES)]
     Run(run::Args),
     /// Play a candump log or Vector ASC trace onto the emulated harvester's bus.
+    #[command(after_help = REPLAY_EXAMPLES)]
     Replay(replay::Args),
     /// Run scenarios in virtual time and give verdicts (exit code 1 if any expectation fails).
+    #[command(after_help = SCENARIO_EXAMPLES)]
     Scenario(scenarios_cli::ScenarioArgs),
     /// A long run with random faults (default: 24 h virtual): memory over time and the books.
+    #[command(after_help = SOAK_EXAMPLES)]
     Soak(soak::Args),
     /// Check harvester configs, node scripts and scenarios without running anything.
+    #[command(after_help = VALIDATE_EXAMPLES)]
     Validate(scenarios_cli::ValidateArgs),
     /// Decode one frame: identifier fields, catalogue message, CRC, bit lengths, filters.
+    #[command(after_help = INSPECT_EXAMPLES)]
     Inspect(inspect::Args),
     /// Measure how fast the emulator runs (saturated bus; many buses in one process).
+    #[command(after_help = BENCH_EXAMPLES)]
     Bench(bench::Args),
     /// Write a DBC of the whole harvester (catalogue messages, cycle times from the node scripts).
+    #[command(after_help = DBC_EXAMPLES)]
     Dbc(dbc::Args),
     /// Print the message catalogue (`--markdown`: the generated part of docs/PROTOCOL.md).
+    #[command(after_help = PROTOCOL_EXAMPLES)]
     Protocol {
         /// Print the Markdown tables of docs/PROTOCOL.md.
         #[arg(long)]

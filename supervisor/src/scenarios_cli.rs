@@ -13,21 +13,21 @@ use std::path::PathBuf;
 #[derive(clap::Args)]
 pub struct ScenarioArgs {
     /// Scenario files (RON).
-    #[arg(required = true)]
+    #[arg(required = true, value_name = "FILE")]
     files: Vec<PathBuf>,
     /// Seed for every scenario (default: the scenario's, else its config's).
-    #[arg(long)]
+    #[arg(long, value_name = "N")]
     seed: Option<u64>,
     /// Write a JUnit XML report here.
-    #[arg(long)]
+    #[arg(long, value_name = "FILE")]
     junit: Option<PathBuf>,
     /// Write the trace here (with several files, the last one's): Vector ASC when the name ends
     /// in .asc, else a candump log.
-    #[arg(long)]
+    #[arg(long, value_name = "FILE")]
     record: Option<PathBuf>,
     /// Write an HTML report here: one page, a section per scenario, plots inline (written also
     /// when expectations fail or the run is interrupted).
-    #[arg(long)]
+    #[arg(long, value_name = "FILE")]
     report: Option<PathBuf>,
 }
 
@@ -141,7 +141,7 @@ fn run_one(l: &Loaded, record: Option<&PathBuf>) -> anyhow::Result<scenario::Out
 #[derive(clap::Args)]
 pub struct ValidateArgs {
     /// Harvester configs, node scripts or scenarios (RON); the kind is read from the file.
-    #[arg(required = true)]
+    #[arg(required = true, value_name = "FILE")]
     files: Vec<PathBuf>,
 }
 

@@ -109,3 +109,31 @@ fn bad_durations_are_refused() {
         assert_eq!(out.status.code(), Some(2), "{bad}");
     }
 }
+
+#[test]
+fn outside_the_repository_the_error_says_how_to_point_at_a_config() {
+    let dir = common::scratch("cli-run", "elsewhere");
+    let run = |args: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_harvemu"))
+            .current_dir(&dir)
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    for args in [
+        &["run", "--fast", "--for", "1s"][..],
+        &["dbc", "-o", "x.dbc"],
+        &["soak", "--hours", "0.01"],
+    ] {
+        let out = run(args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        let err = String::from_utf8(out.stderr).unwrap();
+        assert!(err.contains("configs/"), "{args:?}: {err}");
+        assert!(err.contains("give a config's path"), "{args:?}: {err}");
+        assert_eq!(err.lines().count(), 1, "{args:?}: {err}");
+    }
+    // Given its path, the config works from anywhere (node scripts are relative to it).
+    let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs/harvester.ron");
+    let out = run(&["run", config.to_str().unwrap(), "--fast", "--for", "1s"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+}

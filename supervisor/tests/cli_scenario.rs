@@ -144,7 +144,7 @@ fn bad_thresholds_windows_and_fault_options_give_exit_2_with_file_index_and_fiel
 fn validate_accepts_every_shipped_file() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs");
     let mut files = vec![root.join("harvester.ron")];
-    for d in ["nodes", "scenarios"] {
+    for d in ["nodes", "scenarios", "soak"] {
         files.extend(
             std::fs::read_dir(root.join(d))
                 .unwrap()

@@ -1,6 +1,9 @@
 //! python-can as the external parser: it reads the candump logs and ASC files harvemu writes,
-//! and harvemu reads the ASC files python-can writes. Without python-can the tests fail when
-//! `CI` is set and say they were skipped otherwise (install: `python3 -m pip install python-can`).
+//! and harvemu reads the ASC files python-can writes.
+//!
+//! The python is `HARVEMU_PYTHON` (scripts/test points it at a virtual environment it makes with
+//! python-can), else `python3`. Without python-can the tests fail: a cross-check that cannot run
+//! has checked nothing.
 
 use serde_json::Value;
 use std::path::{Path, PathBuf};
@@ -42,24 +45,34 @@ for m in msgs:
     }))
 "#;
 
-/// True when python-can is there; otherwise a failure under CI, a skip message elsewhere.
-fn python_can() -> bool {
-    let there = Command::new("python3")
-        .args(["-c", "import can"])
-        .output()
-        .is_ok_and(|o| o.status.success());
-    if !there {
-        assert!(
-            std::env::var_os("CI").is_none(),
-            "python-can is missing: install it with `python3 -m pip install python-can`"
-        );
-        eprintln!("SKIPPED: python-can is not installed (python3 -m pip install python-can)");
-    }
-    there
+/// The python to run: `HARVEMU_PYTHON`, else `python3`.
+fn interpreter() -> PathBuf {
+    std::env::var_os("HARVEMU_PYTHON").map_or_else(|| "python3".into(), PathBuf::from)
+}
+
+/// Fails the test, saying how to get python-can, unless the interpreter imports it.
+fn require_python_can() {
+    let python = interpreter();
+    let out = Command::new(&python).args(["-c", "import can"]).output();
+    let why = match out {
+        Ok(o) if o.status.success() => return,
+        // The traceback's last line says what is missing.
+        Ok(o) => String::from_utf8_lossy(&o.stderr)
+            .lines()
+            .last()
+            .unwrap_or_default()
+            .to_owned(),
+        Err(e) => e.to_string(),
+    };
+    panic!(
+        "python-can cannot be imported with {} ({why}): run scripts/test, which makes a virtual \
+         environment with it, or set HARVEMU_PYTHON to a python that has it",
+        python.display()
+    );
 }
 
 fn python(script: &str, arg: &Path) -> Vec<Value> {
-    let out = Command::new("python3")
+    let out = Command::new(interpreter())
         .args(["-c", script])
         .arg(arg)
         .output()
@@ -100,9 +113,7 @@ fn expected(log: &str) -> Vec<Value> {
 
 #[test]
 fn python_can_reads_what_harvemu_writes() {
-    if !python_can() {
-        return;
-    }
+    require_python_can();
     let d = dir();
     let run = |file: &Path| {
         let out = Command::new(env!("CARGO_BIN_EXE_harvemu"))
@@ -124,9 +135,7 @@ fn python_can_reads_what_harvemu_writes() {
 
 #[test]
 fn python_can_reads_error_frames_and_remote_frames_harvemu_writes() {
-    if !python_can() {
-        return;
-    }
+    require_python_can();
     let d = dir();
     // A candump log with a bus error frame (as the hub writes it) and remote frames, converted to
     // ASC by the same writer `--record FILE.asc` uses.
@@ -172,9 +181,7 @@ fn python_can_reads_error_frames_and_remote_frames_harvemu_writes() {
 
 #[test]
 fn harvemu_reads_what_python_can_writes() {
-    if !python_can() {
-        return;
-    }
+    require_python_can();
     let path = dir().join("python.asc");
     let written = python(WRITE, &path);
     let text = std::fs::read_to_string(&path).unwrap();

@@ -156,7 +156,7 @@ fn a_short_soak_with_dense_random_faults_balances_its_books() {
 
 #[test]
 fn bad_soak_input_is_named_and_nothing_runs() {
-    let shipped = root().join("configs/scenarios/soak_24h.ron");
+    let shipped = root().join("configs/soak/soak_24h.ron");
     let shipped = shipped.to_str().unwrap();
     for (words, says) in [
         (vec![shipped, "--hours=-1"], "--hours -1"),

@@ -41,9 +41,9 @@ fn line_with<'a>(screen: &'a [String], key: &str) -> &'a str {
     found[0]
 }
 
-/// The monitor panel's part of a line (the bus panel is to its right).
+/// The monitor panel's part of a line, up to its right border (the bus panel is to its right).
 fn left(line: &str) -> String {
-    line.chars().take(58).collect()
+    line.chars().skip(1).take_while(|c| *c != '│').collect()
 }
 
 #[test]

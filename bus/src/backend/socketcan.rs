@@ -49,15 +49,25 @@ impl Bridge {
 
 /// Explains why an interface cannot be opened, in the user's terms.
 fn open_error(iface: &str, e: std::io::Error) -> Error {
-    let hint = match e.raw_os_error() {
-        Some(97) => " (this kernel has no CAN support: load the can and can-raw modules, or run inside a VM)",
-        Some(19) => {
-            " (no such interface: create it, e.g. `ip link add dev vcan0 type vcan && ip link set vcan0 up`)"
-        }
-        Some(100) => " (the interface is down: `ip link set IFACE up`)",
-        _ => "",
-    };
+    let hint = open_hint(iface, e.raw_os_error());
     Error::Syntax(format!("cannot open CAN interface {iface}: {e}{hint}"))
+}
+
+/// What to do about errno `code` when opening `iface`. A virtual interface (`vcan*`) is made
+/// with `ip link add`; a real one (can0) comes with its controller's driver and needs a bitrate,
+/// so it is never told to become a vcan.
+fn open_hint(iface: &str, code: Option<i32>) -> String {
+    let virtual_iface = iface.starts_with("vcan");
+    match code {
+        Some(97) => " (this kernel has no CAN support: load the can and can-raw modules, or run inside a VM)".into(),
+        Some(19) if virtual_iface => format!(
+            " (no such interface: create it, e.g. `ip link add dev {iface} type vcan && ip link set {iface} up`)"
+        ),
+        Some(19) => " (no such interface: `ip -details link show type can` lists this machine's CAN interfaces; a controller's interface appears once its driver is loaded)".into(),
+        Some(100) if virtual_iface => format!(" (the interface is down: `ip link set {iface} up`)"),
+        Some(100) => format!(" (the interface is down: `ip link set {iface} up type can bitrate 250000`)"),
+        _ => String::new(),
+    }
 }
 
 fn to_socketcan(f: &Frame) -> Option<CanFrame> {
@@ -199,12 +209,27 @@ mod tests {
     }
 
     #[test]
+    fn hints_fit_the_kind_of_interface() {
+        let missing_real = open_hint("can0", Some(19));
+        assert!(
+            missing_real.contains("ip -details link show type can"),
+            "{missing_real}"
+        );
+        assert!(!missing_real.contains("vcan"), "{missing_real}");
+        assert!(open_hint("vcan1", Some(19)).contains("ip link add dev vcan1 type vcan"));
+        assert!(open_hint("can1", Some(100)).contains("ip link set can1 up type can bitrate 250000"));
+        assert!(open_hint("vcan0", Some(100)).contains("ip link set vcan0 up`"));
+        assert!(open_hint("can0", Some(97)).contains("no CAN support"));
+        assert_eq!(open_hint("can0", Some(1)), "");
+    }
+
+    #[test]
     fn a_kernel_without_can_gets_a_clear_error() {
         // This host's kernel has no AF_CAN; elsewhere there is no such interface. Either way the
         // error says what to do.
         let e = socketcan::tokio::CanSocket::open("harvemu-none");
         let msg = match e {
-            Ok(_) => return,
+            Ok(_) => panic!("an interface named harvemu-none exists: nothing to check"),
             Err(e) => open_error("harvemu-none", e).to_string(),
         };
         assert!(

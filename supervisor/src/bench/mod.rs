@@ -30,28 +30,28 @@ pub struct Args {
     #[arg(long)]
     json: bool,
     /// Virtual seconds each saturated bus runs.
-    #[arg(long, default_value_t = 600.0)]
+    #[arg(long, value_name = "SECONDS", default_value_t = 600.0)]
     seconds: f64,
     /// Bus counts for the multi-bus scenario.
-    #[arg(long, value_delimiter = ',', default_value = "1,10,100")]
+    #[arg(long, value_name = "N,...", value_delimiter = ',', default_value = "1,10,100")]
     buses: Vec<usize>,
     /// Threads for the multi-bus scenarios (each runs its own actor system).
-    #[arg(long, default_value_t = 2)]
+    #[arg(long, value_name = "N", default_value_t = 2)]
     threads: usize,
     /// Harvester config of the harvester scenarios.
-    #[arg(long, default_value = "configs/harvester.ron")]
+    #[arg(long, value_name = "FILE", default_value = "configs/harvester.ron")]
     config: PathBuf,
     /// Virtual seconds of the one-harvester scenario.
-    #[arg(long, default_value_t = 3600.0)]
+    #[arg(long, value_name = "SECONDS", default_value_t = 3600.0)]
     harvester_seconds: f64,
     /// Harvester counts of the many-harvester scenario.
-    #[arg(long, value_delimiter = ',', default_value = "100")]
+    #[arg(long, value_name = "N,...", value_delimiter = ',', default_value = "100")]
     harvesters: Vec<usize>,
     /// Virtual seconds of each harvester in the many-harvester scenario.
-    #[arg(long, default_value_t = 120.0)]
+    #[arg(long, value_name = "SECONDS", default_value_t = 120.0)]
     many_seconds: f64,
     /// Run only these scenarios (saturated, saturated-multi, harvester, realtime).
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, value_name = "SCENARIO,...", value_delimiter = ',')]
     only: Vec<String>,
     /// Run the harvester in real time for this many seconds and measure period jitter against
     /// the wall clock and losses (the realtime scenario, which only runs when asked; e.g. 600).

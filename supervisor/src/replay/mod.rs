@@ -34,9 +34,10 @@ pub const TAIL: Duration = Duration::from_millis(100);
 #[derive(clap::Args)]
 pub struct Args {
     /// The trace: a candump log or a Vector ASC file (the format is read from the file).
+    #[arg(value_name = "TRACE")]
     file: PathBuf,
     /// Harvester config: the emulated nodes that run alongside the replay.
-    #[arg(long, default_value = "configs/harvester.ron")]
+    #[arg(long, value_name = "FILE", default_value = "configs/harvester.ron")]
     config: PathBuf,
     /// Leave a node out of the emulation (repeatable; F5 is the monitor).
     #[arg(long, value_name = "NODE")]
@@ -53,13 +54,13 @@ pub struct Args {
     #[arg(long = "loop", value_name = "N", num_args = 0..=1)]
     passes: Option<Option<u32>>,
     /// Stop this long after the replay starts (e.g. 30s, 10m).
-    #[arg(long = "for", value_parser = parse_duration)]
+    #[arg(long = "for", value_name = "DURATION", value_parser = parse_duration)]
     duration: Option<Duration>,
     /// Record the resulting bus: Vector ASC when the name ends in .asc, else a candump log.
-    #[arg(long)]
+    #[arg(long, value_name = "FILE")]
     record: Option<PathBuf>,
     /// Bridge the bus, replayed frames included, to this SocketCAN interface. Real time only.
-    #[arg(long)]
+    #[arg(long, value_name = "IFACE")]
     iface: Option<String>,
 }
 

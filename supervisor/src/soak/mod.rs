@@ -1,5 +1,5 @@
 //! `harvemu soak`: a long scenario in virtual time with random faults (by default a day of
-//! harvesting, `configs/scenarios/soak_24h.ron`), reported with its memory over time and the
+//! harvesting, `configs/soak/soak_24h.ron`), reported with its memory over time and the
 //! monitor's books.
 //!
 //! Contract: the run is an ordinary scenario run (same loader, runner and verdicts); this module
@@ -21,16 +21,16 @@ use std::path::PathBuf;
 #[derive(clap::Args)]
 pub struct Args {
     /// The soak scenario (RON, usually with a `random_faults` section).
-    #[arg(default_value = "configs/scenarios/soak_24h.ron")]
+    #[arg(default_value = "configs/soak/soak_24h.ron")]
     scenario: PathBuf,
     /// Virtual hours to run (default: the scenario's duration); the faults are drawn for this length.
-    #[arg(long)]
+    #[arg(long, value_name = "HOURS")]
     hours: Option<f64>,
     /// Seed of the run and of its faults (default: the scenario's, else its config's).
-    #[arg(long)]
+    #[arg(long, value_name = "N")]
     seed: Option<u64>,
     /// Write the trace here: Vector ASC when the name ends in .asc, else a candump log.
-    #[arg(long)]
+    #[arg(long, value_name = "FILE")]
     record: Option<PathBuf>,
 }
 

@@ -11,6 +11,7 @@
 //! [`Display`]: nodes::monitor::Display
 
 mod draw;
+mod fit;
 mod keys;
 mod live;
 mod rates;

@@ -278,7 +278,7 @@ fn any_size_renders_without_panicking() {
     }
     // At 20x5 the title is cut, not wrapped.
     let screen = render(&view, 20, 5);
-    assert_eq!(screen[0], "harvemu test  t 1.0 ");
+    assert_eq!(screen[0], "harvemu test        ");
 }
 
 #[test]
@@ -302,4 +302,123 @@ fn decimals_follow_the_scaling() {
     assert_eq!(decimals(0.125), 3);
     assert_eq!(decimals(1e-5), 4);
     assert_eq!(decimals(-0.1), 1);
+}
+
+/// A monitor showing values whose cut forms ("3.7", ".62", "62") would look like numbers.
+fn display_with_numbers() -> Display {
+    Display {
+        phase: "running".into(),
+        total_kg: 13.7,
+        feed_kg_s: 2.62,
+        area_ha: 0.125,
+        kg_per_ha: Some(109.6),
+        speed_kmh: Some(5.4),
+        engine_rpm: Some(2150.0),
+        basket_fill_pct: Some(37.5),
+        rows: (0..6)
+            .map(|r| nodes::monitor::RowYield {
+                kg: 2.0 + f64::from(r),
+                flow_g_s: 1234.0,
+                sensor_state: "running".into(),
+                calibrated: true,
+            })
+            .collect(),
+        ..Display::default()
+    }
+}
+
+/// The tokens after the label of the monitor panel's row that starts with `label`.
+fn row_tokens(screen: &[String], label: &str) -> Vec<String> {
+    let start = format!("│{label} ");
+    let line = screen
+        .iter()
+        .find(|l| l.starts_with(&start))
+        .unwrap_or_else(|| panic!("no row {label:?} in:\n{}", screen.join("\n")));
+    // The monitor panel's part of the line: up to its right border.
+    let panel: String = line.chars().skip(1).take_while(|c| *c != '│').collect();
+    panel
+        .split_whitespace()
+        .skip(label.split_whitespace().count())
+        .map(str::to_owned)
+        .collect()
+}
+
+#[test]
+fn numbers_are_shown_whole_at_every_width() {
+    let (mut bus, _) = bus_with_sender();
+    let snap = snapshot(
+        &mut bus,
+        BusTime::from_millis(13_700),
+        vec![node("D0", ErrorState::Active, 0, 0)],
+    );
+    let display = display_with_numbers();
+    let view = view_of(&snap, Some(&display), &RateMeter::default());
+    // The expected texts, from the values fed in and the plant's signals (not from the view).
+    let plant = Plant::new(PlantConfig::default(), 7);
+    let truth = |name: &str, decimals: usize| format!("{:.decimals$}", plant.signal(name).unwrap());
+    let expected = [
+        ("harvested", "13.7".to_string(), truth("harvested.total", 1)),
+        ("feed", "2.62".to_string(), "-".to_string()),
+        ("area", "0.125".to_string(), "-".to_string()),
+        ("travel speed", "5.4".to_string(), truth("speed.actual", 1)),
+        ("engine", "2150".to_string(), truth("engine.rpm", 0)),
+        ("basket", "37.5".to_string(), truth("basket.fill", 1)),
+        ("row 3", "4.0".to_string(), truth("row3.harvested", 1)),
+    ];
+    for width in [60, 64, 72, 80, 100, 120, 160, 200] {
+        let screen = render(&view, width, 60);
+        for (label, shown, plant_value) in &expected {
+            let tokens = row_tokens(&screen, label);
+            let numbers: Vec<&String> = tokens
+                .iter()
+                .filter(|t| t.starts_with(|c: char| c.is_ascii_digit() || c == '-' || c == '#'))
+                .collect();
+            assert!(
+                numbers.len() >= 2,
+                "{width}: {label}: {tokens:?}\n{}",
+                screen.join("\n")
+            );
+            assert_eq!(numbers[0], shown, "{width}: {label} on the monitor: {tokens:?}");
+            assert_eq!(
+                numbers[1], plant_value,
+                "{width}: {label} in the plant: {tokens:?}"
+            );
+        }
+        // Nowhere a cut form of a number shown.
+        for l in &screen {
+            for t in l.split(|c: char| c.is_whitespace() || c == '│') {
+                assert!(
+                    ![".62", "3.7", "62", ".7", "150"].contains(&t),
+                    "{width}: {t:?} in {l}"
+                );
+            }
+        }
+        // The title's time is whole.
+        assert!(screen[0].contains(" t 13.7 s"), "{width}: {}", screen[0]);
+    }
+    // A wide terminal shows every flow sensor's state whole.
+    let screen = render(&view, 200, 60);
+    for r in 1..=6 {
+        let row = line_with(&screen, &format!("row {r} "));
+        assert!(row.contains("1234 g/s running│"), "{row}");
+    }
+}
+
+#[test]
+fn a_number_without_room_is_hashes_not_digits() {
+    let (mut bus, _) = bus_with_sender();
+    let snap = snapshot(&mut bus, BusTime::from_millis(1000), vec![]);
+    let display = display_with_numbers();
+    let view = view_of(&snap, Some(&display), &RateMeter::default());
+    for width in 1..60 {
+        let screen = render(&view, width, 40);
+        for l in &screen {
+            for t in l.split(|c: char| c.is_whitespace() || c == '│') {
+                assert!(
+                    ![".62", "3.7", "62", ".7", "150", "15", "50"].contains(&t),
+                    "{width}: {t:?} in {l}"
+                );
+            }
+        }
+    }
 }

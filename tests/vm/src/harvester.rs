@@ -127,7 +127,7 @@ fn with_socket(socket: &CanSocket, harvemu: &Path, config: &Path, report: &mut R
     let spawned = Instant::now();
 
     let recording = record(socket, &mut child, spawned);
-    // harvemu's console line ends in '\r'; start the checker's lines on a fresh one.
+    // harvemu's live line (in a terminal) ends without a newline; start the checker's lines on a fresh one.
     println!();
     report.check(
         "harvemu exits with code 0",

@@ -1,11 +1,17 @@
 //! `harvemu run`: the emulated harvester on the virtual hub, in real time or as fast as possible.
 
+mod console;
+pub mod summary;
+
+pub use console::{PLAIN_EVERY, PLAIN_LINES, plain_period};
+pub use summary::Summary;
+
 use crate::BadInput;
 use crate::harvester::{self, Harvester};
 use actix::prelude::*;
 use bus::hub::{GetSnapshot, RunUntil, Snapshot, runtime};
 use bus::time::BusTime;
-use indicatif::{ProgressBar, ProgressStyle};
+use console::Console;
 use std::io::Write;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -14,17 +20,17 @@ use std::time::Duration;
 #[derive(clap::Args)]
 pub struct Args {
     /// Harvester config.
-    #[arg(default_value = "configs/harvester.ron")]
+    #[arg(value_name = "CONFIG", default_value = "configs/harvester.ron")]
     config: PathBuf,
     /// Run in virtual time, as fast as the machine allows (needs --for).
     #[arg(long)]
     fast: bool,
     /// Stop after this much emulated time (e.g. 120s, 10m, 1h, 500ms).
-    #[arg(long = "for", value_parser = parse_duration)]
+    #[arg(long = "for", value_name = "DURATION", value_parser = parse_duration)]
     duration: Option<Duration>,
     /// Write every frame on the bus to this file: Vector ASC when it ends in .asc, else a candump
     /// log.
-    #[arg(long)]
+    #[arg(long, value_name = "FILE")]
     record: Option<PathBuf>,
     /// Serve the bus to socketcand clients (python-can's `socketcand` interface, ...) on this
     /// address; loopback port 29536 when no address is given. The bus is called `harv0`.
@@ -32,7 +38,7 @@ pub struct Args {
     socketcand: Option<std::net::SocketAddr>,
     /// Put the emulated nodes on this SocketCAN interface (vcan0, can0) as well: their frames go
     /// out on it, frames of real devices on it reach them. Real time only.
-    #[arg(long)]
+    #[arg(long, value_name = "IFACE")]
     iface: Option<String>,
     /// Leave a node out, so that a real device on the interface takes its place (repeatable;
     /// F5 is the monitor).
@@ -41,6 +47,9 @@ pub struct Args {
     /// Show the cab monitor and the bus live in the terminal (q, Esc or Ctrl-C quits).
     #[arg(long)]
     tui: bool,
+    /// The run's seed (the plant's randomness, each node's), instead of the config's.
+    #[arg(long, value_name = "N")]
+    seed: Option<u64>,
 }
 
 /// Parses `120s`, `10m`, `1h`, `500ms` or a plain number of seconds.
@@ -68,32 +77,7 @@ pub fn parse_duration(text: &str) -> Result<Duration, String> {
 /// One line about the running harvester: the bus, the plant's truth and, when there is one, what
 /// the monitor shows.
 pub fn summary(s: &Snapshot, running: &harvester::Running) -> String {
-    let p = running.plant.borrow();
-    let get = |n: &str| p.signal(n).unwrap_or(f64::NAN);
-    let monitor = running.display.as_ref().map_or(String::new(), |d| {
-        let d = d.borrow();
-        format!(
-            "  monitor {:8.1} kg, {} alarm(s)",
-            d.total_kg,
-            d.active_alarms().count()
-        )
-    });
-    let errors = s.stats.error_frames;
-    let passive = s
-        .nodes
-        .iter()
-        .filter(|n| n.state != bus::fault::ErrorState::Active)
-        .count();
-    format!(
-        "t={:8.1} s  frames {:>9}  load {:5.1}% (1 s {:5.1}%)  errors {errors}  not active {passive}  speed {:4.1} km/h  harvested {:8.1} kg  basket {:4.1}%{monitor}",
-        s.now.as_secs_f64(),
-        s.stats.frames,
-        s.stats.total_load() * 100.0,
-        s.stats.window_load(1_000_000_000) * 100.0,
-        get("speed.actual"),
-        get("harvested.total"),
-        get("basket.fill"),
-    )
+    Summary::of(s, running).to_string()
 }
 
 /// Runs `harvemu run`.
@@ -102,6 +86,9 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         crate::tui::require_terminal()?;
     }
     let mut h = Harvester::load(&args.config).map_err(harvester::bad)?;
+    if let Some(seed) = args.seed {
+        h.config.seed = seed;
+    }
     h.without(&args.without).map_err(harvester::bad)?;
     if args.fast && args.iface.is_some() {
         return Err(BadInput("--iface runs in real time: leave out --fast".into()).into());
@@ -168,55 +155,39 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                 eprintln!("harvemu: {} {} {}", e.at, e.node, e.what);
             }
         }
-        let bar = match (fast, end) {
-            (true, Some(end)) if !tui => {
-                let bar = ProgressBar::new(end.as_nanos() / 1_000_000_000);
-                bar.set_style(
-                    ProgressStyle::with_template("{bar:40} {pos}/{len} s virtual time, {elapsed} wall {msg}")
-                        .unwrap_or_else(|_| ProgressStyle::default_bar()),
-                );
-                Some(bar)
-            }
-            _ => None,
-        };
+        let mut console = Console::stderr(fast, end);
         let mut t = h.relay();
+        let mut interrupted = false;
         let ctrl_c = tokio::signal::ctrl_c();
         tokio::pin!(ctrl_c);
-        loop {
-            // The live display had its own loop; this one prints a summary line instead.
-            if tui {
-                break;
-            }
-            let next = BusTime((t.as_nanos() / step.as_nanos() + 1) * step.as_nanos());
-            let next = end.map_or(next, |e| next.min(e));
-            tokio::select! {
-                r = running.run_until(next) => { r?; t = running.now(); }
-                _ = &mut ctrl_c => {
-                    eprintln!("\nharvemu: interrupted");
+        // The live display had its own loop; this one shows the summary instead.
+        if !tui {
+            loop {
+                let next = BusTime((t.as_nanos() / step.as_nanos() + 1) * step.as_nanos());
+                let next = end.map_or(next, |e| next.min(e));
+                tokio::select! {
+                    r = running.run_until(next) => { r?; t = running.now(); }
+                    _ = &mut ctrl_c => {
+                        interrupted = true;
+                        break;
+                    }
+                }
+                for e in &running.events[reported..] {
+                    console.event(&format!("harvemu: {} {} {}", e.at, e.node, e.what));
+                }
+                reported = running.events.len();
+                let snap = running.hub.send(GetSnapshot).await?;
+                console.update(&Summary::of(&snap, &running));
+                if end.is_some_and(|e| t >= e) {
                     break;
                 }
             }
-            for e in &running.events[reported..] {
-                eprintln!("\nharvemu: {} {} {}", e.at, e.node, e.what);
-            }
-            reported = running.events.len();
-            let snap = running.hub.send(GetSnapshot).await?;
-            match &bar {
-                Some(bar) => bar.set_position(t.as_nanos() / 1_000_000_000),
-                None => eprint!("\r{}", summary(&snap, &running)),
-            }
-            if end.is_some_and(|e| t >= e) {
-                break;
-            }
-        }
-        if let Some(bar) = bar {
-            bar.finish_and_clear();
         }
         // Pausing the hub at the present flushes the trace.
         let now = running.hub.send(GetSnapshot).await?.now;
         let _ = running.hub.send(RunUntil(now)).await;
         let snap = running.hub.send(GetSnapshot).await?;
-        eprintln!("\n{}", summary(&snap, &running));
+        console.finish(&Summary::of(&snap, &running), interrupted);
         if let Some(b) = &bridge {
             let s = b.stats();
             eprintln!(

@@ -1,0 +1,81 @@
+//! `harvemu SUBCOMMAND --help` as a newcomer reads it: the same placeholder for the same kind of
+//! value everywhere, and an example under each subcommand; `protocol` starts with its first
+//! message.
+
+mod common;
+
+use common::harvemu;
+
+const SUBCOMMANDS: [&str; 9] = [
+    "run", "replay", "scenario", "soak", "validate", "inspect", "bench", "dbc", "protocol",
+];
+
+/// Every placeholder a help may use: files are `<FILE>`, durations `<DURATION>`, counts `<N>`.
+const PLACEHOLDERS: [&str; 12] = [
+    "<FILE>",
+    "<DURATION>",
+    "<N>",
+    "<N,...>",
+    "<NODE>",
+    "<IFACE>",
+    "<ADDR>",
+    "<SECONDS>",
+    "<HOURS>",
+    "<BPS>",
+    "<TRACE>",
+    "<ID#DATA>",
+];
+
+fn help(subcommand: &str) -> String {
+    let out = harvemu(&[subcommand, "--help"]);
+    assert!(out.status.success(), "{subcommand} --help");
+    String::from_utf8(out.stdout).unwrap()
+}
+
+#[test]
+fn every_subcommand_has_an_example_that_uses_it() {
+    for sub in SUBCOMMANDS {
+        let text = help(sub);
+        let (_, examples) = text
+            .split_once("\nExamples:\n")
+            .unwrap_or_else(|| panic!("no examples under {sub} --help:\n{text}"));
+        assert!(
+            examples.contains(&format!("harvemu {sub} ")) || examples.contains(&format!("harvemu {sub}\n")),
+            "{sub}: {examples}"
+        );
+    }
+}
+
+#[test]
+fn placeholders_are_the_same_for_the_same_kind_of_value() {
+    for sub in SUBCOMMANDS {
+        let text = help(sub);
+        let mut rest = text.as_str();
+        while let Some(start) = rest.find('<') {
+            let end = rest[start..].find('>').map_or(rest.len(), |e| start + e + 1);
+            let placeholder = &rest[start..end];
+            let known = PLACEHOLDERS.contains(&placeholder) || placeholder.starts_with("<SCENARIO");
+            assert!(known, "{sub} --help: {placeholder}\n{text}");
+            rest = &rest[end..];
+        }
+        for option in ["--record", "--junit", "--report", "--config", "--output"] {
+            if let Some(at) = text.find(&format!("{option} <")) {
+                assert!(
+                    text[at..].starts_with(&format!("{option} <FILE>")),
+                    "{sub}: {option}\n{text}"
+                );
+            }
+        }
+        if text.contains("--for ") {
+            assert!(text.contains("--for <DURATION>"), "{sub}\n{text}");
+        }
+    }
+}
+
+#[test]
+fn protocol_starts_with_its_first_message() {
+    let out = harvemu(&["protocol"]);
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.starts_with("01 speed.mode "), "{text}");
+    assert!(text.lines().all(|l| !l.trim().is_empty()), "no blank line");
+}

@@ -1,0 +1,50 @@
+//! The README's commands leave nothing untracked behind: every file its examples write (with
+//! `--record`, `--junit`, `--report`, `-o`) is ignored by `.gitignore`.
+
+use std::path::{Path, PathBuf};
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// The files the README's shell examples write, relative to where they are run.
+fn outputs(readme: &str) -> Vec<String> {
+    let mut files = Vec::new();
+    let mut in_shell = false;
+    for line in readme.lines() {
+        if line.starts_with("```") {
+            in_shell = line == "```sh";
+            continue;
+        }
+        if !in_shell {
+            continue;
+        }
+        let command = line.split(" #").next().unwrap_or_default();
+        let words: Vec<&str> = command.split_whitespace().collect();
+        for pair in words.windows(2) {
+            if ["--record", "--junit", "--report", "-o"].contains(&pair[0]) {
+                files.push(pair[1].to_owned());
+            }
+        }
+    }
+    files
+}
+
+#[test]
+fn every_file_the_readme_writes_is_ignored() {
+    let readme = std::fs::read_to_string(root().join("README.md")).unwrap();
+    let ignore = std::fs::read_to_string(root().join(".gitignore")).unwrap();
+    let ignored: Vec<&str> = ignore
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .map(str::trim)
+        .collect();
+    let files = outputs(&readme);
+    assert!(files.len() >= 4, "the README's examples write files: {files:?}");
+    for f in &files {
+        assert!(
+            ignored.contains(&format!("/{f}").as_str()),
+            "README writes {f}, which .gitignore does not ignore"
+        );
+    }
+}
