@@ -17,7 +17,10 @@ use supervisor::scenario;
 /// Every shipped scenario and the timeline actions that are its fault. A scenario file that is
 /// not here fails both tests.
 const SHIPPED: &[(&str, &[&str])] = &[
-    ("ack_failure.ron", &["AckFailure", "AckRestored", "Hang", "Resume"]),
+    (
+        "ack_failure.ron",
+        &["AckFailure", "AckRestored", "Hang", "Resume"],
+    ),
     ("babbling_idiot.ron", &["Babble"]),
     ("bit_error_every_nth.ron", &["BitErrors"]),
     ("bit_error_once.ron", &["BitErrors"]),
@@ -31,6 +34,8 @@ const SHIPPED: &[(&str, &[&str])] = &[
     ("sensor_faults.ron", &["SensorFault", "SensorRepaired"]),
     ("suction_door.ron", &["Plant"]),
     ("wrong_frames.ron", &["SendFrame"]),
+    ("local_crc_errors.ron", &["BitErrors"]),
+    ("overload.ron", &["Overload"]),
 ];
 
 /// Longest run the scenario glob may hold: a day of virtual time lives in `configs/soak/`, for
@@ -51,10 +56,7 @@ fn every_scenario_file_is_in_the_tables() {
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
         .filter(|n| n.ends_with(".ron"))
         .collect();
-    let listed: BTreeSet<String> = SHIPPED
-        .iter()
-        .map(|(f, _)| f.to_string())
-        .collect();
+    let listed: BTreeSet<String> = SHIPPED.iter().map(|(f, _)| f.to_string()).collect();
     assert_eq!(
         files, listed,
         "add new scenarios to SHIPPED (with their fault) in tests/tests/scenarios.rs"

@@ -167,6 +167,15 @@ fn one(e: &Expect, r: &Running, snap: &Snapshot, books: &Books) -> Verdict {
                 format!("{n} error frame(s)"),
             )
         }
+        Expect::OverloadFrames { min, max } => {
+            let n = snap.stats.overloads;
+            verdict(
+                e,
+                (*min..=*max).contains(&n),
+                Some(snap.now),
+                format!("{n} overload flag(s)"),
+            )
+        }
         Expect::YieldWithin(percent) => {
             let truth = r.plant.borrow().signal("harvested.total").unwrap_or(0.0);
             let err = if truth > 0.0 {
@@ -367,9 +376,7 @@ fn one(e: &Expect, r: &Running, snap: &Snapshot, books: &Books) -> Verdict {
 /// A node's error history, by name.
 fn timeline<'a>(r: &Running, snap: &'a Snapshot, node: &str) -> Option<Timeline<'a>> {
     let id = r.node(node)?;
-    Some(Timeline::new(
-        snap.stats.nodes.get(id.index()).map(|h| &h.spans),
-    ))
+    Some(Timeline::new(snap.stats.nodes.get(id.index()).map(|h| &h.spans)))
 }
 
 fn no_node(e: &Expect, node: &str) -> Verdict {

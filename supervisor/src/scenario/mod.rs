@@ -450,11 +450,9 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
                 }
                 bounds_ok(&mut p, *min, *max);
             }
-            Expect::ErrorFrames { min, max } if min > max => p.push(Problem::at(
-                file,
-                format!("{at}.min"),
-                format!("min {min} is above max {max}"),
-            )),
+            Expect::ErrorFrames { min, max } | Expect::OverloadFrames { min, max } if min > max => p.push(
+                Problem::at(file, format!("{at}.min"), format!("min {min} is above max {max}")),
+            ),
             Expect::BusLoadBelow(limit) if !(*limit > 0.0 && *limit <= 100.0) => p.push(Problem::at(
                 file,
                 at.clone(),
@@ -773,7 +771,9 @@ async fn act(
             };
             let seen_by = match seen_by {
                 SeenBy::All => bus::engine::SeenBy::All,
-                SeenBy::Nodes(names) => bus::engine::SeenBy::Nodes(names.iter().map(|n| id(n)).collect::<Result<_, _>>()?),
+                SeenBy::Nodes(names) => {
+                    bus::engine::SeenBy::Nodes(names.iter().map(|n| id(n)).collect::<Result<_, _>>()?)
+                }
             };
             let rule = Rule {
                 target: engine_target(&target, &id)?,

@@ -267,6 +267,13 @@ pub enum Expect {
         /// At most.
         max: u64,
     },
+    /// Overload flags on the bus (counted per controller that sent one), between these counts.
+    OverloadFrames {
+        /// At least.
+        min: u64,
+        /// At most.
+        max: u64,
+    },
     /// The monitor's total yield is within this percentage of the plant's truth.
     YieldWithin(f64),
     /// A field of the monitor's display at the end is within `min..=max`.
