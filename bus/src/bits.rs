@@ -1,6 +1,6 @@
 //! The exact bitstream of a classic CAN frame, and how long it lasts on the wire.
 //!
-//! [`encode`] lays a frame out field by field (CAN_FACTS.md, "Frame bits"), computes the CRC-15
+//! [`encode`] lays a frame out field by field (docs/CAN.md, section 1), computes the CRC-15
 //! over the unstuffed bits from SOF to the end of the data field, and stuffs SOF through the last
 //! CRC bit. [`Encoded::total_bits`] adds the fixed tail (CRC delimiter, ACK slot and delimiter,
 //! 7 EOF bits, 3 intermission bits), which is what a frame costs the bus. The can-utils estimates
@@ -63,7 +63,7 @@ impl BitStream {
 }
 
 impl core::fmt::Display for BitStream {
-    /// `0` for dominant, `1` for recessive, as CAN_FACTS.md writes bitstreams.
+    /// `0` for dominant, `1` for recessive, as docs/CAN.md writes bitstreams.
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         for bit in self.iter() {
             f.write_str(if bit { "1" } else { "0" })?;
@@ -324,7 +324,7 @@ mod tests {
     use crate::frame::{extended_id, standard_id};
     use proptest::prelude::*;
 
-    /// (frame, CRC, stuff bits, total, worst case, no stuffing): the vectors of CAN_FACTS.md.
+    /// (frame, CRC, stuff bits, total, worst case, no stuffing): the test vectors of docs/CAN.md, section 2.
     fn vectors() -> Vec<(Frame, u16, u32, u32, u32, u32)> {
         let f = |t: &str| parse_frame(t).unwrap();
         vec![
@@ -390,7 +390,7 @@ mod tests {
         assert!(BitRate::new(0).is_none() && BitRate::new(1_000_001).is_none());
     }
 
-    // ---- Independent bit-by-bit reference, written from the field table of CAN_FACTS.md ----
+    // ---- Independent bit-by-bit reference, written from the field table of docs/CAN.md ----
 
     fn push_bits(out: &mut Vec<bool>, value: u32, width: u32) {
         for i in (0..width).rev() {

@@ -360,7 +360,7 @@ fn three_nodes_contend_and_win_in_identifier_order() {
     let t = trace.clone();
     in_virtual_time(async move {
         let hub = Hub::new(HubConfig::default(), Some(Box::new(t))).unwrap().start();
-        // All three deadlines at 1 ms: frame lengths 151, 142 and 74 bits (CAN_FACTS.md).
+        // All three deadlines at 1 ms: frame lengths 151, 142 and 74 bits (docs/CAN.md, test vectors).
         attach(
             &hub,
             "x",

@@ -41,7 +41,7 @@ fn seed_command_frame() {
         (j["destination"].as_str(), j["source"].as_str()),
         (Some("A0"), Some("F5"))
     );
-    // CAN_FACTS.md vector for this frame.
+    // The test vector docs/CAN.md gives for this frame (section 2).
     assert_eq!(j["crc"], 0x6311);
     assert_eq!(j["stuff_bits"], 11);
     assert_eq!(

@@ -3,7 +3,7 @@ use crate::bits::{BitRate, worst_case_bits};
 use crate::candump::parse_frame;
 use proptest::prelude::*;
 
-/// The six frames of SEEDS.md (000, "Worked examples"), as printed there.
+/// The six frames of a flow group worked through in the harvester's source documents, as printed there.
 const SEED_D0: [&str; 6] = [
     "200D0002FFBFFF00",
     "0101000000000000",
@@ -59,7 +59,7 @@ fn seed_frames_decode() {
         p2.get("unit5").unwrap().raw,
     ];
     assert_eq!(got, seed_units(seed_frame(4).data(), seed_frame(5).data()));
-    // The values SEEDS.md states for frames 5–6.
+    // The values the source documents state for frames 5–6.
     assert_eq!(got, [0x1E34, 0x2BEA, 0x2CEF, 0x2189, 0x2C98]);
     let flow = decode(&seed_frame(1)).unwrap().unwrap();
     assert!(

@@ -39,7 +39,7 @@ fn arbitration_under_contention() {
     let n: Vec<NodeId> = (0..3)
         .map(|i| b.attach(ControllerConfig::named(format!("n{i}"))))
         .collect();
-    // Frame lengths from CAN_FACTS.md: 151, 142 and 74 bits, intermission included.
+    // Frame lengths (docs/CAN.md, test vectors): 151, 142 and 74 bits, intermission included.
     b.submit(n[0], f("1FFFFFFF#0000000000000000"), BusTime(0))
         .unwrap();
     b.submit(n[1], f("0300A0F5#0102030405060708"), BusTime(0))
@@ -115,7 +115,7 @@ fn bus_load_is_the_sum_of_exact_lengths() {
     assert!((b.stats().window_load(100_000_000) - load).abs() < 1e-12);
     assert_eq!(b.stats().frames, 100);
     // Nobody drains the receiver: frames go in while they fit 64 bytes at 3 (base) or 5
-    // (extended) bytes plus data each (CAN_FACTS.md), the rest overrun.
+    // (extended) bytes plus data each (SJA1000 data sheet, receive FIFO), the rest overrun.
     let sizes = [3 + 4, 3, 3, 5 + 8, 5 + 8];
     let (mut used, mut fit) = (0, 0);
     for k in 0..100 {
