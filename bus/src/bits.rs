@@ -339,7 +339,7 @@ mod tests {
     }
 
     #[test]
-    fn can_facts_vectors() {
+    fn the_test_vectors_of_can_md() {
         for (frame, crc, stuff, total, worst, plain) in vectors() {
             let e = encode(&frame);
             let got = (
