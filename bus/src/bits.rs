@@ -354,7 +354,7 @@ mod tests {
     }
 
     #[test]
-    fn can_facts_bitstream() {
+    fn the_worked_bitstream() {
         let e = encode(&parse_frame("123#DEADBEEF").unwrap());
         assert_eq!(
             e.stuffed.to_string(),
