@@ -1,5 +1,6 @@
 //! The TCP side of the gateway, on the actor system's tokio runtime.
 
+use super::backoff::{AcceptBackoff, REPORT_INTERVAL};
 use super::protocol::{self, Command, Splitter};
 use crate::engine::{ControllerConfig, Filter, NodeId};
 use crate::hub::{Attach, Hub, Observed, Submit, Subscribe};
@@ -50,6 +51,8 @@ pub struct GatewayStats {
     pub sent: u64,
     /// Malformed messages answered with an error.
     pub errors: u64,
+    /// Failed `accept` calls (e.g. out of file descriptors).
+    pub accept_errors: u64,
 }
 
 struct Client {
@@ -154,11 +157,32 @@ async fn accept(
     shared: Rc<RefCell<Shared>>,
 ) {
     let mut next_id = 1;
+    let mut backoff = AcceptBackoff::default();
     loop {
         let (stream, peer) = match listener.accept().await {
-            Ok(x) => x,
+            Ok(x) => {
+                if let Some(n) = backoff.succeeded(std::time::Instant::now()) {
+                    tracing::warn!(errors = n, "gateway accepting again after {n} more accept errors");
+                }
+                x
+            }
             Err(e) => {
-                tracing::warn!(error = %e, "gateway accept failed");
+                // The connection stays queued and the listener ready: retrying at once would
+                // fail again at once. Wait, and log at a bounded rate; the clients already
+                // connected are served meanwhile.
+                shared.borrow_mut().stats.accept_errors += 1;
+                let (wait, report) = backoff.failed(std::time::Instant::now());
+                match report {
+                    Some(1) => tracing::warn!(error = %e, "gateway accept failed; backing off"),
+                    Some(n) => tracing::warn!(
+                        error = %e,
+                        errors = n,
+                        "{n} gateway accept errors in the last {} s",
+                        REPORT_INTERVAL.as_secs()
+                    ),
+                    None => {}
+                }
+                tokio::time::sleep(wait).await;
                 continue;
             }
         };
