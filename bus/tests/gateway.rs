@@ -219,3 +219,108 @@ fn a_client_that_never_reads_cannot_stall_the_bus() {
         assert!(gw.stats().dropped > 0, "{:?}", gw.stats());
     });
 }
+
+/// Time this process has run on a CPU, read from `stat`, an open `/proc/self/stat` (reading it
+/// anew needs no descriptor, so it works when they have run out).
+#[cfg(target_os = "linux")]
+fn cpu_time(stat: &std::fs::File) -> Duration {
+    use std::os::unix::fs::FileExt;
+    let mut buf = [0u8; 1024];
+    let n = stat.read_at(&mut buf, 0).unwrap();
+    let text = String::from_utf8_lossy(&buf[..n]);
+    // The fields after the command name, which is in parentheses: utime and stime are the
+    // 14th and 15th of the line, in clock ticks of 1/100 s.
+    let fields: Vec<&str> = text[text.rfind(')').unwrap() + 1..].split_whitespace().collect();
+    let ticks: u64 = fields[11].parse::<u64>().unwrap() + fields[12].parse::<u64>().unwrap();
+    Duration::from_millis(ticks * 10)
+}
+
+/// With no file descriptor left, `accept` fails while the connection waits in the listen
+/// queue, so the listener stays ready. The gateway must wait between attempts instead of
+/// spinning, go on serving its clients, and accept again once descriptors are free.
+///
+/// The test runs in a child process of this test binary with a low descriptor limit, so that
+/// running out of them does not disturb the tests running alongside.
+#[cfg(target_os = "linux")]
+#[test]
+fn out_of_file_descriptors_the_gateway_backs_off_and_serves_on() {
+    const CHILD: &str = "BUS_GATEWAY_TEST_FD_CHILD";
+    const NAME: &str = "out_of_file_descriptors_the_gateway_backs_off_and_serves_on";
+    if std::env::var_os(CHILD).is_none() {
+        let out = std::process::Command::new("sh")
+            .args(["-c", "ulimit -n 128 && exec \"$0\" \"$@\""])
+            .arg(std::env::current_exe().unwrap())
+            .args([NAME, "--exact", "--test-threads=1"])
+            .env(CHILD, "1")
+            .output()
+            .unwrap();
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{stdout}\n{stderr}");
+        assert!(stdout.contains("1 passed"), "{stdout}\n{stderr}");
+        return;
+    }
+    in_real_time(async {
+        let (_hub, gw) = bus_with_ticker(10_000).await;
+        let mut old = handshake(gw.addr).await;
+        old.read(2).await;
+        let stat = std::fs::File::open("/proc/self/stat").unwrap();
+
+        // Take every descriptor but one, and connect with that one: the gateway cannot accept.
+        let mut hog = Vec::new();
+        while let Ok(f) = std::fs::File::open("/dev/null") {
+            hog.push(f);
+        }
+        assert!(hog.len() > 10, "{} descriptors taken", hog.len());
+        hog.pop();
+        let pending = tokio::net::TcpStream::connect(gw.addr).await.unwrap();
+        assert!(std::fs::File::open("/dev/null").is_err(), "no descriptor left");
+        for _ in 0..200 {
+            if gw.stats().accept_errors > 0 {
+                break;
+            }
+            tokio::time::sleep(Duration::from_millis(10)).await;
+        }
+        assert!(gw.stats().accept_errors > 0, "{:?}", gw.stats());
+
+        // For a second, the connected client goes on receiving frames, and the process
+        // (the gateway, the bus and this client) stays nearly idle.
+        let (cpu_before, errors_before) = (cpu_time(&stat), gw.stats().accept_errors);
+        let start = std::time::Instant::now();
+        let mut got = 0;
+        while start.elapsed() < Duration::from_secs(1) {
+            let frames = old.read(10).await;
+            assert!(
+                frames.iter().all(|m| m.starts_with("< frame 0601F5D0 ")),
+                "{frames:?}"
+            );
+            got += frames.len();
+        }
+        let cpu = cpu_time(&stat) - cpu_before;
+        let errors = gw.stats().accept_errors - errors_before;
+        assert!(got >= 50, "{got} frames in a second");
+        assert!(cpu < Duration::from_millis(300), "{cpu:?} of CPU in a second");
+        assert!(errors <= 10, "{errors} accept attempts in a second");
+
+        // ...and can send.
+        old.write(b"< send 123 2 AB CD >").await;
+        for _ in 0..200 {
+            if gw.stats().sent == 1 {
+                break;
+            }
+            tokio::time::sleep(Duration::from_millis(10)).await;
+        }
+        assert_eq!(gw.stats().sent, 1);
+
+        // Descriptors free again: the waiting connection and new ones are accepted.
+        drop(hog);
+        let mut pending = Conn {
+            s: pending,
+            pending: String::new(),
+        };
+        assert_eq!(pending.read(1).await, ["< hi >"]);
+        let mut new = handshake(gw.addr).await;
+        new.read(2).await;
+        assert_eq!(gw.stats().clients, 3, "{:?}", gw.stats());
+    });
+}
