@@ -186,7 +186,10 @@ fn times_that_go_backwards_are_bad_lines() {
             panic!("{e:?}");
         };
         assert_eq!(*line, 4, "{e}");
-        assert!(reason.contains("1.999999 goes backwards: line 3 is at 2.000000"), "{e}");
+        assert!(
+            reason.contains("1.999999 goes backwards: line 3 is at 2.000000"),
+            "{e}"
+        );
     }
     let asc = "base hex  timestamps absolute\n\
                Begin Triggerblock\n\
@@ -217,7 +220,10 @@ fn relative_asc_times_accumulate() {
     let records = read_str(asc, ErrorFrames::Keep).unwrap();
     // 0.25; 0.25 + 0.1 + 0.0005 = 0.3505; the same; 0.3505 + 1.5 = 1.8505.
     assert_eq!(
-        records.iter().map(|r| (r.line, r.at.as_nanos())).collect::<Vec<_>>(),
+        records
+            .iter()
+            .map(|r| (r.line, r.at.as_nanos()))
+            .collect::<Vec<_>>(),
         [
             (6, 250_000_000),
             (8, 350_500_000),
@@ -229,7 +235,10 @@ fn relative_asc_times_accumulate() {
     let e = read_str(&absolute, ErrorFrames::Keep).unwrap_err();
     assert!(matches!(e, Error::TraceLine { line: 8, .. }), "{e}");
     let bare = asc.replace("  timestamps relative", "");
-    assert!(read_str(&bare, ErrorFrames::Keep).is_err(), "absolute is the default");
+    assert!(
+        read_str(&bare, ErrorFrames::Keep).is_err(),
+        "absolute is the default"
+    );
     let e = read_str("base hex timestamps sideways\n", ErrorFrames::Keep).unwrap_err();
     assert!(e.to_string().contains("absolute or relative"), "{e}");
 }
