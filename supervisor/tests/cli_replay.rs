@@ -237,6 +237,18 @@ fn bad_input_is_one_line_and_exit_code_2() {
         "date Wed Jun 12 02:47:38.610 pm 2024\nbase hex  timestamps absolute\n1.0 1 123 Rx d 3 01\n",
     )
     .unwrap();
+    let backwards = path("backwards.log");
+    std::fs::write(
+        &backwards,
+        "(1.000000) can0 123#00\n(2.000000) harv0.D2 20000288#0000010A00000800\n(1.500000) can0 123#01\n",
+    )
+    .unwrap();
+    let backwards_asc = path("backwards.asc");
+    std::fs::write(
+        &backwards_asc,
+        "base hex  timestamps absolute\n2.0 1 123 Rx d 1 01\n1.0 1 123 Rx d 1 02\n",
+    )
+    .unwrap();
     let empty = path("empty.log");
     std::fs::write(&empty, "\n").unwrap();
     let missing = path("missing.log");
@@ -244,6 +256,14 @@ fn bad_input_is_one_line_and_exit_code_2() {
     for (args, words) in [
         (vec!["replay", &bad, "--fast"], format!("{bad}:2: frame '123#0G'")),
         (vec!["replay", &asc, "--fast"], format!("{asc}:3: ")),
+        (
+            vec!["replay", &backwards, "--fast"],
+            format!("{backwards}:3: time 1.500000 goes backwards"),
+        ),
+        (
+            vec!["replay", &backwards_asc, "--fast"],
+            format!("{backwards_asc}:3: time 1.000000 goes backwards"),
+        ),
         (vec!["replay", &empty, "--fast"], "no frames".to_string()),
         (
             vec!["replay", &missing, "--fast"],

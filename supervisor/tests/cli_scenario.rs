@@ -141,6 +141,40 @@ fn bad_thresholds_windows_and_fault_options_give_exit_2_with_file_index_and_fiel
 }
 
 #[test]
+fn control_characters_in_the_name_or_description_give_exit_2_naming_the_field() {
+    // JUnit XML and the HTML report could not carry them, not even escaped.
+    let dir = scratch("control");
+    let file = dir.join("control.ron");
+    std::fs::write(
+        &file,
+        format!(
+            "Scenario(name: \"bell\u{1}name\", description: \"tab\\tand\u{1b}escape\", config: \"{}\",\n\
+             duration_s: 3.0, expect: [ErrorFrames(min: 0, max: 0)])",
+            config()
+        ),
+    )
+    .unwrap();
+    let junit = dir.join("never.xml");
+    for command in ["validate", "scenario"] {
+        let mut args = vec![command, file.to_str().unwrap()];
+        if command == "scenario" {
+            args.extend(["--junit", junit.to_str().unwrap()]);
+        }
+        let out = harvemu(&args);
+        assert_eq!(out.status.code(), Some(2), "{command}");
+        let err = String::from_utf8(out.stderr).unwrap();
+        for needle in [
+            "name: holds the character U+0001",
+            "description: holds the character U+001B",
+        ] {
+            let line = format!("{}: {needle}", file.display());
+            assert!(err.contains(&line), "missing {line} in:\n{err}");
+        }
+    }
+    assert!(!junit.exists());
+}
+
+#[test]
 fn validate_accepts_every_shipped_file() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs");
     let mut files = vec![root.join("harvester.ron")];

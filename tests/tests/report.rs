@@ -353,3 +353,81 @@ fn the_series_has_one_sample_per_second_and_sees_counters_rise_and_decay() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn characters_xml_cannot_carry_become_replacement_characters_in_junit_and_the_report() {
+    use bus::time::BusTime;
+    use supervisor::harvester::SupervisorEvent;
+    use supervisor::scenario::series::{ClassLatency, NodeCounters};
+    use supervisor::scenario::{Outcome, Scenario, Series, Verdict, junit};
+    // Validation refuses them in the scenario's own text; everything else (node names from
+    // configs, verdict text, file paths) is replaced on the way out.
+    let bad = "a\u{1}b\u{1b}[31m\u{8}\u{FFFF}\u{FFFE}\u{7f}";
+    let scenario = Scenario {
+        name: bad.into(),
+        description: bad.into(),
+        config: "harvester.ron".into(),
+        seed: None,
+        duration_s: 3.0,
+        cruise_start_s: None,
+        timeline: Vec::new(),
+        random_faults: None,
+        expect: Vec::new(),
+    };
+    let mut series = Series::default();
+    series.load = vec![(1.0, 0.3), (2.0, 0.31)];
+    series.latency = vec![ClassLatency {
+        class: bad.into(),
+        frames: 10,
+        mean_us: 100.0,
+        p99_us: 200.0,
+        max_us: 300.0,
+    }];
+    series.counters = vec![NodeCounters {
+        node: bad.into(),
+        points: vec![(1.0, 8, 0), (2.0, 7, 0)],
+    }];
+    series.end_s = 3.0;
+    let outcome = Outcome {
+        verdicts: vec![
+            Verdict {
+                expectation: bad.into(),
+                passed: false,
+                at: Some(BusTime(1_000_000_000)),
+                observed: bad.into(),
+            },
+            Verdict {
+                expectation: bad.into(),
+                passed: true,
+                at: None,
+                observed: bad.into(),
+            },
+        ],
+        seed: 1,
+        events: vec![SupervisorEvent {
+            at: BusTime(500_000_000),
+            node: bad.into(),
+            what: bad.into(),
+        }],
+        wall_seconds: 0.1,
+        interrupted: false,
+        series,
+        books: Default::default(),
+        applied: Default::default(),
+        snapshot: None,
+    };
+    let runs = [(format!("dir/{bad}.ron"), &scenario, &outcome)];
+    let xml = junit::xml(&runs);
+    let doc = roxmltree::Document::parse(&xml).unwrap_or_else(|e| panic!("{e}:\n{xml}"));
+    let suite = doc.descendants().find(|n| n.has_tag_name("testsuite")).unwrap();
+    let clean = "a\u{FFFD}b\u{FFFD}[31m\u{FFFD}\u{FFFD}\u{FFFD}\u{7f}";
+    assert_eq!(suite.attribute("name"), Some(clean));
+    let failure = doc.descendants().find(|n| n.has_tag_name("failure")).unwrap();
+    assert!(failure.text().unwrap().contains(clean), "{xml}");
+    let html = report::html(&runs);
+    let doc = parse(&html).unwrap_or_else(|e| panic!("{e}:\n{html}"));
+    let page = text(doc.root_element());
+    assert!(page.contains(clean), "{page}");
+    assert!(!page.contains('\u{1}') && !page.contains('\u{FFFF}'));
+    assert_eq!(doc.descendants().filter(|n| n.has_tag_name("svg")).count(), 5);
+}

@@ -19,6 +19,9 @@
 //! to the previous line"); the `date` is the wall-clock time of that start, in UTC. Extended
 //! identifiers are written with 8 digits and an `x`, base identifiers with 3, as in candump logs.
 //!
+//! `timestamps relative` in the `base` line makes each time relative to the previous timestamped
+//! line's (frames and events alike); the reader accumulates them. `absolute` is the default.
+//!
 //! Read: the header lines (`date`, `base hex|dec`, `internal events logged`, `Begin
 //! Triggerblock`, `End TriggerBlock`), `//` comments, and every timestamped line that is not a
 //! frame (start of measurement, statistics, chip status, system variables, J1939 transport
@@ -32,15 +35,22 @@ use crate::{Frame, Id};
 use core::fmt::Write;
 use std::time::SystemTime;
 
-/// What the reader keeps from the header: the number base of identifiers and data bytes.
+/// What the reader keeps from the header: the number base of identifiers and data bytes, and
+/// whether times are relative (then also the time of the previous timestamped line).
 #[derive(Debug)]
 pub(super) struct ReadState {
     radix: u32,
+    relative: bool,
+    clock: BusTime,
 }
 
 impl Default for ReadState {
     fn default() -> Self {
-        ReadState { radix: 16 }
+        ReadState {
+            radix: 16,
+            relative: false,
+            clock: BusTime::ZERO,
+        }
     }
 }
 
@@ -68,11 +78,29 @@ impl ReadState {
                 Some("dec") => 10,
                 _ => return Err(format!("'{line}': the base is hex or dec")),
             };
+            self.relative = match tokens.next().map(str::to_ascii_lowercase).as_deref() {
+                None => false,
+                Some("timestamps") => match tokens.next().map(str::to_ascii_lowercase).as_deref() {
+                    Some("absolute") => false,
+                    Some("relative") => true,
+                    _ => return Err(format!("'{line}': timestamps are absolute or relative")),
+                },
+                Some(_) => return Err(format!("'{line}': base hex|dec timestamps absolute|relative")),
+            };
             return Ok(None);
         }
-        let at = parse_time(first).map_err(|_| {
+        let mut at = parse_time(first).map_err(|_| {
             format!("'{line}' is not an ASC line (a header line, a // comment or a timestamped line)")
         })?;
+        if self.relative {
+            at = BusTime(
+                self.clock
+                    .as_nanos()
+                    .checked_add(at.as_nanos())
+                    .ok_or_else(|| format!("'{line}': the accumulated time is too large"))?,
+            );
+            self.clock = at;
+        }
         let rest: Vec<&str> = tokens.collect();
         match rest.as_slice() {
             ["CANFD", ..] => Err("CAN FD frame: only classic CAN is supported".to_string()),

@@ -9,9 +9,13 @@
 //!   silently except what the format defines as not being a frame (ASC header, comment and event
 //!   lines such as `Start of measurement`, statistics or chip status).
 //! - Every bad line gives [`Error::TraceLine`] with its 1-based line number; nothing panics.
+//! - Times never go backwards: a frame or error frame (kept or skipped) stamped earlier than the
+//!   one before it is a bad line. Equal times are fine. Nothing is sorted or held back, so memory
+//!   does not grow with the trace.
 //! - Timestamps are kept exactly to the nanosecond as written (`1708620903.978650` in a candump
 //!   log is seconds since 1970, an ASC time is seconds since the start of the measurement); no
-//!   floating point is involved.
+//!   floating point is involved. An ASC file whose header says `timestamps relative` has each
+//!   time relative to the previous timestamped line's; the reader gives the accumulated times.
 //! - [`asc`] formats ASC lines; [`AscWriter`] turns the candump log that the hub writes into an
 //!   ASC file as it is written.
 
@@ -74,6 +78,8 @@ pub struct Reader {
     format: Option<Format>,
     asc: asc::ReadState,
     line: usize,
+    /// The time of the last frame or error frame, with its line.
+    last: Option<(BusTime, usize)>,
 }
 
 impl Reader {
@@ -84,6 +90,7 @@ impl Reader {
             format: None,
             asc: asc::ReadState::default(),
             line: 0,
+            last: None,
         }
     }
 
@@ -115,6 +122,19 @@ impl Reader {
             Format::Asc => self.asc.parse_line(trimmed),
         };
         let entry = parsed.map_err(|reason| Error::TraceLine { line, reason })?;
+        if let Some((at, _)) = entry {
+            if let Some((before, before_line)) = self.last
+                && at < before
+            {
+                return Err(Error::TraceLine {
+                    line,
+                    reason: format!(
+                        "time {at} goes backwards: line {before_line} is at {before} (a trace must be in time order)"
+                    ),
+                });
+            }
+            self.last = Some((at, line));
+        }
         Ok(entry.and_then(|(at, entry)| match (entry, self.errors) {
             (Entry::Error(_), ErrorFrames::Skip) => None,
             _ => Some(Record { at, line, entry }),

@@ -174,6 +174,76 @@ fn bad_lines_are_named_by_number() {
 }
 
 #[test]
+fn times_that_go_backwards_are_bad_lines() {
+    // Error frames count, kept or skipped; equal times are fine.
+    let log = "(1.000000) can0 123#00\n\
+               (1.000000) harv0.D2 20000288#0000010A00000800\n\
+               (2.000000) harv0.D2 20000288#0000010A00000800\n\
+               (1.999999) can0 123#01\n";
+    for errors in [ErrorFrames::Keep, ErrorFrames::Skip] {
+        let e = read_str(log, errors).unwrap_err();
+        let Error::TraceLine { line, reason } = &e else {
+            panic!("{e:?}");
+        };
+        assert_eq!(*line, 4, "{e}");
+        assert!(
+            reason.contains("1.999999 goes backwards: line 3 is at 2.000000"),
+            "{e}"
+        );
+    }
+    let asc = "base hex  timestamps absolute\n\
+               Begin Triggerblock\n\
+               0.500000 1  123  Rx   d 1 00\n\
+               0.500000 1  ErrorFrame\n\
+               0.400000 1  123  Rx   d 1 00\n";
+    let e = read_str(asc, ErrorFrames::Skip).unwrap_err();
+    assert!(matches!(e, Error::TraceLine { line: 5, .. }), "{e}");
+    assert!(e.to_string().contains("goes backwards"), "{e}");
+    let equal = "(1.0) can0 123#00\n(1.0) can0 123#01\n(1.0) harv0.E0 20000004#0000000000000000\n";
+    assert_eq!(read_str(equal, ErrorFrames::Keep).unwrap().len(), 3);
+}
+
+#[test]
+fn relative_asc_times_accumulate() {
+    // Every timestamped line, events included, is relative to the one before it.
+    let asc = "date Wed Jun 12 02:47:38.610 pm 2024\n\
+               base hex  timestamps relative\n\
+               internal events logged\n\
+               Begin Triggerblock Wed Jun 12 02:47:38.610 pm 2024\n\
+               0.000000 Start of measurement\n\
+               0.250000 1  123  Rx   d 1 00\n\
+               0.100000 1  Statistic: D 1 R 0 XD 0 XR 0 E 0 O 0 B 0.12%\n\
+               0.000500 1  0300A0F5x  Rx   d 2 01 01\n\
+               0.000000 1  ErrorFrame\n\
+               1.5 1  7FF  Tx   r 0\n\
+               End TriggerBlock\n";
+    let records = read_str(asc, ErrorFrames::Keep).unwrap();
+    // 0.25; 0.25 + 0.1 + 0.0005 = 0.3505; the same; 0.3505 + 1.5 = 1.8505.
+    assert_eq!(
+        records
+            .iter()
+            .map(|r| (r.line, r.at.as_nanos()))
+            .collect::<Vec<_>>(),
+        [
+            (6, 250_000_000),
+            (8, 350_500_000),
+            (9, 350_500_000),
+            (10, 1_850_500_000)
+        ]
+    );
+    let absolute = asc.replace("timestamps relative", "timestamps absolute");
+    let e = read_str(&absolute, ErrorFrames::Keep).unwrap_err();
+    assert!(matches!(e, Error::TraceLine { line: 8, .. }), "{e}");
+    let bare = asc.replace("  timestamps relative", "");
+    assert!(
+        read_str(&bare, ErrorFrames::Keep).is_err(),
+        "absolute is the default"
+    );
+    let e = read_str("base hex timestamps sideways\n", ErrorFrames::Keep).unwrap_err();
+    assert!(e.to_string().contains("absolute or relative"), "{e}");
+}
+
+#[test]
 fn reading_stops_at_the_first_bad_line() {
     let text = "(1.0) can0 123#00\n(2.0) can0 bad\n(3.0) can0 123#00\n";
     let all: Vec<_> = read(text.as_bytes(), ErrorFrames::Keep).collect();

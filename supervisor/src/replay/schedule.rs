@@ -5,8 +5,9 @@
 //!   the number of passes; it then yields every frame to send as a [`Due`], in time order, with
 //!   its offset from the start of the replay. It reads no clock and does no I/O.
 //! - Offsets are measured from the first record of the trace, whatever its kind, so frames keep
-//!   their place relative to the whole recording. A record stamped earlier than the one before it
-//!   goes out right after that one: offsets never decrease.
+//!   their place relative to the whole recording. The trace reader refuses times that go
+//!   backwards; records built otherwise that do are sent right after the one before them: offsets
+//!   never decrease.
 //! - Error frames are counted and never sent: a controller cannot be told to send one.
 //! - A frame with an extended identifier whose source byte (the low 8 bits of the harvester's
 //!   identifier) is in the skip set is counted and left out. Base frames have no source address

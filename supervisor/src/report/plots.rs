@@ -2,7 +2,8 @@
 //!
 //! Contract: every plot starts with its title (the first `<text>` of the SVG), has an x axis in
 //! bus seconds unless it is the latency plot, and draws each series as one line with one point
-//! per value it has. Text is escaped by the SVG backend. A plot that cannot be drawn gives an
+//! per value it has. Text is escaped by the SVG backend, and characters XML 1.0 cannot carry (in
+//! node names, say) become U+FFFD. A plot that cannot be drawn gives an
 //! error message, not a panic.
 
 use crate::scenario::Series;
@@ -45,7 +46,7 @@ fn svg(
         draw(&area)?;
         root.present().map_err(err)?;
     }
-    Ok(out)
+    Ok(crate::scenario::junit::xml_text(&out))
 }
 
 /// Upper end of a y axis that shows `max` with some room, never an empty range.

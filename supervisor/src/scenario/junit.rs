@@ -2,12 +2,40 @@
 
 use super::{Outcome, Scenario};
 
-/// Escapes text for XML and HTML (element content and double-quoted attributes).
+/// True for a character XML 1.0 can carry (its `Char` production): tab, line feed, carriage
+/// return, and everything from U+0020 except U+FFFE and U+FFFF (surrogates are not `char`s).
+pub(crate) fn xml_char(c: char) -> bool {
+    matches!(c, '\t' | '\n' | '\r') || (c >= ' ' && c != '\u{FFFE}' && c != '\u{FFFF}')
+}
+
+/// Replaces every character XML 1.0 cannot carry, not even escaped, with U+FFFD.
+pub(crate) fn xml_text(s: &str) -> String {
+    s.chars()
+        .map(|c| {
+            if xml_char(c) {
+                c
+            } else {
+                char::REPLACEMENT_CHARACTER
+            }
+        })
+        .collect()
+}
+
+/// Escapes text for XML and HTML (element content and double-quoted attributes); characters
+/// that XML 1.0 cannot carry become U+FFFD.
 pub(crate) fn escape(s: &str) -> String {
-    s.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-        .replace('"', "&quot;")
+    let mut out = String::with_capacity(s.len());
+    for c in s.chars() {
+        match c {
+            '&' => out.push_str("&amp;"),
+            '<' => out.push_str("&lt;"),
+            '>' => out.push_str("&gt;"),
+            '"' => out.push_str("&quot;"),
+            c if xml_char(c) => out.push(c),
+            _ => out.push(char::REPLACEMENT_CHARACTER),
+        }
+    }
+    out
 }
 
 /// The XML for a set of scenario runs.

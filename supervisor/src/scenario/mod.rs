@@ -127,6 +127,19 @@ const TEC_CEILING: u16 = bus::fault::BUS_OFF_LIMIT + 7;
 /// Checks names, times and values of a scenario against its harvester.
 pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
     let mut p = Vec::new();
+    // Both reach JUnit XML and the HTML report, which cannot carry control characters.
+    for (field, text) in [("name", &s.name), ("description", &s.description)] {
+        if let Some(c) = text.chars().find(|&c| !junit::xml_char(c)) {
+            p.push(Problem::at(
+                file,
+                field.to_string(),
+                format!(
+                    "holds the character U+{:04X}, which JUnit XML and the HTML report cannot carry (control characters other than tab and line breaks are refused)",
+                    u32::from(c)
+                ),
+            ));
+        }
+    }
     let names = node_names(h);
     if let Some(r) = &s.random_faults {
         for (field, message) in random::problems(r, s.duration_s, &names) {
