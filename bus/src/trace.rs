@@ -172,6 +172,11 @@ pub fn frame_line(out: &mut String, at: BusTime, iface: &str, frame: &Frame) {
 /// Appends one candump log line for an error frame.
 pub fn error_line(out: &mut String, at: BusTime, iface: &str, e: &ErrorFrame) {
     prefix(out, at, iface);
+    error_frame_text(out, e);
+}
+
+/// Appends `ID#DATA` of an error frame and the end of the line.
+fn error_frame_text(out: &mut String, e: &ErrorFrame) {
     let _ = write!(out, "{:08X}#", e.can_id);
     for b in e.data {
         let _ = write!(out, "{b:02X}");
@@ -192,21 +197,15 @@ pub fn event_line<'a>(out: &mut String, iface: &str, name: impl Fn(NodeId) -> &'
         | Event::Restarted { node, at }
         | Event::Overrun { node, at } => {
             if let Some(e) = error_frame(event) {
-                prefix(out, *at, iface);
-                out.pop();
+                let _ = write!(out, "({at}) {iface}.");
                 // A name is one word on the line, as an interface name would be.
-                out.push('.');
                 out.extend(
                     name(*node)
                         .chars()
                         .map(|c| if c.is_ascii_graphic() { c } else { '_' }),
                 );
                 out.push(' ');
-                let _ = write!(out, "{:08X}#", e.can_id);
-                for b in e.data {
-                    let _ = write!(out, "{b:02X}");
-                }
-                out.push('\n');
+                error_frame_text(out, &e);
             }
         }
         _ => {}

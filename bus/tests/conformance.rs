@@ -1510,24 +1510,6 @@ fn no_suspend_after_success_that_makes_the_node_error_active() {
 // Bus time.
 // ---------------------------------------------------------------------------------------------
 
-/// The time an event happened at: the end of a frame, the first flag bit of a destroyed
-/// attempt, the `at` of the others.
-fn event_time(e: &Event) -> BusTime {
-    match *e {
-        Event::Frame { end, .. } => end,
-        Event::ErrorFrame { flag, .. } => flag,
-        Event::Delivered { at, .. }
-        | Event::Overrun { at, .. }
-        | Event::TxDone { at, .. }
-        | Event::TxAborted { at, .. }
-        | Event::State { at, .. }
-        | Event::Restarted { at, .. }
-        | Event::Warning { at, .. }
-        | Event::BusError { at, .. }
-        | Event::Overload { at, .. } => at,
-    }
-}
-
 /// Bus time never goes backwards: on a busy bus with every kind of injected error, overload
 /// frames and disturbances, events come out in time order, each attempt starts after the
 /// previous one has ended, and within an error frame start ≤ flag ≤ end.
@@ -1602,7 +1584,7 @@ fn bus_time_never_goes_backwards() {
         until += 5_000;
         b.run_until(at(until));
         for e in b.take_events() {
-            let t = event_time(&e);
+            let t = e.at();
             assert!(t >= last, "{e:?} at {t:?} before {last:?}");
             last = t;
             count += 1;

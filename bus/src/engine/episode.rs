@@ -64,6 +64,16 @@ pub(crate) struct Plan {
     pub overload: Option<(u8, super::inject::SeenBy)>,
 }
 
+/// What an episode gathers while it runs.
+struct Tally {
+    events: Vec<Event>,
+    destroyed: Vec<Destroyed>,
+    /// Per controller: an ACK error whose count waits for its passive flag (exception 3a).
+    deferred_3a: Vec<bool>,
+    /// The frame's `Frame` event is out (identical frames sent together give one).
+    sent_frame: bool,
+}
+
 /// Per transmitter: the attempt it lost, for the `ErrorFrame` event.
 struct Destroyed {
     node: usize,
@@ -137,10 +147,12 @@ impl Bus {
         }
         let sending: Vec<bool> = (0..n).map(|i| starters.contains(&i)).collect();
         let last_flip = plan.flips.iter().map(|f| f.from + f.bits).max().unwrap_or(0);
-        let mut events: Vec<Event> = Vec::new();
-        let mut destroyed: Vec<Destroyed> = Vec::new();
-        let mut deferred_3a = vec![false; n];
-        let mut sent_frame = false;
+        let mut tally = Tally {
+            events: Vec::new(),
+            destroyed: Vec::new(),
+            deferred_3a: vec![false; n],
+            sent_frame: false,
+        };
         let mut drives = vec![wire::REC; n];
         let mut k: u32 = 0;
         loop {
@@ -167,20 +179,11 @@ impl Bus {
                     }
                 }
                 if c.fault.state() == ErrorState::BusOff {
-                    self.count_recovery(i, sampled, next, &mut events);
+                    self.count_recovery(i, sampled, next, &mut tally.events);
                     continue;
                 }
                 let detected = self.controllers[i].mac.sample(drives[i], sampled);
-                self.react(
-                    i,
-                    detected,
-                    sof,
-                    next,
-                    &mut events,
-                    &mut destroyed,
-                    &mut deferred_3a,
-                    &mut sent_frame,
-                );
+                self.react(i, detected, sof, next, &mut tally);
             }
             k += 1;
             // An episode lasts as long as a disturbance that reaches it: no frame starts within
@@ -205,18 +208,9 @@ impl Bus {
             c.mac_at = end;
             let mut probe = c.mac;
             probe.passive = c.fault.state() == ErrorState::Passive;
-            let mut through = probe;
+            let to_bus_idle = probe.bits_until_bus_idle(64);
             let to_idle = probe.idle_through(64).unwrap_or(64);
             c.ready_at = c.ready_at.max(end + to_idle * bit);
-            let to_bus_idle = (0..64u64)
-                .find(|_| {
-                    let done = matches!(through.phase, Phase::Idle | Phase::Suspend { .. });
-                    if !done {
-                        through.idle_through(1);
-                    }
-                    done
-                })
-                .unwrap_or(64);
             busy_to = busy_to.max(end + to_bus_idle * bit);
         }
         let busy_from = sof.max(self.stats.busy_until);
@@ -227,6 +221,11 @@ impl Bus {
             busy_to,
             ((busy_to - busy_from) / bit).min(u64::from(u32::MAX)) as u32,
         );
+        let Tally {
+            mut events,
+            destroyed,
+            ..
+        } = tally;
         for d in &destroyed {
             self.stats.error(d.error.name());
             let c = &self.controllers[d.node];
@@ -244,7 +243,7 @@ impl Bus {
         }
         // Events come out in time order, and at one time as the closed form gives them: the
         // frame, its confirmations, then what receivers did with it.
-        events.sort_by_key(|e| (event_time(e), rank(e)));
+        events.sort_by_key(|e| (e.at(), rank(e)));
         self.events.extend(events);
         self.idle_at = self.idle_at.max(busy_to);
         self.committed = self.committed.max(sof);
@@ -270,22 +269,17 @@ impl Bus {
         self.note_into(NodeId(i as u16), next, changes, events);
     }
 
-    #[allow(clippy::too_many_arguments)]
-    fn react(
-        &mut self,
-        i: usize,
-        detected: Detected,
-        sof: BusTime,
-        next: BusTime,
-        events: &mut Vec<Event>,
-        destroyed: &mut Vec<Destroyed>,
-        deferred_3a: &mut [bool],
-        sent_frame: &mut bool,
-    ) {
+    fn react(&mut self, i: usize, detected: Detected, sof: BusTime, next: BusTime, tally: &mut Tally) {
+        let Tally {
+            events,
+            destroyed,
+            deferred_3a,
+            sent_frame,
+        } = tally;
         let node = NodeId(i as u16);
         let bit = self.bit_ns;
         match detected {
-            Detected::Nothing | Detected::Sof | Detected::Idle => {}
+            Detected::Nothing | Detected::Sof => {}
             Detected::LostArbitration => self.controllers[i].counters.arbitration_lost += 1,
             Detected::Error(found) => {
                 let c = &mut self.controllers[i];
@@ -529,22 +523,5 @@ fn rank(e: &Event) -> u8 {
         Event::Frame { .. } | Event::ErrorFrame { .. } => 0,
         Event::TxDone { .. } | Event::TxAborted { .. } => 1,
         _ => 2,
-    }
-}
-
-/// The time an event happened at, for ordering.
-fn event_time(e: &Event) -> BusTime {
-    match *e {
-        Event::Frame { end, .. } => end,
-        Event::ErrorFrame { flag, .. } => flag,
-        Event::Delivered { at, .. }
-        | Event::Overrun { at, .. }
-        | Event::TxDone { at, .. }
-        | Event::TxAborted { at, .. }
-        | Event::State { at, .. }
-        | Event::Restarted { at, .. }
-        | Event::Warning { at, .. }
-        | Event::BusError { at, .. }
-        | Event::Overload { at, .. } => at,
     }
 }

@@ -265,6 +265,26 @@ pub enum Event {
     },
 }
 
+impl Event {
+    /// When it happened: the end of a frame, the first flag bit of a destroyed attempt, the
+    /// `at` of the others. The engine gives events in this order.
+    pub fn at(&self) -> BusTime {
+        match *self {
+            Event::Frame { end, .. } => end,
+            Event::ErrorFrame { flag, .. } => flag,
+            Event::Delivered { at, .. }
+            | Event::Overrun { at, .. }
+            | Event::TxDone { at, .. }
+            | Event::TxAborted { at, .. }
+            | Event::State { at, .. }
+            | Event::Restarted { at, .. }
+            | Event::Warning { at, .. }
+            | Event::BusError { at, .. }
+            | Event::Overload { at, .. } => at,
+        }
+    }
+}
+
 /// What the bus does next (from [`Bus::next_event`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum NextEvent {

@@ -348,8 +348,6 @@ pub(crate) enum Detected {
     DominantAfterFlag,
     /// Another 8 consecutive dominant bits after its flag (rule 6).
     DominantRun,
-    /// Intermission (and suspend) over: the bus is idle for it.
-    Idle,
 }
 
 /// An error found in a frame or delimiter.
@@ -500,13 +498,12 @@ impl Mac {
                     self.become_receiver();
                     return Detected::Sof;
                 }
-                if done + 1 >= SUSPEND_BITS {
-                    self.phase = Phase::Idle;
-                    Detected::Idle
+                self.phase = if done + 1 >= SUSPEND_BITS {
+                    Phase::Idle
                 } else {
-                    self.phase = Phase::Suspend { done: done + 1 };
-                    Detected::Nothing
-                }
+                    Phase::Suspend { done: done + 1 }
+                };
+                Detected::Nothing
             }
             Phase::Frame => self.sample_frame(sent, bit),
             Phase::ErrorFlag {
@@ -632,20 +629,14 @@ impl Mac {
                     self.become_receiver();
                     return Detected::Sof;
                 }
-                if done + 1 == INTERMISSION_BITS {
-                    if self.transmitter && self.passive {
-                        self.phase = Phase::Suspend { done: 0 };
-                        self.transmitter = false;
-                        Detected::Nothing
-                    } else {
-                        self.phase = Phase::Idle;
-                        self.transmitter = false;
-                        Detected::Idle
-                    }
+                self.phase = if done + 1 < INTERMISSION_BITS {
+                    Phase::Intermission { done: done + 1 }
+                } else if std::mem::take(&mut self.transmitter) && self.passive {
+                    Phase::Suspend { done: 0 }
                 } else {
-                    self.phase = Phase::Intermission { done: done + 1 };
-                    Detected::Nothing
-                }
+                    Phase::Idle
+                };
+                Detected::Nothing
             }
         }
     }
@@ -751,6 +742,19 @@ impl Mac {
     fn enter_frame_end(&mut self, what: Detected) -> Detected {
         let next = self.enter_intermission();
         if what == Detected::Nothing { next } else { what }
+    }
+
+    /// How many recessive bits, at most `limit`, it needs to be through its intermission (idle
+    /// or suspending: the bus is free for others then).
+    pub fn bits_until_bus_idle(&self, limit: u64) -> u64 {
+        let mut probe = *self;
+        for k in 0..limit {
+            if matches!(probe.phase, Phase::Idle | Phase::Suspend { .. }) {
+                return k;
+            }
+            probe.idle_through(1);
+        }
+        limit
     }
 
     /// Steps through `bits` recessive bits with nobody else on the bus (an idle stretch between
