@@ -88,6 +88,27 @@ pub fn validate(file: &str, s: &NodeScript, signals: &dyn Signals) -> Vec<Proble
     }
     if s.name.trim().is_empty() {
         c.problem("name", "is empty");
+    } else if s.name.chars().any(char::is_whitespace) {
+        // Traces name a controller's interface by it (`harv0.D2`), and a candump line is
+        // split at spaces.
+        c.problem(
+            "name",
+            format!("{:?} holds a space: traces name the node by it", s.name),
+        );
+    }
+    printable(&mut c, "name", &s.name);
+    for (i, d) in s.states.iter().enumerate() {
+        printable(&mut c, &format!("states[{i}].name"), &d.name);
+    }
+    for (i, m) in s.messages.iter().enumerate() {
+        printable(&mut c, &format!("messages[{i}].name"), &m.name);
+    }
+    for (i, t) in s.timers.iter().enumerate() {
+        printable(&mut c, &format!("timers[{i}].name"), &t.name);
+    }
+    for (name, v) in &s.vars {
+        printable(&mut c, &format!("vars.{name}"), name);
+        finite(&mut c, &format!("vars.{name}"), "the initial value", *v);
     }
     let states: Vec<&str> = s.states.iter().map(|d| d.name.as_str()).collect();
     if states.is_empty() {
@@ -195,6 +216,9 @@ pub fn validate(file: &str, s: &NodeScript, signals: &dyn Signals) -> Vec<Proble
         for st in &r.states {
             state_ok(&mut c, format!("{at}.states"), st);
         }
+        for (name, v) in &r.when {
+            finite(&mut c, &format!("{at}.when.{name}"), "the value to match", *v);
+        }
         if let Some(def) = def {
             for name in r.when.keys() {
                 if def.field(name).is_none() {
@@ -228,6 +252,9 @@ pub fn validate(file: &str, s: &NodeScript, signals: &dyn Signals) -> Vec<Proble
                 format!("faults[{i}].signal"),
                 format!("unknown plant signal '{}'", f.signal),
             );
+        }
+        if let Some(m) = f.fault.problem() {
+            c.problem(format!("faults[{i}].fault"), m);
         }
     }
     c.problems
@@ -338,7 +365,7 @@ fn expr(
     frame: Option<&MessageDef>,
 ) {
     match e {
-        Expr::Const(v) if !v.is_finite() => c.problem(at, "not a finite number"),
+        Expr::Const(v) => finite(c, at, "Const", *v),
         Expr::Signal(s) if !signals.is_signal(s) => c.problem(at, format!("unknown plant signal '{s}'")),
         Expr::Var(v) if !vars.contains(v.as_str()) => c.problem(at, format!("unknown variable '{v}'")),
         Expr::Field(f) => match frame {
@@ -346,13 +373,45 @@ fn expr(
             Some(def) if def.field(f).is_none() => c.problem(at, format!("{} has no field '{f}'", def.name)),
             _ => {}
         },
-        Expr::Quantize(_, step) if step.is_nan() || *step <= 0.0 => {
-            c.problem(at, "Quantize step must be positive")
+        Expr::Scaled(inner, gain, offset) => {
+            finite(c, at, "Scaled gain", *gain);
+            finite(c, at, "Scaled offset", *offset);
+            expr(c, at, inner, signals, vars, frame)
         }
-        Expr::Scaled(inner, _, _) | Expr::Clamp(inner, _, _) | Expr::Quantize(inner, _) => {
+        Expr::Clamp(inner, min, max) => {
+            finite(c, at, "Clamp min", *min);
+            finite(c, at, "Clamp max", *max);
+            if min > max {
+                c.problem(at, format!("Clamp min {min} is above its max {max}"));
+            }
+            expr(c, at, inner, signals, vars, frame)
+        }
+        Expr::Quantize(inner, step) => {
+            if !(step.is_finite() && *step > 0.0) {
+                c.problem(
+                    at,
+                    format!("Quantize step {step} is not a positive finite number"),
+                );
+            }
             expr(c, at, inner, signals, vars, frame)
         }
         _ => {}
+    }
+}
+
+/// Every number of a script is finite: a NaN or an infinity would make what the node sends
+/// undefined (a NaN gain turns every value into NaN, which no field can carry).
+fn finite(c: &mut Checker, at: &str, what: &str, v: f64) {
+    if !v.is_finite() {
+        c.problem(at, format!("{what} is {v}, not a finite number"));
+    }
+}
+
+/// A name may not hold control characters (a NUL, a newline, an escape): names go into traces,
+/// reports and terminal lines, which such characters would break or garble.
+fn printable(c: &mut Checker, at: &str, name: &str) {
+    if let Some(ch) = name.chars().find(|ch| ch.is_control()) {
+        c.problem(at, format!("{name:?} holds the control character {:?}", ch));
     }
 }
 

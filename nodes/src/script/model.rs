@@ -285,3 +285,24 @@ pub enum FaultKind {
     /// The sensor is gone: messages that read this signal are not sent.
     Dropout,
 }
+
+impl FaultKind {
+    /// What is wrong with the fault's number, if anything: every one must be finite, and a
+    /// noise's standard deviation not negative.
+    pub fn problem(self) -> Option<String> {
+        let (what, v) = match self {
+            FaultKind::Stuck(v) => ("Stuck", v),
+            FaultKind::Offset(v) => ("Offset", v),
+            FaultKind::Drift(v) => ("Drift", v),
+            FaultKind::Noise(v) => ("Noise", v),
+            FaultKind::Dropout => return None,
+        };
+        if !v.is_finite() {
+            Some(format!("{what}({v}): not a finite number"))
+        } else if matches!(self, FaultKind::Noise(_)) && v < 0.0 {
+            Some(format!("Noise({v}): a standard deviation is not negative"))
+        } else {
+            None
+        }
+    }
+}

@@ -61,8 +61,10 @@ impl Resolved {
     }
 }
 
-/// A sensor was read through a dropout fault: the message is not sent.
-struct Dropout;
+/// A value could not be had: a sensor was read through a dropout fault, or the arithmetic gave
+/// no number (a NaN, or a clamp whose range is empty or not a number, which a validated script
+/// never has). The message is not sent, the variable or input is not written.
+struct NoValue;
 
 /// The acknowledgement state of the node's connection: one connection, however many entries
 /// (groups) it is made of, so one count.
@@ -248,7 +250,7 @@ impl ScriptedNode {
         self.set_state(&initial);
     }
 
-    fn read_signal(&mut self, name: &str) -> Result<f64, Dropout> {
+    fn read_signal(&mut self, name: &str) -> Result<f64, NoValue> {
         let truth = self.env.borrow().read(name).unwrap_or(0.0);
         let mut value = truth;
         for (f, since) in &self.faults {
@@ -260,13 +262,20 @@ impl ScriptedNode {
                 FaultKind::Offset(o) => value + o,
                 FaultKind::Drift(rate) => value + rate * self.now.since(*since).as_secs_f64(),
                 FaultKind::Noise(sigma) => value + sigma * gaussian(&mut self.rng),
-                FaultKind::Dropout => return Err(Dropout),
+                FaultKind::Dropout => return Err(NoValue),
             };
         }
         Ok(value)
     }
 
-    fn eval(&mut self, e: &Expr, frame: Option<&Decoded>) -> Result<f64, Dropout> {
+    /// The value of `e`, never NaN: f64 arithmetic is not trusted to have a meaning here, since a
+    /// script built in code need not have been validated.
+    fn eval(&mut self, e: &Expr, frame: Option<&Decoded>) -> Result<f64, NoValue> {
+        let v = self.eval_unchecked(e, frame)?;
+        if v.is_nan() { Err(NoValue) } else { Ok(v) }
+    }
+
+    fn eval_unchecked(&mut self, e: &Expr, frame: Option<&Decoded>) -> Result<f64, NoValue> {
         Ok(match e {
             Expr::Const(v) => *v,
             Expr::Signal(s) => self.read_signal(s)?,
@@ -274,6 +283,8 @@ impl ScriptedNode {
             Expr::Field(f) => frame.and_then(|d| d.get(f)).map_or(0.0, |v| v.physical),
             Expr::StateCode => f64::from(self.s.states.get(self.state).map_or(0, |d| d.code)),
             Expr::Scaled(inner, gain, offset) => self.eval(inner, frame)? * gain + offset,
+            // f64::clamp panics on such a range.
+            Expr::Clamp(_, lo, hi) if lo.is_nan() || hi.is_nan() || lo > hi => return Err(NoValue),
             Expr::Clamp(inner, lo, hi) => self.eval(inner, frame)?.clamp(*lo, *hi),
             Expr::Quantize(inner, step) => {
                 let v = self.eval(inner, frame)?;

@@ -619,3 +619,5 @@ fn huge_times_never_come_instead_of_overflowing() {
     let (mut n, _) = node(&late, &[("engine.rpm", 2150.0)]);
     assert!(drive(&mut n, BusTime::from_millis(800), &[]).is_empty());
 }
+
+mod numbers;
