@@ -299,8 +299,21 @@ impl BitRate {
         self.0
     }
 
-    /// The bit time in nanoseconds when it is a whole number (true of 125, 250, 500 and
-    /// 1000 kbit/s), which the bus clock needs to stay exact.
+    /// The slowest rate a harvester config takes, bit/s: 10 kbit/s, the lowest of the standard
+    /// CAN bit rates (CiA 301's table: 10, 20, 50, 125, 250, 500, 800 and 1000 kbit/s).
+    pub const SLOWEST: u32 = 10_000;
+
+    /// The rule [`BitRate::for_bus`] applies, in words, for error messages.
+    pub const RULE: &str = "a bit rate must be 10000 to 1000000 bit/s and divide 1000000000,         so that a bit lasts a whole number of nanoseconds (125000, 250000, 500000, 800000 and         1000000 do; 300000 does not)";
+
+    /// A rate the emulated bus runs at: [`BitRate::SLOWEST`] to 1 Mbit/s, with a whole-nanosecond
+    /// bit time ([`BitRate::RULE`]).
+    pub fn for_bus(bits_per_second: u32) -> Option<BitRate> {
+        BitRate::new(bits_per_second).filter(|r| r.0 >= BitRate::SLOWEST && r.exact_bit_time_ns().is_some())
+    }
+
+    /// The bit time in nanoseconds when it is a whole number, which the bus clock needs to stay
+    /// exact: for every rate that divides 10^9 (125, 250, 500, 800 and 1000 kbit/s among them).
     pub fn exact_bit_time_ns(self) -> Option<u64> {
         (1_000_000_000 % u64::from(self.0) == 0).then(|| 1_000_000_000 / u64::from(self.0))
     }
@@ -385,6 +398,28 @@ mod tests {
         assert_eq!(BitRate::K125.exact_bit_time_ns(), Some(8000));
         assert_eq!(BitRate::M1.exact_bit_time_ns(), Some(1000));
         assert_eq!(BitRate::new(30_000).unwrap().exact_bit_time_ns(), None);
+    }
+
+    #[test]
+    fn a_bus_takes_every_rate_with_a_whole_nanosecond_bit_time_from_10_kbits() {
+        // 10^9 = 2^9 × 5^9: the rates that divide it are 2^a × 5^b.
+        let mut exact: Vec<u32> = (0..=9u32)
+            .flat_map(|a| (0..=9u32).map(move |b| 2u32.pow(a) * 5u32.pow(b)))
+            .filter(|r| (10_000..=1_000_000).contains(r))
+            .collect();
+        exact.sort_unstable();
+        let taken: Vec<u32> = (0..=1_100_000u32)
+            .filter(|&r| BitRate::for_bus(r).is_some())
+            .collect();
+        assert_eq!(taken, exact);
+        for r in [
+            10_000, 20_000, 50_000, 100_000, 125_000, 250_000, 500_000, 800_000, 1_000_000,
+        ] {
+            assert!(BitRate::for_bus(r).is_some(), "{r}");
+        }
+        for r in [0, 1, 5_000, 9_999, 30_000, 300_000, 1_000_001, 2_000_000] {
+            assert!(BitRate::for_bus(r).is_none(), "{r}");
+        }
         assert_eq!(BitRate::K250.duration_ns(142), 568_000);
         assert_eq!(BitRate::new(30_000).unwrap().duration_ns(3), 100_000);
         assert!(BitRate::new(0).is_none() && BitRate::new(1_000_001).is_none());

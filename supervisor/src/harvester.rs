@@ -27,13 +27,13 @@ use std::time::Duration;
 pub struct HarvesterConfig {
     /// Machine name.
     pub name: String,
-    /// Bit rate, bit/s: 125000, 250000, 500000 or 1000000.
+    /// Bit rate, bit/s: 10000 to 1000000, dividing 10^9 (`BitRate::RULE`).
     pub bitrate: u32,
     /// The run's seed.
     pub seed: u64,
     /// Delay from monitor power-up to field-node power-up, ms.
     pub time_relay_ms: u64,
-    /// Reaction time of the field nodes, µs.
+    /// Reaction time of the field nodes, µs (at most [`MAX_REACTION_US`]).
     pub reaction_us: u64,
     /// The monitor.
     #[serde(default)]
@@ -82,24 +82,44 @@ impl Harvester {
         let file = path.display().to_string();
         let config: HarvesterConfig = nodes::parse_ron(&file, text)?;
         let mut problems = Vec::new();
-        if BitRate::new(config.bitrate)
-            .and_then(|r| r.exact_bit_time_ns())
-            .is_none()
-        {
+        if BitRate::for_bus(config.bitrate).is_none() {
             problems.push(Problem::at(
                 &file,
                 "bitrate",
-                format!("{} bit/s: use 125000, 250000, 500000 or 1000000", config.bitrate),
+                format!("{} bit/s: {}", config.bitrate, BitRate::RULE),
             ));
         }
         if config.nodes.is_empty() {
             problems.push(Problem::at(&file, "nodes", "no nodes"));
         }
-        if config.monitor.calibration_samples == 0 {
+        for (field, us) in [
+            ("reaction_us", config.reaction_us),
+            ("monitor.reaction_us", config.monitor.reaction_us),
+        ] {
+            if us > MAX_REACTION_US {
+                problems.push(Problem::at(
+                    &file,
+                    field,
+                    format!(
+                        "{us} µs is over {MAX_REACTION_US} µs (one second), the longest \
+                         interrupt-to-answer time harvemu takes"
+                    ),
+                ));
+            }
+        }
+        problems.extend(
+            config
+                .monitor
+                .validate()
+                .into_iter()
+                .map(|(field, m)| Problem::at(&file, format!("monitor.{field}"), m)),
+        );
+        let restart = &config.restart;
+        if !(restart.window_s.is_finite() && restart.window_s >= 0.0) {
             problems.push(Problem::at(
                 &file,
-                "monitor.calibration_samples",
-                "must be at least 1",
+                "restart.window_s",
+                format!("{} is not a number >= 0", restart.window_s),
             ));
         }
         problems.extend(
@@ -109,9 +129,13 @@ impl Harvester {
         );
         let dir = path.parent().unwrap_or(Path::new("."));
         let mut scripts = Vec::new();
+        let mut places = Vec::new();
         for (i, rel) in config.nodes.iter().enumerate() {
             match script(&dir.join(rel)) {
-                Ok(s) => scripts.push(s),
+                Ok(s) => {
+                    scripts.push(s);
+                    places.push(format!("nodes[{i}] ({rel})"));
+                }
                 Err(Error::Invalid(p)) => problems.extend(p),
                 Err(Error::Io { path, source }) => problems.push(Problem::at(
                     &file,
@@ -120,23 +144,7 @@ impl Harvester {
                 )),
             }
         }
-        let mut seen = std::collections::BTreeMap::new();
-        for s in &scripts {
-            if s.address == Address::MONITOR.0 {
-                problems.push(Problem::at(
-                    &file,
-                    "nodes",
-                    format!("{} takes the monitor's address F5", s.name),
-                ));
-            }
-            if let Some(other) = seen.insert(s.address, s.name.clone()) {
-                problems.push(Problem::at(
-                    &file,
-                    "nodes",
-                    format!("{} and {other} both have address {:02X}", s.name, s.address),
-                ));
-            }
-        }
+        problems.extend(clashes(&file, &scripts, &places));
         if problems.is_empty() {
             Ok(Harvester {
                 path: path.to_path_buf(),
@@ -148,7 +156,8 @@ impl Harvester {
         }
     }
 
-    /// Leaves nodes out (a real device takes each one's place); "F5" is the monitor.
+    /// Leaves nodes out (a real device takes each one's place); "F5" is the monitor. Names are
+    /// unique (loading checks it), so each name leaves out exactly one node.
     pub fn without(&mut self, names: &[String]) -> Result<(), Error> {
         let mut problems = Vec::new();
         for n in names {
@@ -176,6 +185,50 @@ impl Harvester {
     pub fn relay(&self) -> BusTime {
         BusTime::from_millis(self.config.time_relay_ms)
     }
+}
+
+/// The longest reaction time a config may give (`reaction_us`, `monitor.reaction_us`): one
+/// second. An MCU's interrupt latency is microseconds; far beyond a second a node would answer
+/// after the run, and at 2^64 − 1 µs the hub's clock saturates and the node never hears a frame.
+pub const MAX_REACTION_US: u64 = 1_000_000;
+
+/// Nodes that would be mistaken for one another: two with one name (`--without`, scenarios and
+/// traces pick nodes by name), one named F5 (the monitor's name), two with one address, or one
+/// at the monitor's address. `places[i]` says where `scripts[i]` is in the config.
+fn clashes(file: &str, scripts: &[NodeScript], places: &[String]) -> Vec<Problem> {
+    let mut problems = Vec::new();
+    let problem = |s: &NodeScript, place: &str, message: String| Problem {
+        file: file.to_string(),
+        position: None,
+        node: Some(s.name.clone()),
+        field: Some(place.to_string()),
+        message,
+    };
+    let mut names = std::collections::BTreeMap::new();
+    let mut addresses = std::collections::BTreeMap::new();
+    for (s, place) in scripts.iter().zip(places) {
+        if s.name == "F5" {
+            problems.push(problem(s, place, "F5 is the monitor's name".into()));
+        }
+        if s.address == Address::MONITOR.0 {
+            problems.push(problem(s, place, "takes the monitor's address F5".into()));
+        }
+        if let Some(other) = names.insert(s.name.as_str(), place) {
+            problems.push(problem(
+                s,
+                place,
+                format!("{other} has the same name: every node needs a name of its own"),
+            ));
+        }
+        if let Some((other, name)) = addresses.insert(s.address, (place, &s.name)) {
+            problems.push(problem(
+                s,
+                place,
+                format!("{other} (node {name}) has the same address {:02X}", s.address),
+            ));
+        }
+    }
+    problems
 }
 
 /// Turns a config error into bad input for the command line. A default config (`configs/...`,
@@ -561,6 +614,114 @@ mod tests {
         assert_eq!(problems.len(), 1);
         assert_eq!(problems[0].file, "cfg/harvester.ron");
         assert_eq!(problems[0].field.as_deref(), Some("nodes[1]"));
+    }
+
+    /// The config's problems, as text, with scripts read by `script`.
+    fn problems(text: &str, script: impl FnMut(&Path) -> Result<NodeScript, Error>) -> Vec<String> {
+        match Harvester::from_text(Path::new("h.ron"), text, script) {
+            Ok(_) => Vec::new(),
+            Err(e) => e
+                .to_string()
+                .lines()
+                .skip(1)
+                .map(|l| l.trim().to_string())
+                .collect(),
+        }
+    }
+
+    /// Three scripts: d0.ron as itself, and as copies renamed or readdressed by the file name.
+    fn three(p: &Path) -> Result<NodeScript, Error> {
+        let mut s = real(Path::new("nodes/d0.ron"))?;
+        match p.file_name().and_then(|n| n.to_str()) {
+            Some("b.ron") => s.address = 0xD1,
+            Some("c.ron") => s.name = "F5".into(),
+            _ => {}
+        }
+        Ok(s)
+    }
+
+    const THREE: &str = r#"Harvester(name: "x", bitrate: 250000, seed: 1, time_relay_ms: 500,
+        reaction_us: 200, nodes: ["a.ron", "b.ron", "c.ron"])"#;
+
+    /// `--without D0` removed the first D0 and left the other running: names must be unique.
+    #[test]
+    fn two_nodes_with_one_name_or_address_are_refused_with_both_places() {
+        assert_eq!(
+            problems(THREE, three),
+            [
+                "h.ron: node D0: nodes[1] (b.ron): nodes[0] (a.ron) has the same name: every node \
+                 needs a name of its own",
+                "h.ron: node F5: nodes[2] (c.ron): F5 is the monitor's name",
+                "h.ron: node F5: nodes[2] (c.ron): nodes[0] (a.ron) (node D0) has the same address D0",
+            ]
+        );
+    }
+
+    #[test]
+    fn a_reaction_time_over_a_second_is_refused() {
+        let one = |t: &str| t.replace(r#", "b.ron", "c.ron""#, "");
+        assert!(problems(&one(THREE).replace("200", "1000000"), three).is_empty());
+        let text = one(THREE).replace(
+            "reaction_us: 200",
+            "reaction_us: 18446744073709551615, \
+            monitor: (reaction_us: 1000001)",
+        );
+        assert_eq!(
+            problems(&text, three),
+            [
+                "h.ron: reaction_us: 18446744073709551615 µs is over 1000000 µs (one second), \
+                 the longest interrupt-to-answer time harvemu takes",
+                "h.ron: monitor.reaction_us: 1000001 µs is over 1000000 µs (one second), the \
+                 longest interrupt-to-answer time harvemu takes",
+            ]
+        );
+    }
+
+    #[test]
+    fn every_rate_with_a_whole_nanosecond_bit_time_is_taken_and_the_message_says_so() {
+        let one = THREE.replace(r#", "b.ron", "c.ron""#, "");
+        for ok in [10_000, 50_000, 100_000, 125_000, 800_000, 1_000_000] {
+            let text = one.replace("250000", &ok.to_string());
+            assert!(problems(&text, three).is_empty(), "{ok}");
+        }
+        for bad in [0, 9_999, 300_000, 2_000_000] {
+            let text = one.replace("250000", &bad.to_string());
+            let p = problems(&text, three);
+            assert_eq!(p.len(), 1, "{p:?}");
+            assert!(
+                p[0].starts_with(&format!("h.ron: bitrate: {bad} bit/s: a bit rate must be 10000 to 1000000 bit/s and divide 1000000000")),
+                "{p:?}"
+            );
+        }
+    }
+
+    /// Values the monitor sends must fit the field that carries them, and the plant input the
+    /// receiving node writes them to: otherwise the monitor cannot encode them and stays silent.
+    #[test]
+    fn monitor_values_outside_what_carries_them_are_refused() {
+        let text = THREE.replace(r#", "b.ron", "c.ron""#, "").replace(
+            "reaction_us: 200,",
+            "reaction_us: 200, monitor: (target_reference: 0, \
+             cruise: (min_kmh: 9.0, max_kmh: 20.0, step_kmh: inf)),",
+        );
+        assert_eq!(
+            problems(&text, three),
+            [
+                "h.ron: monitor.target_reference: 0 is outside 1..=65535, what \
+                 flow.calibrate.target_reference and plant input sensor.target_reference can carry",
+                "h.ron: monitor.cruise.max_kmh: 20 is outside 0..=12, what speed.setpoint.setpoint \
+                 and plant input speed.setpoint can carry",
+                "h.ron: monitor.cruise.step_kmh: inf is not a number >= 0",
+            ]
+        );
+        let inverted = THREE.replace(r#", "b.ron", "c.ron""#, "").replace(
+            "reaction_us: 200,",
+            "reaction_us: 200, monitor: (cruise: (min_kmh: 6.0, max_kmh: 2.0)),",
+        );
+        assert_eq!(
+            problems(&inverted, three),
+            ["h.ron: monitor.cruise.min_kmh: 6 is above cruise.max_kmh 2"]
+        );
     }
 
     /// A huge time relay loaded, then overflowed the bus clock when the run computed it.

@@ -322,7 +322,7 @@ impl Bus {
     pub fn new(config: BusConfig) -> Result<Bus, Error> {
         let bit_ns = config.bitrate.exact_bit_time_ns().ok_or_else(|| {
             Error::Syntax(format!(
-                "bit rate {} bit/s has no whole-nanosecond bit time; use 125000, 250000, 500000 or 1000000",
+                "bit rate {} bit/s has no whole-nanosecond bit time: 1000000000 is not divisible by it",
                 config.bitrate.bits_per_second()
             ))
         })?;

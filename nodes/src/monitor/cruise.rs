@@ -102,7 +102,7 @@ pub struct Cruise {
 impl Cruise {
     /// A controller starting from `speed_kmh`.
     pub fn new(config: CruiseConfig, speed_kmh: f64) -> Cruise {
-        let setpoint = speed_kmh.clamp(config.min_kmh, config.max_kmh);
+        let setpoint = within(speed_kmh, &config);
         Cruise {
             config,
             previous_error: 0.0,
@@ -115,15 +115,35 @@ impl Cruise {
         let e = ((target - feed_kg_s) / target).clamp(-1.0, 1.0);
         let de = (e - self.previous_error).clamp(-1.0, 1.0);
         self.previous_error = e;
-        self.setpoint = (self.setpoint + infer(e, de) * self.config.step_kmh)
-            .clamp(self.config.min_kmh, self.config.max_kmh);
+        self.setpoint = within(self.setpoint + infer(e, de) * self.config.step_kmh, &self.config);
         self.setpoint
     }
+}
+
+/// `v` limited to `min_kmh..=max_kmh`. Validation refuses a config whose range is empty or not
+/// a number; one built in code gets a deterministic answer, not f64::clamp's panic.
+fn within(v: f64, c: &CruiseConfig) -> f64 {
+    v.max(c.min_kmh).min(c.max_kmh)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// f64::clamp panicked on these; a config built in code skips validation.
+    #[test]
+    fn an_empty_or_nan_speed_range_does_not_panic() {
+        for (min_kmh, max_kmh) in [(6.0, 2.0), (f64::NAN, 8.0), (1.0, f64::NAN)] {
+            let config = CruiseConfig {
+                min_kmh,
+                max_kmh,
+                ..CruiseConfig::default()
+            };
+            let mut c = Cruise::new(config, 5.0);
+            let v = c.step(1.0);
+            assert!(!v.is_nan(), "({min_kmh}, {max_kmh}) gave {v}");
+        }
+    }
 
     #[test]
     fn memberships_partition_unity() {

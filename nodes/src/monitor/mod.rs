@@ -15,6 +15,7 @@
 //! The display is shared (`Rc<RefCell<Display>>`) so that tests and a terminal view can read it
 //! while the monitor runs.
 
+mod check;
 pub mod cruise;
 pub mod display;
 pub mod flow;

@@ -92,15 +92,47 @@ impl Inputs {
     }
 }
 
+/// The values a plant input takes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum InputRange {
+    /// Exactly 0 or 1.
+    Switch,
+    /// Any finite number in `min..=max`.
+    Span(f64, f64),
+}
+
+impl InputRange {
+    /// The range of `input`.
+    pub(crate) fn of(input: Input) -> InputRange {
+        match input {
+            Input::ModeRequest | Input::Unload => InputRange::Switch,
+            Input::Setpoint => InputRange::Span(0.0, MAX_SETPOINT_KMH),
+            Input::OperatorSpeed => InputRange::Span(0.0, MAX_OPERATOR_SPEED_KMH),
+            Input::RowCorrection => InputRange::Span(-100.0, 100.0),
+            Input::TargetReference => InputRange::Span(1.0, 65535.0),
+            Input::Fault(_) => InputRange::Span(0.0, 1.0),
+        }
+    }
+
+    /// True when `value` is one of the range's values.
+    pub fn contains(self, value: f64) -> bool {
+        match self {
+            InputRange::Switch => value == 0.0 || value == 1.0,
+            InputRange::Span(lo, hi) => value.is_finite() && (lo..=hi).contains(&value),
+        }
+    }
+}
+
+impl core::fmt::Display for InputRange {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            InputRange::Switch => write!(f, "0 or 1"),
+            InputRange::Span(lo, hi) => write!(f, "{lo}..={hi}"),
+        }
+    }
+}
+
 /// Whether `value` is in the range of `input`: switches take exactly 0 or 1, the rest a range.
 fn accepts(input: Input, value: f64) -> bool {
-    let range = |lo: f64, hi: f64| value.is_finite() && (lo..=hi).contains(&value);
-    match input {
-        Input::ModeRequest | Input::Unload => value == 0.0 || value == 1.0,
-        Input::Setpoint => range(0.0, MAX_SETPOINT_KMH),
-        Input::OperatorSpeed => range(0.0, MAX_OPERATOR_SPEED_KMH),
-        Input::RowCorrection => range(-100.0, 100.0),
-        Input::TargetReference => range(1.0, 65535.0),
-        Input::Fault(_) => range(0.0, 1.0),
-    }
+    InputRange::of(input).contains(value)
 }

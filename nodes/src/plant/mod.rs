@@ -91,6 +91,7 @@ use std::rc::Rc;
 use bus::time::BusTime;
 
 pub use config::PlantConfig;
+pub use inputs::InputRange;
 use inputs::Inputs;
 use model::Model;
 use signals::{Output, Signal};
@@ -266,5 +267,14 @@ impl Plant {
     /// Whether `name` is a writable input (false for outputs and unknown names).
     pub fn is_input(name: &str) -> bool {
         matches!(signals::lookup(name), Some(Signal::In(_)))
+    }
+
+    /// The values the input `name` takes (`None` for outputs and unknown names): what
+    /// [`Plant::set_input`] accepts, so that a value can be checked before a run.
+    pub fn input_range(name: &str) -> Option<InputRange> {
+        match signals::lookup(name)? {
+            Signal::In(input) => Some(InputRange::of(input)),
+            Signal::Out(_) => None,
+        }
     }
 }
