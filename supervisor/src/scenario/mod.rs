@@ -242,6 +242,11 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
     for (i, step) in s.timeline.iter().enumerate() {
         let at = format!("timeline[{i}]");
         time_ok(&mut p, format!("{at}.at_s"), step.at_s);
+        if let Action::SensorFault { fault, .. } = &step.action
+            && let Some(m) = fault.problem()
+        {
+            p.push(Problem::at(file, format!("{at}.action.fault"), m));
+        }
         match &step.action {
             Action::BitErrors {
                 target,
@@ -336,18 +341,20 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
                     ));
                 }
             }
-            Action::Plant { input, value } => {
-                if !Plant::is_input(input) {
-                    p.push(Problem::at(
-                        file,
-                        format!("{at}.action.input"),
-                        format!("'{input}' is not a plant input"),
-                    ));
-                }
-                if !value.is_finite() {
-                    p.push(Problem::at(file, format!("{at}.action.value"), "not a number"));
-                }
-            }
+            Action::Plant { input, value } => match Plant::input_range(input) {
+                None => p.push(Problem::at(
+                    file,
+                    format!("{at}.action.input"),
+                    format!("'{input}' is not a plant input"),
+                )),
+                // The plant refuses it when the step runs, which would end the run there.
+                Some(range) if !range.contains(*value) => p.push(Problem::at(
+                    file,
+                    format!("{at}.action.value"),
+                    format!("{value} is not {range}, the range of plant input {input}"),
+                )),
+                Some(_) => {}
+            },
             Action::PowerCycle => {}
         }
     }

@@ -189,6 +189,32 @@ fn faults_end_after_they_start() {
     );
 }
 
+/// A plant value out of its input's range passed validation, and the plant refused it in the
+/// middle of the run, which ended it there.
+#[test]
+fn plant_values_and_sensor_faults_are_checked_before_the_run() {
+    let found = problems(
+        10.0,
+        r#"(at_s: 1.0, action: Plant(input: "speed.setpoint", value: 50.0)),
+           (at_s: 1.0, action: Plant(input: "speed.unload", value: 0.5)),
+           (at_s: 1.0, action: Plant(input: "fault.door3_open", value: NaN)),
+           (at_s: 1.0, action: Plant(input: "engine.rpm", value: 1.0)),
+           (at_s: 1.0, action: Plant(input: "operator.speed", value: 12.0)),
+           (at_s: 1.0, action: SensorFault(node: "D2", signal: "row3.unit1", fault: Stuck(inf)))"#,
+        OK,
+    );
+    assert_problems(
+        &found,
+        &[
+            "timeline[0].action.value: 50 is not 0..=12, the range of plant input speed.setpoint",
+            "timeline[1].action.value: 0.5 is not 0 or 1, the range of plant input speed.unload",
+            "timeline[2].action.value: NaN is not 0..=1, the range of plant input fault.door3_open",
+            "timeline[3].action.input: 'engine.rpm' is not a plant input",
+            "timeline[5].action.fault: Stuck(inf): not a finite number",
+        ],
+    );
+}
+
 #[test]
 fn the_new_fields_have_their_defaults() {
     let text = r#"Scenario(name: "t", duration_s: 10.0, expect: [NoFrameLost], timeline: [
