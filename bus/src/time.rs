@@ -1,8 +1,9 @@
 //! Bus time: nanoseconds since the bus started.
 //!
 //! The bus keeps its own clock in whole nanoseconds because a frame lasts a few hundred
-//! microseconds and tokio's timers only resolve milliseconds. At 125, 250, 500 and 1000 kbit/s a
-//! bit time is a whole number of nanoseconds, so this clock is exact.
+//! microseconds and tokio's timers only resolve milliseconds. The bus runs only at rates whose
+//! bit time is a whole number of nanoseconds (125, 250, 500 and 1000 kbit/s among them: every
+//! rate that divides 10^9), so this clock is exact.
 
 use core::fmt;
 use core::ops::{Add, Sub};
