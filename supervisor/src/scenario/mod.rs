@@ -652,8 +652,12 @@ pub fn run(
             };
         }
         let end = BusTime::from_secs_f64(s.duration_s);
-        // Start-up: the timeline begins once the field nodes are there (at the time relay).
-        run_to!(h.relay().min(end));
+        // Start-up: the timeline and the series begin once the field nodes are there (at the
+        // time relay).
+        tokio::select! {
+            r = running.run_until(h.relay().min(end)) => r?,
+            sig = stop.wait() => interrupted = Some(sig),
+        }
         for (at, _, what) in todo {
             if interrupted.is_some() {
                 break;

@@ -73,6 +73,9 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
     let finished = recording.map_or(Ok(()), |r| r.finish(crate::stop::received()));
     let outcome = outcome?;
     finished?;
+    if let Some(signal) = crate::stop::received() {
+        eprintln!("harvemu: interrupted by {}", signal.describe());
+    }
     if let Some(k) = memory::vm_rss_kib() {
         let end = outcome
             .snapshot
