@@ -123,10 +123,17 @@ fn main() -> ExitCode {
         )
         .with_writer(std::io::stderr)
         .init();
-    // Before anything else: a signal from here on stops the run in order, not the process.
-    if let Err(e) = stop::install() {
+    // Before anything else: a signal from here on stops a run in order, not the process; the
+    // quick commands (and bench, which has no outputs to finish) keep the default.
+    let runs = matches!(
+        cli.command,
+        Command::Run(_) | Command::Replay(_) | Command::Scenario(_) | Command::Soak(_)
+    );
+    let handled = stop::ignore_file_size_limit().and_then(|()| if runs { stop::install() } else { Ok(()) });
+    if let Err(e) = handled {
+        // The system refused: not the input's fault, nor an output's.
         eprintln!("harvemu: error: cannot handle signals: {e}");
-        return ExitCode::from(exit::OUTPUT_FAILED);
+        return ExitCode::from(exit::EXPECTATIONS_FAILED);
     }
     let done = Ended::default();
     let result = match cli.command {

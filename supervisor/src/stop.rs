@@ -1,12 +1,13 @@
 //! Stopping a run from outside: SIGINT (Ctrl-C), SIGTERM and SIGHUP.
 //!
-//! Contract: after [`install`] (the first thing `harvemu` does), each of the three signals is
-//! recorded instead of killing the process, whenever it arrives: the first one received is
-//! [`received`], and a [`Stop`] made at any later time answers it at once. A run awaits
-//! [`Stop::wait`] beside its work, stops where it is, finishes its outputs (saying it was
-//! interrupted) and exits with 128 + the signal's number. SIGXFSZ is ignored, so that a write
-//! past the file-size limit fails with an error that names the file instead of killing the
-//! process.
+//! Contract: after [`install`] (the first thing `run`, `replay`, `scenario` and `soak` do), each
+//! of the three signals is recorded instead of killing the process, whenever it arrives: the
+//! first one received is [`received`], and a [`Stop`] made at any later time answers it at once.
+//! A run awaits [`Stop::wait`] beside its work, stops where it is, finishes its outputs (saying
+//! it was interrupted) and exits with 128 + the signal's number. The other commands keep the
+//! signals' default (they end the process). [`ignore_file_size_limit`] (every command) ignores
+//! SIGXFSZ, so that a write past the file-size limit fails with an error that names the file
+//! instead of killing the process.
 
 use std::sync::atomic::{AtomicI32, Ordering};
 use tokio::signal::unix::{SignalKind, signal};
@@ -59,12 +60,17 @@ impl Signal {
 /// The number of the first stop signal received, 0 before any.
 static RECEIVED: AtomicI32 = AtomicI32::new(0);
 
-/// Records the stop signals from now on and ignores SIGXFSZ.
-pub fn install() -> std::io::Result<()> {
+/// Ignores SIGXFSZ: a write past the file-size limit then fails with EFBIG.
+pub fn ignore_file_size_limit() -> std::io::Result<()> {
     // SAFETY: SIG_IGN for SIGXFSZ changes no handler Rust code relies on.
     if unsafe { libc::signal(libc::SIGXFSZ, libc::SIG_IGN) } == libc::SIG_ERR {
         return Err(std::io::Error::last_os_error());
     }
+    Ok(())
+}
+
+/// Records the stop signals from now on.
+pub fn install() -> std::io::Result<()> {
     for s in [Signal::Int, Signal::Term, Signal::Hup] {
         let n = s.number();
         // SAFETY: the action only stores into an atomic, which is async-signal-safe.
