@@ -1,7 +1,7 @@
 //! `harvemu dbc`: a DBC of the whole harvester, from the message catalogue and the cycle times of
-//! the harvester config's node scripts.
+//! the harvester config's node scripts. `-o FILE` gets the whole DBC or, when it cannot be
+//! written completely, is left as it was (exit code 3).
 
-use crate::BadInput;
 use crate::harvester::{self, Harvester};
 use bus::catalogue::dbc::{self, Network};
 use bus::catalogue::{MESSAGES, Trigger};
@@ -61,9 +61,12 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let h = Harvester::load(&args.config).map_err(harvester::bad)?;
     let text = dbc::generate(MESSAGES, &network(&h));
     match &args.output {
-        Some(path) => std::fs::write(path, text)
-            .map_err(|e| BadInput(format!("cannot write {}: {e}", path.display())))?,
-        None => std::io::stdout().lock().write_all(text.as_bytes())?,
+        Some(path) => crate::output::write_whole(path, text.as_bytes())?,
+        None => std::io::stdout()
+            .lock()
+            .write_all(text.as_bytes())
+            .and_then(|()| std::io::stdout().lock().flush())
+            .map_err(|e| crate::output::failed("write", std::path::Path::new("standard output"), &e))?,
     }
     Ok(())
 }

@@ -338,6 +338,8 @@ pub struct Running {
     harvester: Harvester,
     members: Vec<Member>,
     now: BusTime,
+    /// When the time relay powers up the field nodes, until they are attached.
+    field_nodes_at: Option<BusTime>,
 }
 
 fn build(
@@ -363,6 +365,15 @@ fn build(
 /// Builds the harvester on a new hub and runs it through start-up: the monitor from time 0, the
 /// field nodes from the time relay on. Must run inside an actix system.
 pub async fn start(h: &Harvester, trace: Option<Box<dyn Write>>) -> anyhow::Result<Running> {
+    let mut running = begin(h, trace).await?;
+    running.run_until(h.relay()).await?;
+    Ok(running)
+}
+
+/// Builds the harvester on a new hub at time 0 with the monitor attached; the field nodes are
+/// attached when [`Running::run_until`] reaches the time relay. Start-up is thus an ordinary
+/// stretch of the run, which a caller can stop at any moment (a huge time relay, a signal).
+pub async fn begin(h: &Harvester, trace: Option<Box<dyn Write>>) -> anyhow::Result<Running> {
     let c = &h.config;
     let bitrate = BitRate::new(c.bitrate).ok_or_else(|| BadInput(format!("bit rate {}", c.bitrate)))?;
     let hub_config = HubConfig {
@@ -384,19 +395,11 @@ pub async fn start(h: &Harvester, trace: Option<Box<dyn Write>>) -> anyhow::Resu
         harvester: h.clone(),
         members: Vec::new(),
         now: BusTime::ZERO,
+        field_nodes_at: Some(h.relay()),
     };
     if c.monitor.enabled {
         running
             .attach("F5", Spec::Monitor, c.monitor.reaction_us, BusTime::ZERO)
-            .await?;
-    }
-    // Start-up as in the source: the monitor first, then the time relay starts every node.
-    running.hub.send(RunUntil(h.relay())).await??;
-    running.now = h.relay();
-    for script in &h.scripts {
-        let spec = Spec::Script(Box::new(script.clone()));
-        running
-            .attach(&script.name, spec, c.reaction_us, h.relay())
             .await?;
     }
     Ok(running)
@@ -453,20 +456,58 @@ impl Running {
     }
 
     /// Runs the bus to `until`, looking after crashed nodes on the way: the hub stops at a crash,
-    /// and at every restart that falls due.
+    /// at every restart that falls due and at the time relay, where the field nodes are attached
+    /// (as in the source: the monitor first, then the time relay starts every node).
     pub async fn run_until(&mut self, until: BusTime) -> anyhow::Result<()> {
-        while self.now < until {
+        loop {
+            if self.field_nodes_at.is_some_and(|t| t <= self.now) {
+                self.attach_field_nodes().await?;
+            }
+            if self.now >= until {
+                return Ok(());
+            }
             // The hub stops early by itself when a node crashes; restarts are due at known times.
             let next = self
                 .members
                 .iter()
                 .filter_map(|m| m.restart_at)
+                .chain(self.field_nodes_at)
                 .fold(until, BusTime::min)
                 .max(self.now);
             self.now = self.hub.send(RunUntil(next)).await??;
             self.supervise().await?;
         }
+    }
+
+    async fn attach_field_nodes(&mut self) -> anyhow::Result<()> {
+        let Some(relay) = self.field_nodes_at.take() else {
+            return Ok(());
+        };
+        let h = self.harvester.clone();
+        for script in &h.scripts {
+            let spec = Spec::Script(Box::new(script.clone()));
+            self.attach(&script.name, spec, h.config.reaction_us, relay)
+                .await?;
+        }
         Ok(())
+    }
+
+    /// The nodes that crashed more often than the restart policy allows and stay down, when the
+    /// crash that put them down was not injected on purpose ([`Running::crash`]).
+    pub fn down_by_themselves(&self) -> Vec<String> {
+        let mut down = Vec::new();
+        for m in self.members.iter().filter(|m| m.down) {
+            let last_crash = self
+                .events
+                .iter()
+                .rev()
+                .find(|e| e.node == m.name && e.what.starts_with("crashed: "));
+            let injected = format!("crashed: {}", bus::node::INJECTED_CRASH);
+            if last_crash.is_some_and(|e| e.what != injected) {
+                down.push(m.name.clone());
+            }
+        }
+        down
     }
 
     /// Notes crashes and restarts what is due, by the restart policy.

@@ -1,21 +1,35 @@
 //! `harvemu`: the command line of the emulated 4MZ-6A cotton harvester.
 //!
-//! Exit codes: 0 success, 1 a run that failed, 2 bad input (arguments, frames, configs).
+//! Exit codes (docs/PROMISES.md): 0 success, 1 an expectation failed, 2 bad input or usage,
+//! 3 an output could not be created or written, 4 a node crashed beyond its restart policy,
+//! 130 / 143 / 129 stopped by SIGINT / SIGTERM / SIGHUP.
 
 use clap::{Parser, Subcommand};
+use std::io::Write;
 use std::process::ExitCode;
-use supervisor::{BadInput, bench, dbc, inspect, replay, run, scenarios_cli, soak};
+use supervisor::exit::{self, Ended};
+use supervisor::{OutputFailed, bench, dbc, inspect, replay, run, scenarios_cli, soak, stop};
 
 #[derive(Parser)]
 #[command(
     name = "harvemu",
     version,
-    about = "Emulator of a cotton harvester's CAN network"
+    about = "Emulator of a cotton harvester's CAN network",
+    after_help = EXIT_CODES
 )]
 struct Cli {
     #[command(subcommand)]
     command: Command,
 }
+
+const EXIT_CODES: &str = "\
+Exit codes:
+  0    success
+  1    an expectation of a scenario or soak failed
+  2    bad input or usage
+  3    an output (trace, report, JUnit XML, DBC) could not be created or written
+  4    a node crashed more often than its restart policy allows
+  130  stopped by SIGINT (Ctrl-C), 143 by SIGTERM, 129 by SIGHUP (outputs are finished)";
 
 // One example or more per subcommand, under its --help.
 const RUN_EXAMPLES: &str = "\
@@ -65,7 +79,8 @@ enum Command {
     /// Play a candump log or Vector ASC trace onto the emulated harvester's bus.
     #[command(after_help = REPLAY_EXAMPLES)]
     Replay(replay::Args),
-    /// Run scenarios in virtual time and give verdicts (exit code 1 if any expectation fails).
+    /// Run scenarios in virtual time and give verdicts (exit code 1 if any expectation fails,
+    /// the others as `harvemu --help` lists them).
     #[command(after_help = SCENARIO_EXAMPLES)]
     Scenario(scenarios_cli::ScenarioArgs),
     /// A long run with random faults (default: 24 h virtual): memory over time and the books.
@@ -108,40 +123,49 @@ fn main() -> ExitCode {
         )
         .with_writer(std::io::stderr)
         .init();
+    // Before anything else: a signal from here on stops a run in order, not the process; the
+    // quick commands (and bench, which has no outputs to finish) keep the default.
+    let runs = matches!(
+        cli.command,
+        Command::Run(_) | Command::Replay(_) | Command::Scenario(_) | Command::Soak(_)
+    );
+    let handled = stop::ignore_file_size_limit().and_then(|()| if runs { stop::install() } else { Ok(()) });
+    if let Err(e) = handled {
+        // The system refused: not the input's fault, nor an output's.
+        eprintln!("harvemu: error: cannot handle signals: {e}");
+        return ExitCode::from(exit::EXPECTATIONS_FAILED);
+    }
+    let done = Ended::default();
     let result = match cli.command {
         Command::Run(args) => run::run(&args),
         Command::Replay(args) => replay::run(&args),
-        Command::Validate(args) => scenarios_cli::validate(&args),
-        Command::Scenario(args) => match scenarios_cli::run(&args) {
-            Ok(true) => Ok(()),
-            Ok(false) => return ExitCode::from(1),
-            Err(e) => Err(e),
-        },
-        Command::Soak(args) => match soak::run(&args) {
-            Ok(true) => Ok(()),
-            Ok(false) => return ExitCode::from(1),
-            Err(e) => Err(e),
-        },
-        Command::Inspect(args) => inspect::run(&args),
-        Command::Bench(args) => bench::run(&args),
-        Command::Dbc(args) => dbc::run(&args),
-        Command::Protocol { markdown } => {
-            if markdown {
-                println!("{}", bus::catalogue::doc::markdown());
-            } else {
-                for m in bus::catalogue::MESSAGES {
-                    println!("{:02X} {:<24} {}", m.number, m.name, m.doc);
-                }
-            }
-            Ok(())
-        }
+        Command::Validate(args) => scenarios_cli::validate(&args).map(|()| done),
+        Command::Scenario(args) => scenarios_cli::run(&args),
+        Command::Soak(args) => soak::run(&args),
+        Command::Inspect(args) => inspect::run(&args).map(|()| done),
+        Command::Bench(args) => bench::run(&args).map(|()| done),
+        Command::Dbc(args) => dbc::run(&args).map(|()| done),
+        Command::Protocol { markdown } => protocol(markdown).map(|()| done),
     };
-    match result {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            let bad_input = e.downcast_ref::<BadInput>().is_some();
-            eprintln!("harvemu: error: {e:#}");
-            ExitCode::from(if bad_input { 2 } else { 1 })
-        }
+    if let Err(e) = &result {
+        eprintln!("harvemu: error: {e:#}");
     }
+    ExitCode::from(exit::code(&result, stop::received()))
+}
+
+/// `harvemu protocol`: the catalogue on standard output.
+fn protocol(markdown: bool) -> anyhow::Result<()> {
+    let mut out = std::io::stdout().lock();
+    let text = if markdown {
+        format!("{}\n", bus::catalogue::doc::markdown())
+    } else {
+        bus::catalogue::MESSAGES
+            .iter()
+            .map(|m| format!("{:02X} {:<24} {}\n", m.number, m.name, m.doc))
+            .collect()
+    };
+    out.write_all(text.as_bytes())
+        .and_then(|()| out.flush())
+        .map_err(|e| OutputFailed(format!("cannot write standard output: {e}")))?;
+    Ok(())
 }

@@ -1,14 +1,21 @@
 //! `--record FILE`: where the hub's trace goes.
 //!
 //! Contract: a file whose name ends in `.asc` (any case) gets Vector ASC, any other file the
-//! candump log the hub writes. The file is buffered; the hub flushes it whenever a run pauses, and
-//! dropping the writer (the end of a run, an interrupted run, an error) flushes it and, for ASC,
-//! ends the measurement. A file that cannot be created is bad input naming the file.
+//! candump log the hub writes. [`create`] gives the hub its writer ([`Feed`]) and the caller the
+//! [`Trace`], which [`Trace::finish`] ends once the run is over: for ASC a comment line when the
+//! run was interrupted, then the `End TriggerBlock` footer; then the file is put in place whole
+//! ([`crate::output`]: a regular file is replaced only by a complete trace, a stream ends on a
+//! whole line). The first write that fails stops the trace; `finish` reports it, naming the file.
+//! A file that cannot be created is an [`crate::OutputFailed`] naming it.
 
-use crate::BadInput;
+use crate::OutputFailed;
+use crate::output::{Output, failed};
+use crate::stop::Signal;
 use bus::tracefile::AscWriter;
-use std::io::{BufWriter, Write};
-use std::path::Path;
+use std::cell::RefCell;
+use std::io::{self, Write};
+use std::path::{Path, PathBuf};
+use std::rc::Rc;
 use std::time::SystemTime;
 
 /// True when `path` names an ASC file.
@@ -16,17 +23,140 @@ pub fn is_asc(path: &Path) -> bool {
     path.extension().is_some_and(|e| e.eq_ignore_ascii_case("asc"))
 }
 
-/// Creates the trace file at `path`, in the format its name asks for.
-pub fn create(path: &Path) -> anyhow::Result<Box<dyn Write>> {
-    let file = std::fs::File::create(path)
-        .map_err(|e| BadInput(format!("cannot create {}: {e}", path.display())))?;
-    let file = BufWriter::new(file);
-    if is_asc(path) {
-        let asc = AscWriter::new(file, SystemTime::now())
-            .map_err(|e| BadInput(format!("cannot write {}: {e}", path.display())))?;
-        Ok(Box::new(asc))
+/// The output, shared by the ASC converter and the end of the trace.
+#[derive(Clone)]
+struct Shared(Rc<RefCell<Output>>);
+
+impl Write for Shared {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        self.0.borrow_mut().write(buf)
+    }
+    fn flush(&mut self) -> io::Result<()> {
+        self.0.borrow_mut().flush()
+    }
+}
+
+enum Format {
+    Log,
+    Asc(AscWriter<Shared>),
+}
+
+struct State {
+    format: Option<Format>,
+    /// Taken out by [`Trace::finish`].
+    out: Option<Shared>,
+    /// The first write that failed.
+    error: Option<String>,
+}
+
+/// The writer the hub writes candump lines to.
+pub struct Feed(Rc<RefCell<State>>);
+
+impl Feed {
+    fn guard<T>(&mut self, op: impl FnOnce(&mut State) -> io::Result<T>) -> io::Result<T> {
+        let mut s = self.0.borrow_mut();
+        if let Some(e) = &s.error {
+            return Err(io::Error::other(e.clone()));
+        }
+        let r = op(&mut s);
+        if let Err(e) = &r {
+            s.error = Some(e.to_string());
+        }
+        r
+    }
+}
+
+impl Write for Feed {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        self.guard(|s| match s.format.as_mut() {
+            Some(Format::Log) => s.out.as_mut().map_or(Ok(buf.len()), |o| o.write(buf)),
+            Some(Format::Asc(a)) => a.write(buf),
+            None => Err(io::Error::other("the trace has ended")),
+        })
+    }
+    fn flush(&mut self) -> io::Result<()> {
+        self.guard(|s| match s.format.as_mut() {
+            Some(Format::Log) => s.out.as_mut().map_or(Ok(()), |o| o.flush()),
+            Some(Format::Asc(a)) => a.flush(),
+            None => Ok(()),
+        })
+    }
+}
+
+/// A trace being recorded, to be ended by [`Trace::finish`].
+pub struct Trace {
+    path: PathBuf,
+    state: Rc<RefCell<State>>,
+}
+
+/// Starts the trace file at `path`, in the format its name asks for: the hub's writer and the
+/// trace to finish.
+pub fn create(path: &Path) -> Result<(Box<dyn Write>, Trace), OutputFailed> {
+    let out = Shared(Rc::new(RefCell::new(Output::create(path)?)));
+    let format = if is_asc(path) {
+        let asc = AscWriter::new(out.clone(), SystemTime::now()).map_err(|e| failed("write", path, &e))?;
+        Format::Asc(asc)
     } else {
-        Ok(Box::new(file))
+        Format::Log
+    };
+    let state = Rc::new(RefCell::new(State {
+        format: Some(format),
+        out: Some(out),
+        error: None,
+    }));
+    let trace = Trace {
+        path: path.to_path_buf(),
+        state: state.clone(),
+    };
+    Ok((Box::new(Feed(state)), trace))
+}
+
+/// The hub's writer and the trace to finish, when there is a trace.
+pub type Recording = (Option<Box<dyn Write>>, Option<Trace>);
+
+/// [`create`] for an optional `--record`.
+pub fn create_opt(path: Option<&PathBuf>) -> Result<Recording, OutputFailed> {
+    match path {
+        Some(p) => {
+            let (w, t) = create(p)?;
+            Ok((Some(w), Some(t)))
+        }
+        None => Ok((None, None)),
+    }
+}
+
+impl Trace {
+    /// Ends the trace: for ASC an `interrupted` comment when the run was, and the footer; then
+    /// the file is flushed and put in place. An error names the file; the file is then left as
+    /// it was (a regular file) or ends where writing failed (a stream).
+    pub fn finish(self, interrupted: Option<Signal>) -> Result<(), OutputFailed> {
+        let mut s = self.state.borrow_mut();
+        let format = s.format.take();
+        let out = s.out.take();
+        if let Some(e) = &s.error {
+            return Err(OutputFailed(format!("cannot write {}: {e}", self.path.display())));
+        }
+        drop(s);
+        let Some(mut out) = out else {
+            return Ok(());
+        };
+        if let Some(Format::Asc(mut asc)) = format {
+            let mut end = || -> io::Result<()> {
+                asc.flush()?;
+                if let Some(sig) = interrupted {
+                    let note = format!(
+                        "// harvemu: interrupted by {}: the measurement ends here\n",
+                        sig.describe()
+                    );
+                    out.write_all(note.as_bytes())?;
+                }
+                asc.finish()
+            };
+            end().map_err(|e| failed("write", &self.path, &e))?;
+        }
+        let out = Rc::try_unwrap(out.0)
+            .map_err(|_| OutputFailed(format!("cannot write {}: still in use", self.path.display())))?;
+        out.into_inner().commit()
     }
 }
 
@@ -46,5 +176,27 @@ mod tests {
         ] {
             assert_eq!(is_asc(Path::new(name)), asc, "{name}");
         }
+    }
+
+    #[test]
+    fn an_interrupted_asc_says_so_before_its_footer_and_appears_only_when_finished() {
+        let dir = std::env::temp_dir().join(format!("harvemu-record-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("t.asc");
+        let (mut feed, trace) = create(&path).unwrap();
+        feed.write_all(b"(0000000001.000100) harv0 0601F5D0#200D0002FFBFFF00\n")
+            .unwrap();
+        assert!(!path.exists(), "not there before it is complete");
+        trace.finish(Some(Signal::Term)).unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines.last(), Some(&"End TriggerBlock"), "{text}");
+        assert!(
+            lines[lines.len() - 2].starts_with("// harvemu: interrupted by SIGTERM"),
+            "{text}"
+        );
+        assert!(text.contains("0601F5D0x"), "{text}");
+        assert!(feed.write_all(b"late\n").is_err(), "nothing after the end");
     }
 }

@@ -1,7 +1,9 @@
 //! `harvemu scenario FILE...` and `harvemu validate FILE...`.
 
 use crate::BadInput;
+use crate::exit::Ended;
 use crate::harvester::{self, Harvester};
+use crate::output::Output;
 use crate::report;
 use crate::scenario::{self, Loaded, junit};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -32,7 +34,9 @@ pub struct ScenarioArgs {
 }
 
 /// Runs `harvemu scenario`: exit code 0 only when every expectation of every scenario passed.
-pub fn run(args: &ScenarioArgs) -> anyhow::Result<bool> {
+/// The JUnit XML and the HTML report are written whole at the end, also when an expectation
+/// failed or a stop signal ended the batch (they then say so).
+pub fn run(args: &ScenarioArgs) -> anyhow::Result<Ended> {
     // Load everything first: a bad file stops the whole batch before anything runs.
     let mut loaded = Vec::new();
     let mut problems = Vec::new();
@@ -46,20 +50,24 @@ pub fn run(args: &ScenarioArgs) -> anyhow::Result<bool> {
     if !problems.is_empty() {
         return Err(harvester::bad(Error::Invalid(problems)));
     }
-    // Opened before anything runs: a bad path should not cost a whole run.
-    let report = match &args.report {
-        Some(p) => Some((p, create(p)?)),
-        None => None,
-    };
+    // Started before anything runs: a bad path should not cost a whole run.
+    let report = args.report.as_deref().map(Output::create).transpose()?;
+    let junit = args.junit.as_deref().map(Output::create).transpose()?;
     let mut outcomes = Vec::new();
     for l in &loaded {
+        if crate::stop::received().is_some() {
+            break;
+        }
         let outcome = run_one(l, args.record.as_ref())?;
         let interrupted = outcome.interrupted;
         outcomes.push(outcome);
         if interrupted {
-            // Ctrl-C stops the batch: what ran is reported below.
+            // A stop signal stops the batch: what ran is reported below.
             break;
         }
+    }
+    if let Some(signal) = crate::stop::received() {
+        eprintln!("harvemu: interrupted by {}", signal.describe());
     }
     let mut all_passed = true;
     for (l, o) in loaded.iter().zip(&outcomes) {
@@ -102,30 +110,37 @@ pub fn run(args: &ScenarioArgs) -> anyhow::Result<bool> {
         .zip(&outcomes)
         .map(|(l, o)| (l.path.display().to_string(), &l.scenario, o))
         .collect();
-    if let Some(path) = &args.junit {
-        std::fs::write(path, junit::xml(&runs))
-            .map_err(|e| BadInput(format!("cannot write {}: {e}", path.display())))?;
+    let mut node_down = false;
+    for o in &outcomes {
+        for name in &o.down {
+            node_down = true;
+            eprintln!(
+                "harvemu: node {name} crashed more often than the restart policy allows and stays down"
+            );
+        }
     }
-    if let Some((path, mut file)) = report {
-        file.write_all(report::html(&runs).as_bytes())
-            .and_then(|()| file.flush())
-            .map_err(|e| BadInput(format!("cannot write {}: {e}", path.display())))?;
+    if let Some(out) = junit {
+        write(out, junit::xml(&runs).as_bytes())?;
     }
-    Ok(all_passed)
+    if let Some(out) = report {
+        write(out, report::html(&runs).as_bytes())?;
+    }
+    Ok(Ended {
+        expectations_failed: !all_passed,
+        node_down,
+    })
 }
 
-/// Creates the report file.
-fn create(p: &PathBuf) -> anyhow::Result<std::io::BufWriter<std::fs::File>> {
-    let file =
-        std::fs::File::create(p).map_err(|e| BadInput(format!("cannot create {}: {e}", p.display())))?;
-    Ok(std::io::BufWriter::new(file))
+/// Writes a whole output and puts it in place.
+fn write(mut out: Output, bytes: &[u8]) -> anyhow::Result<()> {
+    out.write_all(bytes)
+        .map_err(|e| crate::output::failed("write", out.path(), &e))?;
+    out.commit()?;
+    Ok(())
 }
 
 fn run_one(l: &Loaded, record: Option<&PathBuf>) -> anyhow::Result<scenario::Outcome> {
-    let trace: Option<Box<dyn Write>> = match record {
-        Some(p) => Some(crate::record::create(p)?),
-        None => None,
-    };
+    let (trace, recording) = crate::record::create_opt(record)?;
     let bar = ProgressBar::new(l.scenario.duration_s.ceil() as u64);
     bar.set_style(
         ProgressStyle::with_template("{msg:30} {bar:30} {pos}/{len} s virtual time")
@@ -134,7 +149,11 @@ fn run_one(l: &Loaded, record: Option<&PathBuf>) -> anyhow::Result<scenario::Out
     bar.set_message(l.scenario.name.clone());
     let outcome = scenario::run(l, trace, |t| bar.set_position(t as u64));
     bar.finish_and_clear();
-    outcome
+    // The trace is ended whatever happened: a failed run still leaves what it recorded.
+    let finished = recording.map_or(Ok(()), |r| r.finish(crate::stop::received()));
+    let outcome = outcome?;
+    finished?;
+    Ok(outcome)
 }
 
 /// Arguments of `harvemu validate`.

@@ -51,10 +51,10 @@ fn cycle_times_come_from_the_config_given() {
 }
 
 #[test]
-fn bad_paths_exit_2_and_name_the_file() {
+fn bad_paths_name_the_file_an_output_with_3_a_config_with_2() {
     let missing_dir = scratch("bad").join("no-such-dir").join("x.dbc");
     let out = harvemu(&["dbc", "-o", missing_dir.to_str().unwrap()]);
-    assert_eq!(out.status.code(), Some(2));
+    assert_eq!(out.status.code(), Some(3));
     let err = String::from_utf8(out.stderr).unwrap();
     assert!(err.contains(missing_dir.to_str().unwrap()), "{err}");
     assert!(!missing_dir.exists());

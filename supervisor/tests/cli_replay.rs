@@ -219,7 +219,7 @@ fn an_interrupted_asc_recording_is_complete() {
     assert!(kill.success());
     let mut rest = String::new();
     std::io::Read::read_to_string(&mut err, &mut rest).unwrap();
-    assert!(child.wait().unwrap().success(), "{rest}");
+    assert_eq!(child.wait().unwrap().code(), Some(130), "{rest}");
     assert!(rest.contains("interrupted"), "{rest}");
     let text = std::fs::read_to_string(&asc).unwrap();
     assert!(text.ends_with("End TriggerBlock\n"), "{text}");

@@ -63,7 +63,7 @@ fn ctrl_c_ends_a_real_time_run_with_one_summary() {
         "harvemu stopped on SIGINT"
     );
     let err = String::from_utf8(out.stderr).unwrap();
-    assert!(out.status.success(), "{err}");
+    assert_eq!(out.status.code(), Some(130), "exit code 130 after SIGINT: {err}");
     assert_eq!(err.matches("harvemu: interrupted").count(), 1, "{err}");
     let lines = summaries(&err);
     assert_eq!(lines.len(), 1, "one summary, after the interruption: {err}");

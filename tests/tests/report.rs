@@ -5,7 +5,7 @@ use clap::Parser;
 use harvemu_e2e::root;
 use std::path::{Path, PathBuf};
 use supervisor::scenarios_cli::{self, ScenarioArgs};
-use supervisor::{BadInput, report, scenario};
+use supervisor::{OutputFailed, report, scenario};
 
 /// The command line as far as these tests need it.
 #[derive(Parser)]
@@ -18,7 +18,7 @@ enum Cli {
 fn harvemu(words: &[String]) -> anyhow::Result<bool> {
     let Cli::Scenario(args) =
         Cli::try_parse_from(std::iter::once("harvemu".to_string()).chain(words.iter().cloned()))?;
-    scenarios_cli::run(&args)
+    scenarios_cli::run(&args).map(|e| !e.expectations_failed)
 }
 
 fn scratch(name: &str) -> PathBuf {
@@ -294,7 +294,7 @@ fn the_report_shows_verdicts_plots_and_a_command_that_gives_the_same_verdicts() 
 }
 
 #[test]
-fn a_report_path_that_cannot_be_written_is_bad_input_and_nothing_runs() {
+fn a_report_path_that_cannot_be_written_is_an_output_failure_and_nothing_runs() {
     let dir = scratch("bad");
     let small = write_scenario(&dir);
     let out = dir.join("no such dir").join("r.html");
@@ -305,7 +305,9 @@ fn a_report_path_that_cannot_be_written_is_bad_input_and_nothing_runs() {
         out.display().to_string(),
     ])
     .unwrap_err();
-    let bad = e.downcast_ref::<BadInput>().expect("bad input (exit code 2)");
+    let bad = e
+        .downcast_ref::<OutputFailed>()
+        .expect("an output that failed (exit code 3)");
     assert!(bad.0.contains(&out.display().to_string()), "{bad}");
     let _ = std::fs::remove_dir_all(&dir);
 }
@@ -411,6 +413,7 @@ fn characters_xml_cannot_carry_become_replacement_characters_in_junit_and_the_re
         }],
         wall_seconds: 0.1,
         interrupted: false,
+        down: Vec::new(),
         series,
         books: Default::default(),
         applied: Default::default(),

@@ -20,7 +20,7 @@ enum Cli {
 /// Runs `harvemu soak` with `words` in-process: Ok(passed and flat) or the error.
 fn harvemu_soak(words: &[&str]) -> anyhow::Result<bool> {
     let Cli::Soak(args) = Cli::try_parse_from(["harvemu", "soak"].iter().chain(words))?;
-    soak::run(&args)
+    soak::run(&args).map(|e| !e.expectations_failed)
 }
 
 const SCENARIO: &str = r#"Scenario(

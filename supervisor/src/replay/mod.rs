@@ -13,8 +13,10 @@
 pub mod schedule;
 
 use crate::BadInput;
+use crate::exit::Ended;
 use crate::harvester::{self, Harvester, Running};
 use crate::run::parse_duration;
+use crate::stop::Stop;
 use actix::prelude::*;
 use bus::engine::{ControllerConfig, Filter, NodeId};
 use bus::hub::{Attach, GetSnapshot, RunUntil, SubmitAt, runtime};
@@ -148,8 +150,9 @@ pub async fn play(
     Ok(())
 }
 
-/// Runs `harvemu replay`.
-pub fn run(args: &Args) -> anyhow::Result<()> {
+/// Runs `harvemu replay`. A stop signal ends it at any moment; the trace is finished in every
+/// case.
+pub fn run(args: &Args) -> anyhow::Result<Ended> {
     let mut h = Harvester::load(&args.config).map_err(harvester::bad)?;
     h.without(&args.without).map_err(harvester::bad)?;
     let passes = match args.passes {
@@ -182,10 +185,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     };
     let mut schedule = Schedule::new(&records, &skip, passes);
     let counts = schedule.counts();
-    let trace = match &args.record {
-        Some(path) => Some(crate::record::create(path)?),
-        None => None,
-    };
+    let (trace, recording) = crate::record::create_opt(args.record.as_ref())?;
     eprintln!(
         "harvemu: replaying {} ({} records, {} to send per pass) onto {} from {}, {}",
         args.file.display(),
@@ -202,9 +202,11 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let fast = args.fast;
     let iface = args.iface.clone();
     let duration = args.duration;
+    let relay = h.relay();
     let system = System::with_tokio_rt(move || runtime(fast).expect("a tokio runtime"));
-    system.block_on(async move {
-        let mut running = harvester::start(&h, trace).await?;
+    let result = system.block_on(async move {
+        let mut stop = Stop::new()?;
+        let mut running = harvester::begin(&h, trace).await?;
         let _bridge = match &iface {
             Some(name) => Some(
                 bus::backend::socketcan::bridge(running.hub.clone(), name)
@@ -213,27 +215,32 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             ),
             None => None,
         };
+        let mut interrupted = None;
+        // Start-up first: the trace is played once the field nodes are there.
+        tokio::select! {
+            r = running.run_until(relay) => r?,
+            s = stop.wait() => interrupted = Some(s),
+        }
         let node = attach(&running).await?;
         let start = running.now();
         let end = duration.map(|d| start.after(d));
         let mut played = Played::default();
-        let ctrl_c = tokio::signal::ctrl_c();
-        tokio::pin!(ctrl_c);
-        let mut interrupted = false;
-        tokio::select! {
-            r = play(&mut running, node, &mut schedule, start, end, &mut played) => r?,
-            _ = &mut ctrl_c => interrupted = true,
+        if interrupted.is_none() {
+            tokio::select! {
+                r = play(&mut running, node, &mut schedule, start, end, &mut played) => r?,
+                s = stop.wait() => interrupted = Some(s),
+            }
         }
-        if !interrupted {
+        if interrupted.is_none() {
             let last = schedule.end().map_or(start, |e| start + e);
             let until = end.unwrap_or(last.after(TAIL));
             tokio::select! {
                 r = running.run_until(until) => r?,
-                _ = &mut ctrl_c => interrupted = true,
+                s = stop.wait() => interrupted = Some(s),
             }
         }
-        if interrupted {
-            eprintln!("\nharvemu: interrupted");
+        if let Some(s) = interrupted {
+            eprintln!("\nharvemu: interrupted by {}", s.describe());
         }
         // Pausing the hub at the present flushes the trace.
         let now = running.hub.send(GetSnapshot).await?.now;
@@ -249,9 +256,14 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             played.refused,
             schedule.passes_begun()
         );
-        if let Some(e) = &snap.trace_error {
-            return Err(anyhow::anyhow!("the trace could not be written: {e}"));
-        }
-        anyhow::Ok(())
-    })
+        anyhow::Ok(Ended {
+            expectations_failed: false,
+            node_down: crate::run::report_down(&running),
+        })
+    });
+    // The trace is ended whatever happened: a failed run still leaves what it recorded.
+    let finished = recording.map_or(Ok(()), |r| r.finish(crate::stop::received()));
+    let ended = result?;
+    finished?;
+    Ok(ended)
 }

@@ -238,6 +238,7 @@ mod tests {
             }],
             wall_seconds: 0.1,
             interrupted: true,
+            down: Vec::new(),
             series: Series::default(),
             books: Default::default(),
             applied: Default::default(),

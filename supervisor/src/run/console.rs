@@ -163,7 +163,7 @@ impl<W: Write> Console<W> {
 
     /// Clears the live line or bar, says so when the run was interrupted, and prints the closing
     /// summary once. Returns the output.
-    pub fn finish(mut self, s: &Summary, interrupted: bool) -> W {
+    pub fn finish(mut self, s: &Summary, interrupted: Option<crate::stop::Signal>) -> W {
         let width = match &self.mode {
             Mode::Line { width, drawn } => {
                 if *drawn {
@@ -177,8 +177,8 @@ impl<W: Write> Console<W> {
             }
             Mode::Plain { .. } => None,
         };
-        if interrupted {
-            let _ = writeln!(self.out, "harvemu: interrupted");
+        if let Some(signal) = interrupted {
+            let _ = writeln!(self.out, "harvemu: interrupted by {}", signal.describe());
         }
         match width {
             Some(w) => {
@@ -245,7 +245,7 @@ mod tests {
                 c.event("harvemu: 15.000000 D3 crashed");
             }
         }
-        let text = String::from_utf8(c.finish(&at(30), false)).unwrap();
+        let text = String::from_utf8(c.finish(&at(30), None)).unwrap();
         let lines: Vec<&str> = text.lines().collect();
         assert_eq!(lines.len(), 4, "{text}");
         assert!(lines[0].starts_with("t=10.0 s  "), "{text}");
@@ -261,7 +261,7 @@ mod tests {
         for t in 1..=1200 {
             c.update(&at(t));
         }
-        let text = String::from_utf8(c.finish(&at(1200), false)).unwrap();
+        let text = String::from_utf8(c.finish(&at(1200), None)).unwrap();
         let want: Vec<String> = (1..=60).map(|i| at(i * 20).to_string()).collect();
         assert_eq!(text.lines().collect::<Vec<_>>(), want);
     }
@@ -272,13 +272,13 @@ mod tests {
         for t in 1..=12 {
             c.update(&at(t));
         }
-        let text = String::from_utf8(c.finish(&at(12), true)).unwrap();
+        let text = String::from_utf8(c.finish(&at(12), Some(crate::stop::Signal::Int))).unwrap();
         let lines: Vec<&str> = text.lines().collect();
         assert_eq!(
             lines,
             [
                 at(10).to_string().as_str(),
-                "harvemu: interrupted",
+                "harvemu: interrupted by SIGINT (Ctrl-C)",
                 at(12).to_string().as_str()
             ]
         );
@@ -295,7 +295,7 @@ mod tests {
         }
         c.event("harvemu: 5.000000 D3 crashed");
         c.update(&at(6));
-        let text = String::from_utf8(c.finish(&at(6), true)).unwrap();
+        let text = String::from_utf8(c.finish(&at(6), Some(crate::stop::Signal::Int))).unwrap();
         // Every redraw, between two REDRAWs, is shorter than the terminal.
         let draws: Vec<&str> = text.split(REDRAW).collect();
         for d in &draws[..draws.len() - 1] {
@@ -309,7 +309,7 @@ mod tests {
         // After the last redraw only whole lines: the interruption, the summary once.
         let tail = draws.last().unwrap();
         let lines: Vec<&str> = tail.lines().collect();
-        assert_eq!(lines[0], "harvemu: interrupted", "{tail:?}");
+        assert_eq!(lines[0], "harvemu: interrupted by SIGINT (Ctrl-C)", "{tail:?}");
         assert_eq!(lines[1..].join("  "), at(6).to_string());
         assert!(lines.iter().all(|l| l.len() < 60), "{tail:?}");
         assert_eq!(text.matches("harvemu: 5.000000 D3 crashed\n").count(), 1);

@@ -7,12 +7,13 @@ pub use console::{PLAIN_EVERY, PLAIN_LINES, plain_period};
 pub use summary::Summary;
 
 use crate::BadInput;
+use crate::exit::Ended;
 use crate::harvester::{self, Harvester};
+use crate::stop::Stop;
 use actix::prelude::*;
 use bus::hub::{GetSnapshot, RunUntil, Snapshot, runtime};
 use bus::time::BusTime;
 use console::Console;
-use std::io::Write;
 use std::path::PathBuf;
 use std::time::Duration;
 
@@ -80,8 +81,9 @@ pub fn summary(s: &Snapshot, running: &harvester::Running) -> String {
     Summary::of(s, running).to_string()
 }
 
-/// Runs `harvemu run`.
-pub fn run(args: &Args) -> anyhow::Result<()> {
+/// Runs `harvemu run`. It stops at `--for`, at a stop signal (at any moment, start-up included)
+/// or, with the terminal display, at a quit key; the trace is finished in every case.
+pub fn run(args: &Args) -> anyhow::Result<Ended> {
     if args.tui {
         crate::tui::require_terminal()?;
     }
@@ -100,10 +102,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     if args.fast && args.duration.is_none() {
         return Err(BadInput("--fast needs --for: virtual time would otherwise run for ever".into()).into());
     }
-    let trace: Option<Box<dyn Write>> = match &args.record {
-        Some(path) => Some(crate::record::create(path)?),
-        None => None,
-    };
+    let (trace, recording) = crate::record::create_opt(args.record.as_ref())?;
     let end = args.duration.map(BusTime::from_duration);
     eprintln!(
         "harvemu: {} ({} nodes) from {}, seed {}, {}",
@@ -126,8 +125,9 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         );
     }
     let system = System::with_tokio_rt(move || runtime(fast).expect("a tokio runtime"));
-    system.block_on(async move {
-        let mut running = harvester::start(&h, trace).await?;
+    let result = system.block_on(async move {
+        let mut stop = Stop::new()?;
+        let mut running = harvester::begin(&h, trace).await?;
         let mut reported = 0;
         let bridge = match &iface {
             Some(name) => {
@@ -156,10 +156,8 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             }
         }
         let mut console = Console::stderr(fast, end);
-        let mut t = h.relay();
-        let mut interrupted = false;
-        let ctrl_c = tokio::signal::ctrl_c();
-        tokio::pin!(ctrl_c);
+        let mut t = running.now();
+        let mut interrupted = None;
         // The live display had its own loop; this one shows the summary instead.
         if !tui {
             loop {
@@ -167,8 +165,8 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                 let next = end.map_or(next, |e| next.min(e));
                 tokio::select! {
                     r = running.run_until(next) => { r?; t = running.now(); }
-                    _ = &mut ctrl_c => {
-                        interrupted = true;
+                    s = stop.wait() => {
+                        interrupted = Some(s);
                         break;
                     }
                 }
@@ -183,6 +181,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                 }
             }
         }
+        let interrupted = interrupted.or(crate::stop::received());
         // Pausing the hub at the present flushes the trace.
         let now = running.hub.send(GetSnapshot).await?.now;
         let _ = running.hub.send(RunUntil(now)).await;
@@ -195,9 +194,23 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                 s.received, s.kernel_stamped, s.max_wait_us, s.sent, s.error_frames, s.write_errors
             );
         }
-        if let Some(e) = &snap.trace_error {
-            return Err(anyhow::anyhow!("the trace could not be written: {e}"));
-        }
-        anyhow::Ok(())
-    })
+        anyhow::Ok(Ended {
+            expectations_failed: false,
+            node_down: report_down(&running),
+        })
+    });
+    // The trace is ended whatever happened: a failed run still leaves what it recorded.
+    let finished = recording.map_or(Ok(()), |r| r.finish(crate::stop::received()));
+    let ended = result?;
+    finished?;
+    Ok(ended)
+}
+
+/// Says on stderr which nodes crashed beyond the restart policy and stay down; true when any.
+pub fn report_down(running: &harvester::Running) -> bool {
+    let down = running.down_by_themselves();
+    for name in &down {
+        eprintln!("harvemu: node {name} crashed more often than the restart policy allows and stays down");
+    }
+    !down.is_empty()
 }

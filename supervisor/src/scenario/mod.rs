@@ -113,6 +113,10 @@ fn node_names(h: &Harvester) -> Vec<String> {
         .collect()
 }
 
+/// The longest scenario or soak, s: 30 days of virtual time, about two days of wall time at the
+/// emulator's pace, and far beyond any soak run so far; longer is a typing error.
+pub const MAX_DURATION_S: f64 = 30.0 * 24.0 * 3600.0;
+
 /// Overload frames a receiver may send in a row: the CAN 2.0 specification allows at most two to
 /// delay the next data or remote frame.
 pub const MAX_OVERLOAD_FRAMES: u8 = 2;
@@ -228,6 +232,15 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
             file,
             "duration_s",
             "must be a positive number of seconds",
+        ));
+    } else if s.duration_s > MAX_DURATION_S {
+        p.push(Problem::at(
+            file,
+            "duration_s",
+            format!(
+                "{} s is longer than the longest run, {MAX_DURATION_S} s (30 days of virtual time)",
+                s.duration_s
+            ),
         ));
     }
     if s.expect.is_empty() {
@@ -541,8 +554,11 @@ pub struct Outcome {
     pub events: Vec<harvester::SupervisorEvent>,
     /// Wall-clock seconds.
     pub wall_seconds: f64,
-    /// Stopped by Ctrl-C before the end.
+    /// Stopped by a stop signal (Ctrl-C, SIGTERM, SIGHUP) before the end.
     pub interrupted: bool,
+    /// Nodes that crashed beyond the restart policy by themselves (not by the timeline's
+    /// `Crash`) and stayed down.
+    pub down: Vec<String>,
     /// What the run looked like over time (for the report).
     pub series: Series,
     /// Where the frames went (the monitor's books, the trace's count).
@@ -611,25 +627,25 @@ pub fn run(
     };
     let system = System::with_tokio_rt(|| runtime(true).expect("a tokio runtime"));
     let result = system.block_on(async move {
-        let mut running = harvester::start(&h, trace).await?;
+        let mut stop = crate::stop::Stop::new()?;
+        let mut running = harvester::begin(&h, trace).await?;
         let mut rules = std::collections::BTreeMap::new();
         let mut babbler = Babblers::default();
         let mut applied = std::collections::BTreeMap::new();
-        // Ctrl-C stops the run where it is; verdicts, trace and report are still written.
-        let mut ctrl_c = Box::pin(tokio::signal::ctrl_c());
-        let mut interrupted = false;
+        // A stop signal stops the run where it is; verdicts, trace and report are still written.
+        let mut interrupted = None;
         let mut series = Series::default();
         // Runs to a time, stopping at each whole second on the way to sample the series.
         macro_rules! run_to {
             ($t:expr) => {
                 let target = $t;
                 loop {
-                    let stop = series.next_stop(running.now(), target);
+                    let until = series.next_stop(running.now(), target);
                     tokio::select! {
-                        r = running.run_until(stop) => r?,
-                        _ = &mut ctrl_c => interrupted = true,
+                        r = running.run_until(until) => r?,
+                        sig = stop.wait() => interrupted = Some(sig),
                     }
-                    if interrupted {
+                    if interrupted.is_some() {
                         break;
                     }
                     if series.is_due(running.now()) {
@@ -642,9 +658,19 @@ pub fn run(
                 }
             };
         }
+        let end = BusTime::from_secs_f64(s.duration_s);
+        // Start-up: the timeline and the series begin once the field nodes are there (at the
+        // time relay).
+        tokio::select! {
+            r = running.run_until(h.relay().min(end)) => r?,
+            sig = stop.wait() => interrupted = Some(sig),
+        }
         for (at, _, what) in todo {
+            if interrupted.is_some() {
+                break;
+            }
             run_to!(at.max(running.now()));
-            if interrupted {
+            if interrupted.is_some() {
                 break;
             }
             progress(running.now().as_secs_f64());
@@ -668,8 +694,7 @@ pub fn run(
                 }
             }
         }
-        let end = BusTime::from_secs_f64(s.duration_s);
-        while running.now() < end && !interrupted {
+        while running.now() < end && interrupted.is_none() {
             let next = (running.now() + 1_000_000_000).min(end);
             run_to!(next);
             progress(running.now().as_secs_f64());
@@ -684,21 +709,29 @@ pub fn run(
         let trace = trace_tally.map(|t| *t.borrow());
         let books = books::Books::gather(&snap, monitor, trace);
         let mut verdicts = check::all(&s, &running, &snap, &books);
-        if interrupted {
+        if let Some(signal) = interrupted {
             verdicts.push(Verdict {
                 expectation: "the run completes".into(),
                 passed: false,
                 at: Some(snap.now),
-                observed: "interrupted (Ctrl-C)".into(),
+                observed: format!("interrupted by {}", signal.describe()),
             });
         }
+        let down = running.down_by_themselves();
         series.finish(&snap);
         let end = End {
             books,
             applied,
             snapshot: snap,
         };
-        anyhow::Ok((verdicts, running.events.clone(), interrupted, series, end))
+        anyhow::Ok((
+            verdicts,
+            running.events.clone(),
+            interrupted.is_some(),
+            series,
+            end,
+            down,
+        ))
     })?;
     Ok(Outcome {
         verdicts: result.0,
@@ -706,6 +739,7 @@ pub fn run(
         events: result.1,
         wall_seconds: started.elapsed().as_secs_f64(),
         interrupted: result.2,
+        down: result.5,
         series: result.3,
         books: result.4.books,
         applied: result.4.applied,

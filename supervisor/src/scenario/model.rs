@@ -19,7 +19,7 @@ pub struct Scenario {
     /// Seed; the config's when absent.
     #[serde(default)]
     pub seed: Option<u64>,
-    /// Virtual seconds to run.
+    /// Virtual seconds to run: more than 0, at most [`super::MAX_DURATION_S`] (30 days).
     pub duration_s: f64,
     /// Cruise control start, s (overrides the config; `None` keeps it).
     #[serde(default)]

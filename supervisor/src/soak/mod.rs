@@ -10,11 +10,11 @@
 pub mod memory;
 
 use crate::BadInput;
+use crate::exit::Ended;
 use crate::harvester;
 use crate::scenario::{self, random};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::collections::BTreeMap;
-use std::io::Write;
 use std::path::PathBuf;
 
 /// Arguments of `harvemu soak`.
@@ -34,8 +34,9 @@ pub struct Args {
     record: Option<PathBuf>,
 }
 
-/// Runs `harvemu soak`: true when every expectation passed and memory stayed flat.
-pub fn run(args: &Args) -> anyhow::Result<bool> {
+/// Runs `harvemu soak`: expectations failed unless every expectation passed and memory stayed
+/// flat.
+pub fn run(args: &Args) -> anyhow::Result<Ended> {
     let duration = match args.hours {
         Some(h) if h.is_finite() && h > 0.0 => Some(h * 3600.0),
         Some(h) => return Err(BadInput(format!("--hours {h}: must be a positive number of hours")).into()),
@@ -43,10 +44,7 @@ pub fn run(args: &Args) -> anyhow::Result<bool> {
     };
     let before = memory::vm_rss_kib();
     let loaded = scenario::load_with(&args.scenario, args.seed, duration).map_err(harvester::bad)?;
-    let trace: Option<Box<dyn Write>> = match &args.record {
-        Some(p) => Some(crate::record::create(p)?),
-        None => None,
-    };
+    let (trace, recording) = crate::record::create_opt(args.record.as_ref())?;
     let s = &loaded.scenario;
     let mut rss = memory::Samples {
         duration_s: s.duration_s,
@@ -69,8 +67,15 @@ pub fn run(args: &Args) -> anyhow::Result<bool> {
             }
             next_sample += step;
         }
-    })?;
+    });
     bar.finish_and_clear();
+    // The trace is ended whatever happened: a failed run still leaves what it recorded.
+    let finished = recording.map_or(Ok(()), |r| r.finish(crate::stop::received()));
+    let outcome = outcome?;
+    finished?;
+    if let Some(signal) = crate::stop::received() {
+        eprintln!("harvemu: interrupted by {}", signal.describe());
+    }
     if let Some(k) = memory::vm_rss_kib() {
         let end = outcome
             .snapshot
@@ -80,7 +85,13 @@ pub fn run(args: &Args) -> anyhow::Result<bool> {
     }
     print!("{}", report(&loaded, &outcome, &rss, args.hours));
     let flat = rss.verdict().is_none_or(|(flat, _)| flat);
-    Ok(outcome.passed() && flat)
+    for name in &outcome.down {
+        eprintln!("harvemu: node {name} crashed more often than the restart policy allows and stays down");
+    }
+    Ok(Ended {
+        expectations_failed: !(outcome.passed() && flat),
+        node_down: !outcome.down.is_empty(),
+    })
 }
 
 /// The soak's report, as printed.

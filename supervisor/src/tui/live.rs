@@ -81,8 +81,7 @@ pub async fn live(
     let mut rates = RateMeter::default();
     let mut last_draw: Option<Instant> = None;
     let step = if fast { FAST_STEP_MS } else { STEP_MS } * 1_000_000;
-    let ctrl_c = tokio::signal::ctrl_c();
-    tokio::pin!(ctrl_c);
+    let mut stop = crate::stop::Stop::new()?;
     while end.is_none_or(|e| running.now() < e) {
         let t = running.now();
         let next = BusTime((t.as_nanos() / step + 1) * step);
@@ -90,7 +89,7 @@ pub async fn live(
         tokio::select! {
             r = running.run_until(next) => r?,
             // A signal from outside (the keyboard's Ctrl-C arrives as a key in raw mode).
-            _ = &mut ctrl_c => return Ok(()),
+            _ = stop.wait() => return Ok(()),
         }
         let asked = input(Duration::ZERO)?;
         if asked == Input::Quit {
@@ -102,7 +101,7 @@ pub async fn live(
         }
     }
     redraw(&mut terminal, running, &mut rates, machine, clock, true).await?;
-    loop {
+    while crate::stop::received().is_none() {
         // The run is over and the hub idle: waiting on the keyboard blocks nothing that matters
         // in virtual time; in real time a socketcand client or a bridge may still be served, so
         // the runtime gets to run between short looks.
@@ -118,6 +117,7 @@ pub async fn live(
             Input::Nothing => {}
         }
     }
+    Ok(())
 }
 
 async fn redraw(

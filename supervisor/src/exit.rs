@@ -1,0 +1,76 @@
+//! The exit codes of `harvemu`, one meaning each (docs/PROMISES.md has the table).
+//!
+//! Contract: [`code`] picks one code for how a command ended. A stop signal wins over everything
+//! (the run did not end by itself); then an output that failed, then a node that crashed beyond
+//! its restart policy, then failed expectations. Bad input stops a command before anything runs,
+//! so it meets none of the others.
+
+use crate::stop::Signal;
+use crate::{BadInput, OutputFailed};
+
+/// Everything went as asked.
+pub const OK: u8 = 0;
+/// An expectation of a scenario or soak failed.
+pub const EXPECTATIONS_FAILED: u8 = 1;
+/// Bad input or usage: arguments, configs, scripts, scenarios, traces to replay.
+pub const BAD_INPUT: u8 = 2;
+/// An output could not be created or written completely.
+pub const OUTPUT_FAILED: u8 = 3;
+/// A node crashed more often than its restart policy allows, and stayed down.
+pub const NODE_DOWN: u8 = 4;
+
+/// How a command ended, besides an error.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Ended {
+    /// Some expectation failed.
+    pub expectations_failed: bool,
+    /// Some node crashed beyond its restart policy (not by a scenario's own fault injection).
+    pub node_down: bool,
+}
+
+/// The exit code for a command that returned `result`, with `signal` the stop signal received,
+/// if any.
+pub fn code(result: &anyhow::Result<Ended>, signal: Option<Signal>) -> u8 {
+    if let Some(s) = signal {
+        return s.exit_code();
+    }
+    match result {
+        Err(e) if e.downcast_ref::<BadInput>().is_some() => BAD_INPUT,
+        Err(e) if e.downcast_ref::<OutputFailed>().is_some() => OUTPUT_FAILED,
+        // Any other error is the emulator's own failure (an actor gone, a runtime that could not
+        // start): it is not the user's input, and nothing was written wrongly by it.
+        Err(_) => EXPECTATIONS_FAILED,
+        Ok(e) if e.node_down => NODE_DOWN,
+        Ok(e) if e.expectations_failed => EXPECTATIONS_FAILED,
+        Ok(_) => OK,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn each_ending_has_its_code() {
+        let ok = |e: Ended| code(&Ok(e), None);
+        assert_eq!(ok(Ended::default()), 0);
+        let failed = Ended {
+            expectations_failed: true,
+            node_down: false,
+        };
+        assert_eq!(ok(failed), 1);
+        let down = Ended {
+            expectations_failed: true,
+            node_down: true,
+        };
+        assert_eq!(ok(down), 4);
+        let bad: anyhow::Result<Ended> = Err(BadInput("x".into()).into());
+        assert_eq!(code(&bad, None), 2);
+        let io: anyhow::Result<Ended> = Err(OutputFailed("x".into()).into());
+        assert_eq!(code(&io, None), 3);
+        for (s, c) in [(Signal::Int, 130), (Signal::Term, 143), (Signal::Hup, 129)] {
+            assert_eq!(code(&io, Some(s)), c);
+            assert_eq!(code(&Ok(down), Some(s)), c);
+        }
+    }
+}

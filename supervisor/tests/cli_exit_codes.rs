@@ -1,0 +1,155 @@
+//! Exit codes that say what happened, and what a run stopped by a signal leaves: real signals
+//! sent to the running binary. A signal is sent only after a wide margin (seconds), so that it
+//! never arrives before harvemu handles signals; every wait has a generous limit.
+
+mod common;
+
+use common::{finish_within, root, scratch, signal, spawn};
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+/// Far longer than any of these runs needs after its signal, even on a slow, loaded machine.
+const LIMIT: Duration = Duration::from_secs(90);
+
+/// A copy of the default harvester config in `dir`, with node scripts named by absolute path and
+/// `edit` applied to its text.
+fn config(dir: &Path, edit: impl Fn(String) -> String) -> PathBuf {
+    let text = std::fs::read_to_string(root().join("configs/harvester.ron")).unwrap();
+    let nodes = root().join("configs/nodes");
+    let text = edit(text.replace("\"nodes/", &format!("\"{}/", nodes.display())));
+    let path = dir.join("harvester.ron");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// A scenario in `dir` far longer than the tests wait.
+fn long_scenario(dir: &Path) -> PathBuf {
+    let path = dir.join("long.ron");
+    let config = root().join("configs/harvester.ron");
+    std::fs::write(
+        &path,
+        format!(
+            r#"Scenario(name: "a long run", config: "{}", duration_s: 36000.0, expect: [NoFrameLost])"#,
+            config.display()
+        ),
+    )
+    .unwrap();
+    path
+}
+
+fn text(path: &Path) -> String {
+    std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+/// The last two lines of an ASC: the interruption comment, then the footer.
+fn assert_interrupted_asc(path: &Path, name: &str) {
+    let asc = text(path);
+    let lines: Vec<&str> = asc.lines().collect();
+    assert!(lines[0].starts_with("date "), "an ASC header: {:?}", &lines[..2]);
+    assert_eq!(lines.last(), Some(&"End TriggerBlock"), "the footer ends it");
+    let comment = lines[lines.len() - 2];
+    assert!(
+        comment.starts_with(&format!("// harvemu: interrupted by {name}")),
+        "{comment:?}"
+    );
+    assert!(asc.ends_with("End TriggerBlock\n"));
+}
+
+#[test]
+fn sigterm_mid_scenario_finishes_trace_junit_and_report_and_exits_143() {
+    let dir = scratch("cli-exit-codes", "term");
+    let scenario = long_scenario(&dir);
+    let (asc, xml, html) = (dir.join("t.asc"), dir.join("j.xml"), dir.join("r.html"));
+    let child = spawn(&[
+        "scenario",
+        scenario.to_str().unwrap(),
+        "--record",
+        asc.to_str().unwrap(),
+        "--junit",
+        xml.to_str().unwrap(),
+        "--report",
+        html.to_str().unwrap(),
+    ]);
+    std::thread::sleep(Duration::from_secs(4));
+    signal(&child, libc::SIGTERM);
+    let out = finish_within(child, LIMIT);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(143), "{err}");
+    assert!(err.contains("interrupted by SIGTERM"), "{err}");
+    assert_interrupted_asc(&asc, "SIGTERM");
+    let xml = text(&xml);
+    assert!(xml.ends_with("</testsuites>\n"), "complete JUnit: {xml}");
+    assert!(xml.contains("interrupted by SIGTERM"), "{xml}");
+    let html = text(&html);
+    assert!(html.trim_end().ends_with("</html>"), "a complete report");
+    assert!(html.contains("(interrupted)"), "the report says so");
+}
+
+#[test]
+fn sighup_stops_a_fast_run_with_129_and_a_finished_trace() {
+    let dir = scratch("cli-exit-codes", "hup");
+    let asc = dir.join("t.asc");
+    let child = spawn(&["run", "--fast", "--for", "10h", "--record", asc.to_str().unwrap()]);
+    std::thread::sleep(Duration::from_secs(3));
+    signal(&child, libc::SIGHUP);
+    let out = finish_within(child, LIMIT);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(129), "{err}");
+    assert!(err.contains("harvemu: interrupted by SIGHUP"), "{err}");
+    assert_interrupted_asc(&asc, "SIGHUP");
+}
+
+#[test]
+fn for_and_sigint_are_honoured_before_the_field_nodes_start() {
+    let dir = scratch("cli-exit-codes", "relay");
+    // The time relay starts the field nodes after 100 s of bus time.
+    let cfg = config(&dir, |t| {
+        t.replace("time_relay_ms: 500,", "time_relay_ms: 100000,")
+    });
+    assert!(text(&cfg).contains("time_relay_ms: 100000,"));
+    let cfg = cfg.to_str().unwrap();
+    let out = finish_within(spawn(&["run", cfg, "--fast", "--for", "2s"]), LIMIT);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    assert!(err.contains("t=2.0 s"), "stopped at 2 s: {err}");
+    // In real time, 1.5 s into a start-up of 100 s.
+    let child = spawn(&["run", cfg, "--for", "20s"]);
+    std::thread::sleep(Duration::from_millis(1500));
+    let sent = std::time::Instant::now();
+    signal(&child, libc::SIGINT);
+    let out = finish_within(child, LIMIT);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(130), "{err}");
+    assert!(err.contains("harvemu: interrupted by SIGINT"), "{err}");
+    // At once: well before the 20 s of --for, let alone the 100 s of the relay.
+    assert!(sent.elapsed() < Duration::from_secs(15), "{:?}", sent.elapsed());
+}
+
+#[test]
+fn bad_input_is_2_and_an_absurd_scenario_length_is_refused() {
+    let dir = scratch("cli-exit-codes", "bad");
+    let file = dir.join("forever.ron");
+    std::fs::write(
+        &file,
+        format!(
+            r#"Scenario(name: "forever", config: "{}", duration_s: 1e30, expect: [NoFrameLost])"#,
+            root().join("configs/harvester.ron").display()
+        ),
+    )
+    .unwrap();
+    for command in ["validate", "scenario"] {
+        let out = finish_within(spawn(&[command, file.to_str().unwrap()]), LIMIT);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{command}: {err}");
+        assert!(err.contains(&file.display().to_string()), "{err}");
+        assert!(err.contains("duration_s"), "{err}");
+        assert!(err.contains("2592000"), "the maximum is given: {err}");
+    }
+    let out = finish_within(spawn(&["run", "--fast"]), LIMIT);
+    assert_eq!(out.status.code(), Some(2), "usage: --fast needs --for");
+    let out = finish_within(
+        spawn(&["run", "no-such-config.ron", "--fast", "--for", "1s"]),
+        LIMIT,
+    );
+    assert_eq!(out.status.code(), Some(2), "a config that is not there");
+}
