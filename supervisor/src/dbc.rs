@@ -8,7 +8,6 @@ use bus::catalogue::{MESSAGES, Trigger};
 use bus::ident::Address;
 use nodes::script::When;
 use std::collections::BTreeMap;
-use std::io::Write;
 use std::path::PathBuf;
 
 /// Arguments of `harvemu dbc`.
@@ -62,11 +61,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let text = dbc::generate(MESSAGES, &network(&h));
     match &args.output {
         Some(path) => crate::output::write_whole(path, text.as_bytes())?,
-        None => std::io::stdout()
-            .lock()
-            .write_all(text.as_bytes())
-            .and_then(|()| std::io::stdout().lock().flush())
-            .map_err(|e| crate::output::failed("write", std::path::Path::new("standard output"), &e))?,
+        None => crate::output::stdout(&text)?,
     }
     Ok(())
 }

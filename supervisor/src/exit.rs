@@ -18,6 +18,9 @@ pub const BAD_INPUT: u8 = 2;
 pub const OUTPUT_FAILED: u8 = 3;
 /// A node crashed more often than its restart policy allows, and stayed down.
 pub const NODE_DOWN: u8 = 4;
+/// harvemu itself failed (a bug, an actor gone, a runtime that could not start): never the
+/// input's fault nor an output's. 70 is EX_SOFTWARE of BSD's sysexits.h.
+pub const INTERNAL: u8 = 70;
 
 /// How a command ended, besides an error.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -39,7 +42,7 @@ pub fn code(result: &anyhow::Result<Ended>, signal: Option<Signal>) -> u8 {
         Err(e) if e.downcast_ref::<OutputFailed>().is_some() => OUTPUT_FAILED,
         // Any other error is the emulator's own failure (an actor gone, a runtime that could not
         // start): it is not the user's input, and nothing was written wrongly by it.
-        Err(_) => EXPECTATIONS_FAILED,
+        Err(_) => INTERNAL,
         Ok(e) if e.node_down => NODE_DOWN,
         Ok(e) if e.expectations_failed => EXPECTATIONS_FAILED,
         Ok(_) => OK,
@@ -68,6 +71,9 @@ mod tests {
         assert_eq!(code(&bad, None), 2);
         let io: anyhow::Result<Ended> = Err(OutputFailed("x".into()).into());
         assert_eq!(code(&io, None), 3);
+        // Neither the input's fault nor an output's: not 1, which says an expectation failed.
+        let bug: anyhow::Result<Ended> = Err(anyhow::anyhow!("the hub is gone"));
+        assert_eq!(code(&bug, None), 70);
         for (s, c) in [(Signal::Int, 130), (Signal::Term, 143), (Signal::Hup, 129)] {
             assert_eq!(code(&io, Some(s)), c);
             assert_eq!(code(&Ok(down), Some(s)), c);

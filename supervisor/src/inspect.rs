@@ -30,12 +30,12 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let rate = BitRate::new(args.bitrate)
         .ok_or_else(|| BadInput(format!("bit rate {} is outside 1..=1000000 bit/s", args.bitrate)))?;
     let report = report(&frame, rate);
-    if args.json {
-        println!("{report}");
+    let shown = if args.json {
+        format!("{report}\n")
     } else {
-        print!("{}", text(&report));
-    }
-    Ok(())
+        text(&report)
+    };
+    Ok(crate::output::stdout(&shown)?)
 }
 
 fn hex(bytes: [u8; 4]) -> String {

@@ -2,13 +2,12 @@
 //!
 //! Exit codes (docs/PROMISES.md): 0 success, 1 an expectation failed, 2 bad input or usage,
 //! 3 an output could not be created or written, 4 a node crashed beyond its restart policy,
-//! 130 / 143 / 129 stopped by SIGINT / SIGTERM / SIGHUP.
+//! 70 harvemu itself failed, 130 / 143 / 129 stopped by SIGINT / SIGTERM / SIGHUP.
 
 use clap::{Parser, Subcommand};
-use std::io::Write;
 use std::process::ExitCode;
 use supervisor::exit::{self, Ended};
-use supervisor::{OutputFailed, bench, dbc, inspect, replay, run, scenarios_cli, soak, stop};
+use supervisor::{bench, dbc, inspect, replay, run, scenarios_cli, soak, stop};
 
 #[derive(Parser)]
 #[command(
@@ -29,6 +28,7 @@ Exit codes:
   2    bad input or usage
   3    an output (trace, report, JUnit XML, DBC) could not be created or written
   4    a node crashed more often than its restart policy allows
+  70   harvemu itself failed (a bug: please report it)
   130  stopped by SIGINT (Ctrl-C), 143 by SIGTERM, 129 by SIGHUP (outputs are finished)";
 
 // One example or more per subcommand, under its --help.
@@ -133,7 +133,7 @@ fn main() -> ExitCode {
     if let Err(e) = handled {
         // The system refused: not the input's fault, nor an output's.
         eprintln!("harvemu: error: cannot handle signals: {e}");
-        return ExitCode::from(exit::EXPECTATIONS_FAILED);
+        return ExitCode::from(exit::INTERNAL);
     }
     let done = Ended::default();
     let result = match cli.command {
@@ -155,7 +155,6 @@ fn main() -> ExitCode {
 
 /// `harvemu protocol`: the catalogue on standard output.
 fn protocol(markdown: bool) -> anyhow::Result<()> {
-    let mut out = std::io::stdout().lock();
     let text = if markdown {
         format!("{}\n", bus::catalogue::doc::markdown())
     } else {
@@ -164,8 +163,5 @@ fn protocol(markdown: bool) -> anyhow::Result<()> {
             .map(|m| format!("{:02X} {:<24} {}\n", m.number, m.name, m.doc))
             .collect()
     };
-    out.write_all(text.as_bytes())
-        .and_then(|()| out.flush())
-        .map_err(|e| OutputFailed(format!("cannot write standard output: {e}")))?;
-    Ok(())
+    Ok(supervisor::output::stdout(&text)?)
 }

@@ -32,6 +32,19 @@ pub fn failed(verb: &str, path: &Path, e: &io::Error) -> OutputFailed {
     OutputFailed(format!("cannot {verb} {}: {why}", path.display()))
 }
 
+/// Writes `text` to standard output. A reader that went away (a closed pipe: `harvemu protocol |
+/// head`) ends the output quietly, as it ends any Unix filter; any other failure (`> /dev/full`)
+/// is an [`OutputFailed`] naming standard output. Unlike `println!`, never panics.
+pub fn stdout(text: &str) -> Result<(), OutputFailed> {
+    let mut out = io::stdout().lock();
+    match out.write_all(text.as_bytes()).and_then(|()| out.flush()) {
+        Err(e) if e.kind() != io::ErrorKind::BrokenPipe => {
+            Err(failed("write", Path::new("standard output"), &e))
+        }
+        _ => Ok(()),
+    }
+}
+
 /// True when `path` is written as a stream rather than replaced as a whole.
 pub fn is_stream(path: &Path) -> bool {
     if path.starts_with("/dev/") || path.starts_with("/proc/") {

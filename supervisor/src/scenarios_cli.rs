@@ -8,6 +8,7 @@ use crate::report;
 use crate::scenario::{self, Loaded, junit};
 use indicatif::{ProgressBar, ProgressStyle};
 use nodes::Error;
+use std::fmt::Write as _;
 use std::io::Write;
 use std::path::PathBuf;
 
@@ -54,11 +55,20 @@ pub fn run(args: &ScenarioArgs) -> anyhow::Result<Ended> {
     let report = args.report.as_deref().map(Output::create).transpose()?;
     let junit = args.junit.as_deref().map(Output::create).transpose()?;
     let mut outcomes = Vec::new();
+    let mut failure = None;
     for l in &loaded {
         if crate::stop::received().is_some() {
             break;
         }
-        let outcome = run_one(l, args.record.as_ref())?;
+        let outcome = match run_one(l, args.record.as_ref()) {
+            Ok(outcome) => outcome,
+            Err(e) => {
+                // A trace that could not be written ends the batch; what ran before it is still
+                // reported, and the error decides the exit code.
+                failure = Some(e);
+                break;
+            }
+        };
         let interrupted = outcome.interrupted;
         outcomes.push(outcome);
         if interrupted {
@@ -69,19 +79,22 @@ pub fn run(args: &ScenarioArgs) -> anyhow::Result<Ended> {
     if let Some(signal) = crate::stop::received() {
         eprintln!("harvemu: interrupted by {}", signal.describe());
     }
+    let mut out = String::new();
     let mut all_passed = true;
     for (l, o) in loaded.iter().zip(&outcomes) {
         let file = l.path.display();
-        println!(
+        let _ = writeln!(
+            out,
             "{} ({file}, seed {}, {:.1} s wall)",
             l.scenario.name, o.seed, o.wall_seconds
         );
         for e in &o.events {
-            println!("  event {} {} {}", e.at, e.node, e.what);
+            let _ = writeln!(out, "  event {} {} {}", e.at, e.node, e.what);
         }
         for v in &o.verdicts {
             let at = v.at.map_or("-".to_string(), |t| format!("{t}"));
-            println!(
+            let _ = writeln!(
+                out,
                 "  {} {}  [{at}] {}",
                 if v.passed { "pass" } else { "FAIL" },
                 v.expectation,
@@ -90,7 +103,8 @@ pub fn run(args: &ScenarioArgs) -> anyhow::Result<Ended> {
         }
         if !o.passed() {
             all_passed = false;
-            println!(
+            let _ = writeln!(
+                out,
                 "  failed: seed {}; reproduce with: harvemu scenario {file} --seed {}",
                 o.seed, o.seed
             );
@@ -104,7 +118,8 @@ pub fn run(args: &ScenarioArgs) -> anyhow::Result<Ended> {
         .iter()
         .map(|o| o.verdicts.iter().filter(|v| !v.passed).count())
         .sum();
-    println!("{passed} passed, {failed} failed");
+    let _ = writeln!(out, "{passed} passed, {failed} failed");
+    let shown = crate::output::stdout(&out);
     let runs: Vec<(String, &scenario::Scenario, &scenario::Outcome)> = loaded
         .iter()
         .zip(&outcomes)
@@ -125,6 +140,10 @@ pub fn run(args: &ScenarioArgs) -> anyhow::Result<Ended> {
     if let Some(out) = report {
         write(out, report::html(&runs).as_bytes())?;
     }
+    if let Some(e) = failure {
+        return Err(e);
+    }
+    shown?;
     Ok(Ended {
         expectations_failed: !all_passed,
         node_down,
@@ -183,7 +202,7 @@ pub fn validate(args: &ValidateArgs) -> anyhow::Result<()> {
             Harvester::load(f).map(|_| "harvester config")
         };
         match result {
-            Ok(kind) => println!("{}: ok ({kind})", f.display()),
+            Ok(kind) => crate::output::stdout(&format!("{}: ok ({kind})\n", f.display()))?,
             Err(Error::Invalid(p)) => problems.extend(p),
             Err(e) => problems.push(nodes::Problem {
                 file: f.display().to_string(),

@@ -177,3 +177,96 @@ fn a_trace_to_standard_output_streams_whole_lines() {
         "candump lines only"
     );
 }
+
+/// Runs `harvemu` with `args` from the repository root, standard output going to `stdout`.
+fn harvemu_to(args: &[&str], stdout: std::process::Stdio) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_harvemu"))
+        .current_dir(common::root())
+        .args(args)
+        .stdout(stdout)
+        .stderr(std::process::Stdio::piped())
+        .output()
+        .expect("run harvemu")
+}
+
+/// What commands print on standard output is an output too: `> /dev/full` is exit code 3 naming
+/// standard output (it was a panic from `println!`, or exit 0 with nothing written).
+#[test]
+fn standard_output_that_takes_no_writes_is_exit_code_3() {
+    for args in [
+        vec!["protocol"],
+        vec!["inspect", "0300A0F5#0101"],
+        vec!["validate", "configs/harvester.ron"],
+        vec!["dbc"],
+        vec!["scenario", "configs/scenarios/bit_error_once.ron"],
+    ] {
+        let full = std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap();
+        let out = harvemu_to(&args, full.into());
+        let err = stderr(&out);
+        assert_eq!(out.status.code(), Some(3), "{args:?}: {err}");
+        assert!(
+            err.contains("cannot write standard output: No space left on device"),
+            "{args:?}: {err}"
+        );
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+    }
+}
+
+/// A reader that goes away (`harvemu protocol | head -1`) ends the output quietly, as with any
+/// Unix filter: exit 0 and nothing on standard error.
+#[test]
+fn a_reader_that_goes_away_ends_standard_output_quietly() {
+    for args in [vec!["protocol", "--markdown"], vec!["inspect", "0300A0F5#0101"]] {
+        let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_harvemu"))
+            .current_dir(common::root())
+            .args(&args)
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .expect("start harvemu");
+        // Close the read end before harvemu writes: every write it makes meets a broken pipe.
+        drop(child.stdout.take());
+        let out = child.wait_with_output().unwrap();
+        let err = stderr(&out);
+        assert_eq!(out.status.code(), Some(0), "{args:?}: {err}");
+        assert_eq!(err, "", "{args:?}");
+    }
+}
+
+/// A trace that fails in the middle of a batch stops the batch with exit code 3, and the JUnit
+/// and the HTML report are still written whole (they were not written at all). The trace is
+/// played against a file-size limit it passes while the JUnit and the report fit under it.
+#[test]
+fn a_failed_trace_in_a_batch_still_leaves_the_report_and_junit() {
+    let dir = scratch("cli-outputs", "batch");
+    let junit = dir.join("junit.xml");
+    let report = dir.join("report.html");
+    let trace = dir.join("trace.log");
+    let out = harvemu_limited(
+        &[
+            "scenario",
+            "configs/scenarios/bit_error_once.ron",
+            "--record",
+            trace.to_str().unwrap(),
+            "--junit",
+            junit.to_str().unwrap(),
+            "--report",
+            report.to_str().unwrap(),
+        ],
+        // The JUnit and the report are far smaller than this; the scenario's trace is about
+        // 210 kB, so its write fails.
+        100_000,
+    );
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(3), "{err}");
+    assert!(err.contains(&format!("{}", trace.display())), "{err}");
+    assert!(!trace.exists(), "a torn trace was left: {:?}", listing(&dir));
+    let xml = std::fs::read_to_string(&junit).expect("the JUnit is written");
+    assert!(xml.ends_with("</testsuites>\n"), "{xml}");
+    let html = std::fs::read_to_string(&report).expect("the report is written");
+    assert!(
+        html.trim_end().ends_with("</html>"),
+        "{}",
+        &html[html.len().saturating_sub(200)..]
+    );
+}

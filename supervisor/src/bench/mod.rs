@@ -262,8 +262,8 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         }
     }
     if !args.json {
-        println!(
-            "{:<16} {:>5} {:>7} {:>8} {:>8} {:>11} {:>12} {:>9} {:>6} {:>9}",
+        crate::output::stdout(&format!(
+            "{:<16} {:>5} {:>7} {:>8} {:>8} {:>11} {:>12} {:>9} {:>6} {:>9}\n",
             "scenario",
             "buses",
             "threads",
@@ -274,14 +274,14 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             "speedup",
             "load",
             "peak RSS"
-        );
+        ))?;
     }
     let print = |m: &Measurement| -> anyhow::Result<()> {
         if args.json {
-            println!("{}", serde_json::to_string(m)?);
+            crate::output::stdout(&format!("{}\n", serde_json::to_string(m)?))?;
         } else {
-            println!(
-                "{:<16} {:>5} {:>7} {:>8.0} {:>8.2} {:>11} {:>12.0} {:>8.1}x {:>5.1}% {:>5.1} MiB",
+            crate::output::stdout(&format!(
+                "{:<16} {:>5} {:>7} {:>8.0} {:>8.2} {:>11} {:>12.0} {:>8.1}x {:>5.1}% {:>5.1} MiB\n",
                 m.scenario,
                 m.buses,
                 m.threads,
@@ -292,9 +292,9 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                 m.speedup,
                 m.bus_load * 100.0,
                 m.peak_rss_bytes as f64 / (1024.0 * 1024.0)
-            );
+            ))?;
             if let Some(j) = &m.jitter {
-                println!("{}", j.summary());
+                crate::output::stdout(&format!("{}\n", j.summary()))?;
             }
         }
         Ok(())

@@ -83,7 +83,7 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
             .map_or(s.duration_s, |n| n.now.as_secs_f64());
         rss.points.push((end, k));
     }
-    print!("{}", report(&loaded, &outcome, &rss, args.hours));
+    crate::output::stdout(&report(&loaded, &outcome, &rss, args.hours))?;
     let flat = rss.verdict().is_none_or(|(flat, _)| flat);
     for name in &outcome.down {
         eprintln!("harvemu: node {name} crashed more often than the restart policy allows and stays down");
