@@ -7,6 +7,7 @@ pub mod bench;
 pub mod dbc;
 pub mod harvester;
 pub mod inspect;
+pub mod realtime;
 pub mod record;
 pub mod replay;
 pub mod report;
