@@ -12,7 +12,11 @@
 //! Paced (real time, [`HubConfig::paced`]): before committing anything at bus time `t` the hub
 //! waits until the wall clock has reached `t` (less an optional slack), on a timer thread of its
 //! own that wakes within tens of microseconds where tokio's timers would round to milliseconds
-//! (`wall_timer`). Unpaced (virtual time): nothing but the nodes holds the bus back, and bus time runs as
+//! (`wall_timer`). When the process was not scheduled for a while and bus time is more than
+//! [`HubConfig::overrun_threshold`] behind that schedule, bus time slips: it goes on from where
+//! it stopped, the overrun is counted ([`Snapshot::overruns`]) and logged (at most once a
+//! second), and frames from outside ([`Submit`]) are stamped on the slipped clock
+//! ([`crate::pacing`]). Unpaced (virtual time): nothing but the nodes holds the bus back, and bus time runs as
 //! fast as they answer; the runtime's clock is not consulted at all, so a run costs no timers and
 //! is deterministic. Runtimes made by [`runtime`] tell hubs made on their thread which to be.
 //!
@@ -29,6 +33,7 @@ use crate::engine::{
 };
 use crate::fault::ErrorState;
 use crate::node::{Answer, ControllerEvent, Reply, Report, Wake};
+use crate::pacing::{Overruns, Pace, Pacer};
 use crate::time::BusTime;
 use crate::{Error, Frame, trace};
 use actix::prelude::*;
@@ -49,6 +54,9 @@ pub struct HubConfig {
     /// Keep bus time in step with the runtime's clock (real time); when false, run as fast as
     /// the nodes answer (virtual time). Defaults to what [`runtime`] made on this thread.
     pub paced: bool,
+    /// When paced: how far bus time may fall behind its schedule before it slips instead of
+    /// catching up ([`crate::pacing`]; [`crate::pacing::OVERRUN_THRESHOLD`] by default).
+    pub overrun_threshold: Duration,
 }
 
 impl Default for HubConfig {
@@ -58,6 +66,7 @@ impl Default for HubConfig {
             iface: "harv0".to_string(),
             slack: Duration::ZERO,
             paced: !VIRTUAL_TIME.get(),
+            overrun_threshold: crate::pacing::OVERRUN_THRESHOLD,
         }
     }
 }
@@ -135,7 +144,8 @@ pub struct Handover {
 pub struct Hub {
     bus: Bus,
     iface: String,
-    slack_ns: u64,
+    /// When bus time may be committed, and the overruns (paced hubs only).
+    pacer: Pacer,
     paced: bool,
     slots: Vec<Slot>,
     start: Option<tokio::time::Instant>,
@@ -183,7 +193,7 @@ impl Hub {
         Ok(Hub {
             bus: Bus::new(config.bus)?,
             iface: config.iface,
-            slack_ns: u64::try_from(config.slack.as_nanos()).unwrap_or(u64::MAX),
+            pacer: Pacer::new(config.slack, config.overrun_threshold),
             paced: config.paced,
             slots: Vec::new(),
             start: None,
@@ -212,23 +222,60 @@ impl Hub {
             .map_or(0, |s| u64::try_from(s.elapsed().as_nanos()).unwrap_or(u64::MAX))
     }
 
-    /// True when the runtime's clock allows committing at `t`.
-    fn reached(&self, t: BusTime) -> bool {
-        !self.paced || t.as_nanos() <= self.clock().saturating_add(self.slack_ns)
+    /// True when the runtime's clock allows committing at `t`. A paced hub that finds `t`
+    /// overdue by more than the overrun threshold lets bus time slip ([`crate::pacing`]).
+    fn reached(&mut self, t: BusTime) -> bool {
+        if !self.paced {
+            return true;
+        }
+        let wall = self.clock();
+        match self.pacer.check(wall, t) {
+            Pace::Wait(_) => false,
+            Pace::Go { slipped: None } => true,
+            Pace::Go { slipped: Some(late) } => {
+                if let Some(n) = self.pacer.log_due(wall) {
+                    let o = self.pacer.overruns();
+                    tracing::warn!(
+                        late_ms = late / 1_000_000,
+                        overruns = n,
+                        behind_ms = o.slipped_ns / 1_000_000,
+                        "real-time overrun: harvemu was not scheduled in time; bus time slips instead of bursting"
+                    );
+                }
+                true
+            }
+        }
+    }
+
+    /// The bus time of the present, for a frame from outside: the wall clock less the slips. A
+    /// stall not yet noticed by the hub is noticed first, so the frame does not land in the
+    /// future of bus time it stalled at.
+    fn present(&mut self) -> BusTime {
+        if !self.paced {
+            return BusTime(self.clock());
+        }
+        let frontier = if self.waiting > 0 {
+            Some(self.now)
+        } else {
+            let stop = self.stop_at.unwrap_or(BusTime::NEVER);
+            let next = self.bus.next_event().map_or(stop, |(t, _)| t.min(stop));
+            Some(self.next_due().map_or(next, |d| d.min(next))).filter(|&t| t < BusTime::NEVER)
+        };
+        if let Some(t) = frontier.filter(|_| !self.paused) {
+            self.reached(t);
+        }
+        self.pacer.bus_time(self.clock())
     }
 
     fn arm(&mut self, t: BusTime, ctx: &mut Context<Self>) {
         if let Some((timer, start)) = &self.wall {
             self.armed += 1;
-            let at = *start + Duration::from_nanos(t.as_nanos().saturating_sub(self.slack_ns));
+            let at = *start + Duration::from_nanos(self.pacer.due(t));
             if timer.set(self.armed, at) {
                 return;
             }
         }
-        let wait = t
-            .as_nanos()
-            .saturating_sub(self.slack_ns)
-            .saturating_sub(self.clock());
+        let wait = self.pacer.due(t).saturating_sub(self.clock());
         self.timer = Some(ctx.run_later(Duration::from_nanos(wait.max(1)), |hub, ctx| {
             hub.timer = None;
             hub.pump(ctx);
@@ -653,7 +700,7 @@ pub struct Submit {
 impl Handler<Submit> for Hub {
     type Result = Result<bool, Error>;
     fn handle(&mut self, msg: Submit, ctx: &mut Context<Self>) -> Self::Result {
-        let at = BusTime(self.clock()).max(self.bus.committed());
+        let at = self.present().max(self.bus.committed());
         let queued = self.bus.submit(msg.node, msg.frame, at)?.is_some();
         self.pump(ctx);
         Ok(queued)
@@ -719,6 +766,9 @@ pub struct Snapshot {
     pub wakes: u64,
     /// Submissions that arrived after bus time had moved past them.
     pub late_submissions: u64,
+    /// Real-time overruns: how often, and how far, bus time slipped behind the wall clock
+    /// (always zero in virtual time).
+    pub overruns: Overruns,
     /// Why the trace stopped, if writing it failed.
     pub trace_error: Option<String>,
 }
@@ -807,6 +857,7 @@ impl Handler<GetSnapshot> for Hub {
             nodes,
             wakes: self.wakes,
             late_submissions: self.bus.late_submissions(),
+            overruns: self.pacer.overruns(),
             trace_error: self.trace_error.clone(),
         })
     }

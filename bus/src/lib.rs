@@ -15,6 +15,8 @@
 //!   export all read it.
 //! - [`candump`] reads and writes the `ID#DATA` frame notation of can-utils.
 //! - [`tracefile`] reads candump logs and Vector ASC traces, and writes ASC.
+//! - [`pacing`] decides when a real-time hub commits bus time, and the overrun policy (bus time
+//!   slips after a stall instead of bursting); it is given the wall clock, it does not read it.
 //!
 //! Nothing here does I/O, reads a clock or panics on input; fallible input gives [`Error`].
 #![warn(missing_docs)]
@@ -32,6 +34,7 @@ pub mod gateway;
 pub mod hub;
 pub mod ident;
 pub mod node;
+pub mod pacing;
 pub mod time;
 pub mod trace;
 pub mod tracefile;

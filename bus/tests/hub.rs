@@ -354,6 +354,57 @@ fn real_time_paces_the_bus() {
     assert_eq!(snap.stats.frames, 20, "10 periodic frames and 10 replies");
 }
 
+/// Freezes the hub's thread once, at `at`, as a process that is not scheduled would be.
+struct Stall {
+    at: BusTime,
+    done: bool,
+}
+
+impl NodeLogic for Stall {
+    fn handle_frame(&mut self, _: BusTime, _: &Frame) {}
+    fn handle_timeout(&mut self, _: BusTime) {
+        std::thread::sleep(Duration::from_millis(250));
+        self.done = true;
+    }
+    fn poll_transmit(&mut self) -> Option<Frame> {
+        None
+    }
+    fn poll_timeout(&self) -> Option<BusTime> {
+        (!self.done).then_some(self.at)
+    }
+}
+
+/// After a 250 ms stall, bus time goes on from where it stopped (the run takes 250 ms longer)
+/// instead of sending the overdue frames back to back, and the overrun is counted.
+#[test]
+fn a_stall_slips_bus_time_instead_of_bursting() {
+    let started = std::time::Instant::now();
+    let snap = System::with_tokio_rt(|| runtime(false).unwrap()).block_on(async {
+        let hub = Hub::new(HubConfig::default(), None).unwrap().start();
+        attach(&hub, "a", Box::new(Periodic::new("123#01", 10, 0)), 0).await;
+        let stall = Stall {
+            at: BusTime::from_millis(100),
+            done: false,
+        };
+        attach(&hub, "stall", Box::new(stall), 0).await;
+        hub.send(RunUntil(BusTime::from_millis(500)))
+            .await
+            .unwrap()
+            .unwrap();
+        hub.send(GetSnapshot).await.unwrap()
+    });
+    let took = started.elapsed();
+    assert!(
+        took >= Duration::from_millis(740),
+        "took {took:?}: the stall was caught up in a burst"
+    );
+    assert_eq!(snap.stats.frames, 50, "every periodic frame, none lost");
+    let o = snap.overruns;
+    assert!(o.count >= 1, "{o:?}");
+    assert!(o.longest_ns >= 240_000_000, "{o:?}");
+    assert!(o.slipped_ns >= o.longest_ns, "{o:?}");
+}
+
 #[test]
 fn three_nodes_contend_and_win_in_identifier_order() {
     let trace = Shared::default();

@@ -11,6 +11,7 @@ pub mod exit;
 pub mod harvester;
 pub mod inspect;
 pub mod output;
+pub mod realtime;
 pub mod record;
 pub mod replay;
 pub mod report;

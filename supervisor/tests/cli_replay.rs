@@ -294,3 +294,35 @@ fn bad_input_is_one_line_and_exit_code_2() {
         }
     }
 }
+
+/// With `--iface`, replay emulates nothing unless asked: the interface carries only the trace.
+#[test]
+fn onto_an_interface_only_the_trace_goes_unless_emulated_nodes_are_asked_for() {
+    use supervisor::harvester::Harvester;
+    use supervisor::replay::{emulated, for_interface};
+    let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs/harvester.ron");
+    let full = Harvester::load(&config).unwrap();
+    // The default harvester: 20 field nodes and the monitor.
+    assert_eq!(emulated(&full).len(), 21);
+
+    let mut alone = full.clone();
+    for_interface(&mut alone, false);
+    assert!(emulated(&alone).is_empty(), "{:?}", emulated(&alone));
+    assert_eq!(
+        alone.relay(),
+        bus::time::BusTime::ZERO,
+        "the trace starts at once"
+    );
+
+    let mut with = full.clone();
+    for_interface(&mut with, true);
+    assert_eq!(emulated(&with), emulated(&full));
+    assert_eq!(with.relay(), full.relay());
+
+    // --with-emulated means nothing without --iface: refused like other bad usage.
+    let (log, _) = recorded();
+    let out = harvemu(&["replay", log, "--fast", "--with-emulated"]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--iface"), "{err}");
+}

@@ -101,6 +101,11 @@ pub async fn bridge(hub: Addr<Hub>, iface: &str) -> Result<Bridge, Error> {
     socket
         .set_error_filter_accept_all()
         .map_err(|e| open_error(iface, e))?;
+    // The kernel stamps each frame as it arrives (SO_TIMESTAMPNS): the statistics then say how
+    // long frames waited before the bridge read them. Without it no frame carries a stamp.
+    socket
+        .set_recv_timestamp(true)
+        .map_err(|e| open_error(iface, e))?;
     let socket = Rc::new(socket);
     let controller = ControllerConfig {
         tx_queue_len: 256,

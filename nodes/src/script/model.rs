@@ -159,6 +159,8 @@ fn default_check() -> u64 {
 /// (an `Acknowledged` action, which answers every send before it). A send whose acknowledgement
 /// has not come `timeout_ms` after it counts as missed; when `limit` sends in a row are missed
 /// the node enters `state`. A send whose acknowledgement is merely on its way is not missed.
+/// With `resume`, the next acknowledgement takes a node that gave up back to the state it gave
+/// up in: a connection-oriented exchange picks up where it stopped once the peer answers again.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct AckDef {
@@ -171,6 +173,9 @@ pub struct AckDef {
     /// Variable that holds the count of missed acknowledgements (for status messages).
     #[serde(default)]
     pub count_var: Option<String>,
+    /// An acknowledgement received in `state` returns the node to the state it gave up in.
+    #[serde(default)]
+    pub resume: bool,
 }
 
 /// A value for a field, a plant input or a variable.

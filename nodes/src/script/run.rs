@@ -82,6 +82,15 @@ struct Acks {
     missed: u32,
 }
 
+/// A node that gave up for lack of acknowledgements and resumes at the next one.
+#[derive(Clone, Copy, Debug)]
+struct GaveUp {
+    /// The state it gave up in, to go back to.
+    from: usize,
+    /// The state it entered; an acknowledgement in any other state resumes nothing.
+    into: usize,
+}
+
 impl Acks {
     /// The earliest time an awaited acknowledgement falls due.
     fn next_due(&self) -> Option<BusTime> {
@@ -116,6 +125,8 @@ pub struct ScriptedNode {
     faults: Vec<(SignalFault, BusTime)>,
     /// Acknowledgement tracking of the sends of entries with an `ack`.
     acks: Acks,
+    /// Set when the node gave up under an `ack` with `resume`.
+    gave_up: Option<GaveUp>,
     out: VecDeque<Frame>,
     /// A frame buffer to build into (see `build`).
     spare: Vec<Frame>,
@@ -163,6 +174,7 @@ impl ScriptedNode {
             state: 0,
             faults,
             acks: Acks::default(),
+            gave_up: None,
             out: VecDeque::new(),
             spare: Vec::new(),
             unchecked_from: None,
@@ -218,13 +230,19 @@ impl ScriptedNode {
     }
 
     fn set_state(&mut self, name: &str) {
-        let Some(i) = self.state_index(name) else { return };
+        if let Some(i) = self.state_index(name) {
+            self.set_state_index(i);
+        }
+    }
+
+    fn set_state_index(&mut self, i: usize) {
         if i == self.state && self.booted {
             return;
         }
         self.state = i;
         self.touch();
-        tracing::debug!(node = %self.s.name, state = name, "state");
+        let name = &self.s.states[i].name;
+        tracing::debug!(node = %self.s.name, state = %name, "state");
         // Timers restart on entering a state they run in, and stop outside their states.
         for (k, t) in self.s.timers.iter().enumerate() {
             let on = self.booted && (t.states.is_empty() || t.states.iter().any(|s| s == name));
@@ -355,7 +373,12 @@ impl ScriptedNode {
                 self.set_var(v, f64::from(missed));
             }
             if missed >= ack.limit {
+                let from = self.state;
                 self.set_state(&ack.state);
+                let into = self.state;
+                if ack.resume && into != from {
+                    self.gave_up = Some(GaveUp { from, into });
+                }
             }
         }
     }
@@ -423,6 +446,11 @@ impl ScriptedNode {
                 }
                 Action::Acknowledged => {
                     self.acks = Acks::default();
+                    if let Some(g) = self.gave_up.take()
+                        && g.into == self.state
+                    {
+                        self.set_state_index(g.from);
+                    }
                     let script = Rc::clone(&self.s);
                     for m in &script.messages {
                         if let Some(v) = m.ack.as_ref().and_then(|a| a.count_var.as_ref()) {

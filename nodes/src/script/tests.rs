@@ -249,6 +249,62 @@ fn unacknowledged_groups_stop_the_stream() {
     assert_eq!(sent.len(), 6, "groups at 1600 and 1700");
 }
 
+/// With `resume`, a plain acknowledgement brings a sensor that gave up back to streaming (the
+/// connection-oriented exchange picks up again); without it, only the accept command does.
+#[test]
+fn an_acknowledgement_resumes_a_sensor_that_gave_up_when_the_script_says_so() {
+    let at = |ms| BusTime::from_millis(ms);
+    let ack = parse_frame("0601D2F5#210D07").unwrap();
+    for resume in [false, true] {
+        let script = FLOW.replace(
+            "count_var: Some(\"missed\"))",
+            &format!("count_var: Some(\"missed\"), resume: {resume})"),
+        );
+        let (mut n, _) = node(&script, &[("row3.unit1", 77.0)]);
+        // Groups at 500, 600, 700 go unanswered; the third is overdue at 750 ms.
+        let sent = drive(&mut n, at(1000), &[]);
+        assert_eq!(sent.len(), 9, "resume: {resume}");
+        assert_eq!(n.state(), "no acknowledgement", "resume: {resume}");
+        // An acknowledgement at 1010 ms; groups keep their 100 ms grid: 1100, 1200.
+        let sent = drive(&mut n, at(1250), &[(at(1010), ack)]);
+        let groups: Vec<u64> = sent.chunks(3).map(|c| c[0].0.as_nanos() / 1_000_000).collect();
+        if resume {
+            assert_eq!(n.state(), "running");
+            assert_eq!(groups, [1100, 1200]);
+            // Counting starts again from 0: the groups at 1100 and 1200 ms fell due unanswered
+            // at 1150 and 1250 ms, two of the three it takes to give up again.
+            assert_eq!(n.var("missed"), Some(2.0));
+        } else {
+            assert_eq!(n.state(), "no acknowledgement");
+            assert!(groups.is_empty(), "{groups:?}");
+        }
+    }
+}
+
+/// A node resumes in the state it gave up in, not in some fixed one: one that gave up while
+/// calibrating goes back to calibrating.
+#[test]
+fn a_node_resumes_in_the_state_it_gave_up_in() {
+    let script = FLOW
+        .replace(
+            r#"(name: "running", code: 3),"#,
+            r#"(name: "calibrating", code: 2), (name: "running", code: 3),"#,
+        )
+        .replace(r#"initial: "running""#, r#"initial: "calibrating""#)
+        .replace(r#"states: ["running"]"#, r#"states: ["calibrating", "running"]"#)
+        .replace(
+            "count_var: Some(\"missed\"))",
+            "count_var: Some(\"missed\"), resume: true)",
+        );
+    let (mut n, _) = node(&script, &[("row3.unit1", 77.0)]);
+    let at = |ms| BusTime::from_millis(ms);
+    drive(&mut n, at(1000), &[]);
+    assert_eq!(n.state(), "no acknowledgement");
+    let ack = parse_frame("0601D2F5#210D07").unwrap();
+    drive(&mut n, at(1050), &[(at(1010), ack)]);
+    assert_eq!(n.state(), "calibrating");
+}
+
 /// Each group acknowledged 5 ms after it went out, well within the 50 ms timeout: at no moment
 /// does the node count a missed acknowledgement.
 #[test]

@@ -8,7 +8,8 @@
 //! ([`schedule`]), in virtual time (`--fast`) or in real time; the bus is run up to that moment
 //! first, so timing is the same under both clocks. A frame the controller's queue cannot take is
 //! counted as refused. After the last frame the bus runs on for [`TAIL`] (or to `--for`), and a
-//! summary goes to stderr.
+//! summary goes to stderr. With `--iface`, no node is emulated unless `--with-emulated` asks for
+//! them ([`for_interface`]): only the trace goes out on the interface.
 
 pub mod schedule;
 
@@ -61,9 +62,14 @@ pub struct Args {
     /// Record the resulting bus: Vector ASC when the name ends in .asc, else a candump log.
     #[arg(long, value_name = "FILE")]
     record: Option<PathBuf>,
-    /// Bridge the bus, replayed frames included, to this SocketCAN interface. Real time only.
+    /// Bridge the bus to this SocketCAN interface. Real time only. Only the trace's frames go
+    /// out on it, unless --with-emulated is given.
     #[arg(long, value_name = "IFACE")]
     iface: Option<String>,
+    /// With --iface: run the emulated harvester too (as without --iface), so that the trace
+    /// stands in only for the nodes left out (--without, --skip-emulated).
+    #[arg(long, requires = "iface")]
+    with_emulated: bool,
 }
 
 /// What a replay did.
@@ -97,6 +103,18 @@ pub fn emulated(h: &Harvester) -> BTreeSet<Address> {
         set.insert(Address::MONITOR);
     }
     set
+}
+
+/// Sets up the harvester for a replay onto an interface: without `with_emulated`, no node is
+/// emulated and the trace starts at once, so that the interface carries only what the trace
+/// holds (a whole machine's trace next to the emulated machine would put every node on the bus
+/// twice).
+pub fn for_interface(h: &mut Harvester, with_emulated: bool) {
+    if !with_emulated {
+        h.scripts.clear();
+        h.config.monitor.enabled = false;
+        h.config.time_relay_ms = 0;
+    }
 }
 
 /// Attaches the replay's controller to the hub of `running`.
@@ -173,6 +191,7 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
     }
     if let Some(name) = &args.iface {
         bus::backend::socketcan::check(name).map_err(|e| BadInput(e.to_string()))?;
+        for_interface(&mut h, args.with_emulated);
     }
     let records = load(&args.file)?;
     if records.is_empty() {

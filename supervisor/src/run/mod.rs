@@ -51,6 +51,11 @@ pub struct Args {
     /// The run's seed (the plant's randomness, each node's), instead of the config's.
     #[arg(long, value_name = "N")]
     seed: Option<u64>,
+    /// Real-time scheduling for a bench: SCHED_FIFO priority 40 and locked memory (mlockall), so
+    /// that the machine's other work does not stall the bus. Needs root or CAP_SYS_NICE and
+    /// CAP_IPC_LOCK; without them a warning says so and the run goes on. Real time only.
+    #[arg(long)]
+    realtime: bool,
 }
 
 /// Parses `120s`, `10m`, `1h`, `500ms` or a plain number of seconds.
@@ -95,6 +100,9 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
     if args.fast && args.iface.is_some() {
         return Err(BadInput("--iface runs in real time: leave out --fast".into()).into());
     }
+    if args.fast && args.realtime {
+        return Err(BadInput("--realtime is for real-time runs: leave out --fast".into()).into());
+    }
     let iface = args.iface.clone();
     if let Some(name) = &iface {
         bus::backend::socketcan::check(name).map_err(|e| BadInput(e.to_string()))?;
@@ -123,6 +131,11 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
         eprintln!(
             "harvemu: note: with --fast the bus runs in virtual time, far faster than clients can follow"
         );
+    }
+    if args.realtime {
+        for line in crate::realtime::enter() {
+            eprintln!("{line}");
+        }
     }
     let system = System::with_tokio_rt(move || runtime(fast).expect("a tokio runtime"));
     let result = system.block_on(async move {
@@ -193,6 +206,9 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
                 "harvemu: interface: {} frames in ({} with kernel timestamps, longest wait {} us), {} out, {} error frames, {} write errors",
                 s.received, s.kernel_stamped, s.max_wait_us, s.sent, s.error_frames, s.write_errors
             );
+        }
+        if let Some(line) = crate::realtime::overruns_line(&snap) {
+            eprintln!("{line}");
         }
         anyhow::Ok(Ended {
             expectations_failed: false,

@@ -55,6 +55,7 @@ fn snapshot(bus: &mut Bus, now: BusTime, nodes: Vec<NodeSnapshot>) -> Snapshot {
         nodes,
         wakes: 0,
         late_submissions: 0,
+        overruns: Default::default(),
         trace_error: None,
     }
 }

@@ -1,27 +1,36 @@
-//! `harvemu-vmcheck harvester HARVEMU CONFIG`: the end-to-end check of `harvemu run --iface`.
+//! `harvemu-vmcheck harvester HARVEMU CONFIG`: the end-to-end check of `harvemu run --iface`
+//! with a monitor that is not harvemu's.
 //!
-//! Creates vcan0, opens a raw socket on it, runs `HARVEMU run CONFIG --iface vcan0 --for 6s` as a
-//! child process and records every frame with its kernel receive time for 5 s from the first one.
-//! 2.5 s into the recording it sends `0300A0F5#0101` (`row.command`: start auto alignment). Then it
-//! waits for the child and checks the identifiers, the periods of the periodic messages over the
-//! second half of the recording, A0's state before and after the command, and the frames' format.
+//! Creates vcan0, opens two raw sockets on it (one records, one sends), runs `HARVEMU run CONFIG
+//! --iface vcan0 --without F5 --for RUN_FOR` as a child process (its stderr echoed and kept) and,
+//! for `RECORD` from the first frame, records every frame with its kernel receive time while
+//! [`crate::monitor`] plays the monitor F5: it calibrates and acknowledges the six flow sensors.
+//! 2.5 s into the recording it sends `0300A0F5#0101` (`row.command`: start auto alignment); from
+//! 4.5 s on it freezes harvemu three times for 400 ms (SIGSTOP, SIGCONT, 1.5 s apart). Then it
+//! waits for the child and checks the identifiers, the periods before the first freeze, A0's
+//! state before and after the command, the frames' format, the monitor's sessions, the stalls
+//! ([`crate::outside`]) and what harvemu said on stderr. Last, [`crate::replay`] checks
+//! `harvemu replay --iface`.
 
+use crate::monitor::Monitor;
 use crate::{Outcome, Report, create_vcan, delete_vcan, format_frame, parse_frame, read_error};
 use socketcan::{CanFrame, CanSocket, EmbeddedFrame, Id, Socket, SocketOptions};
 use std::collections::BTreeMap;
-use std::io;
+use std::io::{self, BufRead, BufReader};
 use std::path::Path;
 use std::process::{Child, Command, ExitStatus, Stdio};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant, SystemTime};
 
 /// The interface the harvester is put on.
-const IFACE: &str = "vcan0";
+pub const IFACE: &str = "vcan0";
 
-/// How much emulated time `harvemu run` is given.
-const RUN_FOR: &str = "6s";
+/// How much emulated time `harvemu run` is given: the recording plus harvemu's start-up, less
+/// the bus time the freezes slip, with a margin.
+const RUN_FOR: &str = "11s";
 
 /// How long frames are recorded, from the first one.
-const RECORD: Duration = Duration::from_secs(5);
+const RECORD: Duration = Duration::from_millis(9500);
 
 /// When, from the first frame, the row command is injected.
 const INJECT_AFTER: Duration = Duration::from_millis(2500);
@@ -29,14 +38,24 @@ const INJECT_AFTER: Duration = Duration::from_millis(2500);
 /// The injected frame: `row.command` to A0, start auto alignment.
 const INJECTED: &str = "0300A0F5#0101";
 
+/// When, in seconds from the first frame, harvemu is frozen (after the calibration and the period
+/// window, 1.5 s apart so that each freeze is over and streaming again before the next).
+pub const STALLS: [f64; 3] = [4.5, 6.0, 7.5];
+
+/// How long each freeze lasts.
+pub const STALL: Duration = Duration::from_millis(400);
+
+/// The periods are measured from here to the first freeze (seconds from the first frame).
+const PERIODS_FROM: f64 = 2.0;
+
 /// How long harvemu may take to put its first frame on the interface (TCG is slow).
-const STARTUP_TIMEOUT: Duration = Duration::from_secs(30);
+pub const STARTUP_TIMEOUT: Duration = Duration::from_secs(30);
 
 /// How long harvemu may take to exit once the recording is over.
-const EXIT_TIMEOUT: Duration = Duration::from_secs(20);
+pub const EXIT_TIMEOUT: Duration = Duration::from_secs(20);
 
 /// How long one read waits, so that the loop can look at the clock.
-const POLL: Duration = Duration::from_millis(10);
+pub const POLL: Duration = Duration::from_millis(5);
 
 /// Allowed deviation of a mean period from the nominal one.
 const PERIOD_TOLERANCE: f64 = 0.10;
@@ -49,21 +68,38 @@ const REACTION_GRACE: f64 = 0.1;
 const SEEKING_FOR: f64 = 1.8;
 
 /// One received frame: seconds since the first frame, and the frame.
-struct Rx {
+pub struct Rx {
     /// Kernel receive time, in seconds since the first frame's.
-    at: f64,
+    pub at: f64,
     /// The frame.
-    frame: CanFrame,
+    pub frame: CanFrame,
+}
+
+/// One freeze of harvemu, in seconds since the first frame.
+#[derive(Clone, Debug, Default)]
+pub struct Stall {
+    /// When SIGSTOP was sent.
+    pub stopped: f64,
+    /// When SIGCONT was sent.
+    pub resumed: Option<f64>,
+    /// What went wrong sending a signal.
+    pub error: Option<String>,
 }
 
 /// What the recording saw.
-struct Recording {
-    /// Every frame, in order of arrival.
-    frames: Vec<Rx>,
+pub struct Recording {
+    /// Every frame, in order of arrival (the monitor's own included).
+    pub frames: Vec<Rx>,
     /// When the row command was sent, in seconds since the first frame.
     injected_at: Option<f64>,
-    /// Read errors other than timeouts, and the injection's failure.
+    /// Read errors other than timeouts, and the injection's and the monitor's send failures.
     errors: Vec<String>,
+    /// The monitor, with what it saw.
+    pub monitor: Monitor,
+    /// The freezes.
+    pub stalls: Vec<Stall>,
+    /// Seconds from the first frame to the end of the recording.
+    pub end: f64,
 }
 
 /// Runs the harvester checks with `harvemu` and `config`.
@@ -76,19 +112,20 @@ pub fn run(harvemu: &Path, config: &Path, report: &mut Report) {
         }
     };
     report.check(&format!("create and bring up {IFACE}"), Ok("netlink".to_owned()));
-    match open(IFACE) {
-        Ok(socket) => {
-            report.check("open a raw CAN socket with receive timestamps", Ok(String::new()));
-            with_socket(&socket, harvemu, config, report);
+    match open(IFACE).and_then(|rx| Ok((rx, open(IFACE)?))) {
+        Ok((rx, tx)) => {
+            report.check("open raw CAN sockets with receive timestamps", Ok(String::new()));
+            with_socket(&rx, &tx, harvemu, config, report);
+            crate::replay::run(&rx, harvemu, config, report);
         }
         Err(why) => {
-            report.check("open a raw CAN socket with receive timestamps", Err(why));
+            report.check("open raw CAN sockets with receive timestamps", Err(why));
         }
     }
     report.check(&format!("delete {IFACE}"), delete_vcan(iface, IFACE));
 }
 
-/// Opens the raw socket, with `SO_TIMESTAMPNS` and a short read timeout.
+/// Opens a raw socket, with `SO_TIMESTAMPNS` and a short read timeout.
 fn open(name: &str) -> Result<CanSocket, String> {
     let socket = CanSocket::open(name).map_err(|e| format!("open a raw CAN socket on {name}: {e}"))?;
     socket
@@ -100,24 +137,44 @@ fn open(name: &str) -> Result<CanSocket, String> {
     Ok(socket)
 }
 
-/// Starts harvemu, records, waits for it and checks what was recorded.
-fn with_socket(socket: &CanSocket, harvemu: &Path, config: &Path, report: &mut Report) {
+/// Starts `command` with stderr piped; a thread echoes each line to this process's stderr and
+/// keeps it.
+pub fn spawn_keeping_stderr(command: &mut Command) -> io::Result<(Child, Arc<Mutex<Vec<String>>>)> {
+    let mut child = command
+        .stdin(Stdio::null())
+        .stdout(Stdio::inherit())
+        .stderr(Stdio::piped())
+        .spawn()?;
+    let lines = Arc::new(Mutex::new(Vec::new()));
+    if let Some(stderr) = child.stderr.take() {
+        let kept = lines.clone();
+        std::thread::spawn(move || {
+            for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+                eprintln!("{line}");
+                if let Ok(mut kept) = kept.lock() {
+                    kept.push(line);
+                }
+            }
+        });
+    }
+    Ok((child, lines))
+}
+
+/// Starts harvemu, records while monitoring, waits for it and checks what was recorded.
+fn with_socket(rx: &CanSocket, tx: &CanSocket, harvemu: &Path, config: &Path, report: &mut Report) {
     let mut command = Command::new(harvemu);
     command
         .arg("run")
         .arg(config)
-        .args(["--iface", IFACE, "--for", RUN_FOR])
-        .stdin(Stdio::null())
-        .stdout(Stdio::inherit())
-        .stderr(Stdio::inherit());
+        .args(["--iface", IFACE, "--without", "F5", "--for", RUN_FOR]);
     let shown = format!(
-        "{} run {} --iface {IFACE} --for {RUN_FOR}",
+        "{} run {} --iface {IFACE} --without F5 --for {RUN_FOR}",
         harvemu.display(),
         config.display()
     );
     println!("vmcheck: starting {shown}");
-    let mut child = match command.spawn() {
-        Ok(child) => child,
+    let (mut child, stderr) = match spawn_keeping_stderr(&mut command) {
+        Ok(started) => started,
         Err(e) => {
             report.check(&format!("start {shown}"), Err(e.to_string()));
             return;
@@ -126,7 +183,7 @@ fn with_socket(socket: &CanSocket, harvemu: &Path, config: &Path, report: &mut R
     report.check(&format!("start {shown}"), Ok(format!("pid {}", child.id())));
     let spawned = Instant::now();
 
-    let recording = record(socket, &mut child, spawned);
+    let recording = record(rx, tx, &mut child, spawned);
     // harvemu's live line (in a terminal) ends without a newline; start the checker's lines on a fresh one.
     println!();
     report.check(
@@ -167,17 +224,25 @@ fn with_socket(socket: &CanSocket, harvemu: &Path, config: &Path, report: &mut R
         "every frame is a well-formed harvester frame",
         well_formed(&recording.frames),
     );
+    // The stderr thread ends with harvemu; what it kept is complete once harvemu has exited.
+    let lines = stderr.lock().map(|l| l.clone()).unwrap_or_default();
+    crate::outside::check(&recording, &lines, report);
 }
 
-/// Records frames until `RECORD` after the first one, injecting the row command on the way.
-/// Fails when harvemu ends, or sends nothing, before the recording starts.
-fn record(socket: &CanSocket, child: &mut Child, spawned: Instant) -> Result<Recording, String> {
+/// Records frames until `RECORD` after the first one, answering as the monitor, injecting the
+/// row command and freezing harvemu on the way. Fails when harvemu ends, or sends nothing, before
+/// the recording starts.
+fn record(rx: &CanSocket, tx: &CanSocket, child: &mut Child, spawned: Instant) -> Result<Recording, String> {
     let mut recording = Recording {
         frames: Vec::new(),
         injected_at: None,
         errors: Vec::new(),
+        monitor: Monitor::default(),
+        stalls: Vec::new(),
+        end: RECORD.as_secs_f64(),
     };
     let mut first: Option<(SystemTime, Instant)> = None;
+    let pid = child.id();
     loop {
         match first {
             None => {
@@ -190,17 +255,21 @@ fn record(socket: &CanSocket, child: &mut Child, spawned: Instant) -> Result<Rec
                     ));
                 }
             }
-            Some((_, started)) => {
+            Some((origin, started)) => {
                 let elapsed = started.elapsed();
                 if elapsed >= RECORD {
+                    if let Some(stall) = recording.stalls.last_mut().filter(|s| s.resumed.is_none()) {
+                        stall.resumed = Some(signal(pid, "CONT", origin, &mut stall.error));
+                    }
                     return Ok(recording);
                 }
                 if recording.injected_at.is_none() && elapsed >= INJECT_AFTER {
-                    recording.injected_at = Some(inject(socket, &first, &mut recording.errors));
+                    recording.injected_at = Some(inject(tx, origin, &mut recording.errors));
                 }
+                freeze(&mut recording.stalls, pid, origin, elapsed);
             }
         }
-        match socket.read_frame_with_timestamp() {
+        match rx.read_frame_with_timestamp() {
             Ok((frame, stamp)) => {
                 let (origin, _) = *first.get_or_insert_with(|| {
                     println!(
@@ -209,10 +278,17 @@ fn record(socket: &CanSocket, child: &mut Child, spawned: Instant) -> Result<Rec
                     );
                     (stamp, Instant::now())
                 });
-                recording.frames.push(Rx {
-                    at: seconds_since(origin, stamp),
-                    frame,
-                });
+                let at = seconds_since(origin, stamp);
+                for answer in recording.monitor.handle(at, &frame) {
+                    if let Err(e) = tx.write_frame(&answer)
+                        && recording.errors.len() < 5
+                    {
+                        recording
+                            .errors
+                            .push(format!("monitor: send {}: {e}", format_frame(&answer)));
+                    }
+                }
+                recording.frames.push(Rx { at, frame });
             }
             Err(e) if matches!(e.kind(), io::ErrorKind::TimedOut | io::ErrorKind::WouldBlock) => {}
             Err(e) => {
@@ -228,9 +304,45 @@ fn record(socket: &CanSocket, child: &mut Child, spawned: Instant) -> Result<Rec
     }
 }
 
+/// Starts the next freeze of harvemu when its time has come, and ends the present one after
+/// `STALL`.
+fn freeze(stalls: &mut Vec<Stall>, pid: u32, origin: SystemTime, elapsed: Duration) {
+    match stalls.last_mut() {
+        Some(stall) if stall.resumed.is_none() => {
+            if seconds_since(origin, SystemTime::now()) >= stall.stopped + STALL.as_secs_f64() {
+                stall.resumed = Some(signal(pid, "CONT", origin, &mut stall.error));
+            }
+        }
+        _ => {
+            if let Some(&at) = STALLS.get(stalls.len())
+                && elapsed.as_secs_f64() >= at
+            {
+                let mut stall = Stall::default();
+                stall.stopped = signal(pid, "STOP", origin, &mut stall.error);
+                println!("vmcheck: froze harvemu (SIGSTOP) at {:.3} s", stall.stopped);
+                stalls.push(stall);
+            }
+        }
+    }
+}
+
+/// Sends SIG`name` to `pid` with busybox's `kill` (this checker links nothing but socketcan) and
+/// returns when it was delivered, in seconds since `origin`; a failure goes to `error`.
+fn signal(pid: u32, name: &str, origin: SystemTime, error: &mut Option<String>) -> f64 {
+    match Command::new("kill")
+        .arg(format!("-{name}"))
+        .arg(pid.to_string())
+        .status()
+    {
+        Ok(status) if status.success() => {}
+        Ok(status) => *error = Some(format!("kill -{name} {pid}: {status}")),
+        Err(e) => *error = Some(format!("kill -{name} {pid}: {e}")),
+    }
+    seconds_since(origin, SystemTime::now())
+}
+
 /// Sends the row command and returns when, in seconds since the first frame.
-fn inject(socket: &CanSocket, first: &Option<(SystemTime, Instant)>, errors: &mut Vec<String>) -> f64 {
-    let origin = first.map_or(SystemTime::UNIX_EPOCH, |(stamp, _)| stamp);
+fn inject(socket: &CanSocket, origin: SystemTime, errors: &mut Vec<String>) -> f64 {
     let sent = parse_frame(INJECTED).and_then(|frame| {
         let at = SystemTime::now();
         socket
@@ -252,15 +364,15 @@ fn inject(socket: &CanSocket, first: &Option<(SystemTime, Instant)>, errors: &mu
 }
 
 /// Seconds from `origin` to `at` (negative if `at` is earlier).
-fn seconds_since(origin: SystemTime, at: SystemTime) -> f64 {
+pub fn seconds_since(origin: SystemTime, at: SystemTime) -> f64 {
     match at.duration_since(origin) {
         Ok(d) => d.as_secs_f64(),
         Err(e) => -e.duration().as_secs_f64(),
     }
 }
 
-/// Waits for harvemu to exit, killing it after `EXIT_TIMEOUT`.
-fn wait(child: &mut Child) -> Result<ExitStatus, String> {
+/// Waits for a child to exit, killing it after `EXIT_TIMEOUT`.
+pub fn wait(child: &mut Child) -> Result<ExitStatus, String> {
     let deadline = Instant::now() + EXIT_TIMEOUT;
     loop {
         match child.try_wait() {
@@ -278,7 +390,7 @@ fn wait(child: &mut Child) -> Result<ExitStatus, String> {
 }
 
 /// The raw identifier of an extended frame, None for a base one.
-fn extended_id(frame: &CanFrame) -> Option<u32> {
+pub fn extended_id(frame: &CanFrame) -> Option<u32> {
     match frame.id() {
         Id::Extended(id) => Some(id.as_raw()),
         Id::Standard(_) => None,
@@ -297,7 +409,7 @@ fn identifiers(frames: &[Rx]) -> BTreeMap<u32, usize> {
 }
 
 /// Receive times of the data frames with identifier `id` whose payload starts with `prefix`.
-fn times(frames: &[Rx], id: u32, prefix: &[u8]) -> Vec<f64> {
+pub fn times(frames: &[Rx], id: u32, prefix: &[u8]) -> Vec<f64> {
     frames
         .iter()
         .filter(|rx| extended_id(&rx.frame) == Some(id) && rx.frame.data().starts_with(prefix))
@@ -338,21 +450,30 @@ fn check_identifiers(recording: &Recording, report: &mut Report) {
     }
 }
 
-/// Checks the mean periods over the second half of the recording.
+/// Checks the mean periods between `PERIODS_FROM` and the first freeze: the other nodes' and every
+/// flow sensor's flow group, which keeps coming only while the outside monitor acknowledges.
 fn check_periods(recording: &Recording, report: &mut Report) {
-    let half = RECORD.as_secs_f64() / 2.0;
-    for (what, id, prefix, nominal_ms) in [
-        ("E0 speed.status", 0x0200_F5E0, &[0x10u8][..], 50.0),
-        ("B1 param.engine", 0x0500_F5B1, &[0x21][..], 100.0),
-        ("A0 row.status", 0x0300_F5A0, &[0x10][..], 200.0),
-        ("D0 flow.marker_flow", 0x0601_F5D0, &[0x20, 0x0D][..], 100.0),
-    ] {
-        let name = format!("{what} period {nominal_ms} ms ±10 % (from {half:.1} s)");
-        let late: Vec<f64> = times(&recording.frames, id, prefix)
+    let (from, to) = (PERIODS_FROM, STALLS[0]);
+    let mut periodic = vec![
+        ("E0 speed.status".to_owned(), 0x0200_F5E0, &[0x10u8][..], 50.0),
+        ("B1 param.engine".to_owned(), 0x0500_F5B1, &[0x21][..], 100.0),
+        ("A0 row.status".to_owned(), 0x0300_F5A0, &[0x10][..], 200.0),
+    ];
+    for sensor in 0..6u32 {
+        periodic.push((
+            format!("D{sensor} flow.marker_flow"),
+            0x0601_F5D0 | sensor,
+            &[0x20, 0x0D][..],
+            100.0,
+        ));
+    }
+    for (what, id, prefix, nominal_ms) in periodic {
+        let name = format!("{what} period {nominal_ms} ms ±10 % ({from:.1}–{to:.1} s)");
+        let window: Vec<f64> = times(&recording.frames, id, prefix)
             .into_iter()
-            .filter(|&at| at >= half)
+            .filter(|&at| at >= from && at < to)
             .collect();
-        report.check(&name, period(&late, nominal_ms));
+        report.check(&name, period(&window, nominal_ms));
     }
 }
 
@@ -549,12 +670,18 @@ mod tests {
             frames,
             injected_at: Some(0.5),
             errors: Vec::new(),
+            monitor: Monitor::default(),
+            stalls: Vec::new(),
+            end: 3.0,
         };
         assert!(row_state(&ok).is_ok(), "{:?}", row_state(&ok));
         let late = Recording {
             frames: vec![rx(0.1, "0300F5A0#1000000000"), rx(0.75, "0300F5A0#1000000000")],
             injected_at: Some(0.5),
             errors: Vec::new(),
+            monitor: Monitor::default(),
+            stalls: Vec::new(),
+            end: 3.0,
         };
         assert!(row_state(&late).is_err());
     }

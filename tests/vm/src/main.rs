@@ -12,10 +12,14 @@
 //! `scripts/vm/run` boots a VM that runs it; see `scripts/vm/README.md`.
 //!
 //! `harvemu-vmcheck harvester HARVEMU CONFIG` is the end-to-end check of `harvemu run --iface
-//! vcan0` instead (see [`harvester`]).
+//! vcan0 --without F5` with an outside monitor ([`monitor`]), freezes of harvemu ([`outside`]) and
+//! `harvemu replay --iface` ([`replay`]) instead (see [`harvester`]).
 #![warn(missing_docs)]
 
 mod harvester;
+mod monitor;
+mod outside;
+mod replay;
 
 use socketcan::{
     CanFilter, CanFrame, CanInterface, CanSocket, EmbeddedFrame, ExtendedId, Id, Socket, SocketOptions,
