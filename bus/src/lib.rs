@@ -15,6 +15,7 @@
 //!   export all read it.
 //! - [`candump`] reads and writes the `ID#DATA` frame notation of can-utils.
 //! - [`tracefile`] reads candump logs and Vector ASC traces, and writes ASC.
+//! - [`text::quote`] cuts input quoted in error messages to a few dozen characters.
 //!
 //! Nothing here does I/O, reads a clock or panics on input; fallible input gives [`Error`].
 #![warn(missing_docs)]
@@ -32,6 +33,7 @@ pub mod gateway;
 pub mod hub;
 pub mod ident;
 pub mod node;
+pub mod text;
 pub mod time;
 pub mod trace;
 pub mod tracefile;
