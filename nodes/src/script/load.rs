@@ -23,14 +23,11 @@ pub fn parse(file: &str, text: &str) -> Result<NodeScript, Error> {
     crate::parse_ron(file, text)
 }
 
-/// Reads, parses and validates a script file.
+/// Reads ([`crate::file::read_text`], so at most [`crate::file::MAX_FILE`] bytes), parses and
+/// validates a script file.
 pub fn load(path: &Path, signals: &dyn Signals) -> Result<NodeScript, Error> {
-    let file = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
-        path: file.clone(),
-        source,
-    })?;
-    from_text(&file, &text, signals)
+    let text = crate::file::read_text(path)?;
+    from_text(&path.display().to_string(), &text, signals)
 }
 
 /// Parses and validates a script held in memory; `file` names it in problems. [`load`] is this

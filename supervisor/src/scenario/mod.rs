@@ -40,7 +40,8 @@ pub struct Loaded {
     pub harvester: Harvester,
 }
 
-/// Reads and checks a scenario and its harvester; every problem is listed.
+/// Reads and checks a scenario and its harvester; every problem is listed. Files are read with
+/// [`nodes::file::read_text`]: at most [`nodes::file::MAX_FILE`] bytes each.
 pub fn load(path: &Path, seed: Option<u64>) -> Result<Loaded, Error> {
     load_with(path, seed, None)
 }
@@ -48,10 +49,7 @@ pub fn load(path: &Path, seed: Option<u64>) -> Result<Loaded, Error> {
 /// [`load`], with the run's length replaced by `duration_s` when given (before the random
 /// faults are drawn, so that they cover the new length).
 pub fn load_with(path: &Path, seed: Option<u64>, duration_s: Option<f64>) -> Result<Loaded, Error> {
-    let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
-        path: path.display().to_string(),
-        source,
-    })?;
+    let text = nodes::file::read_text(path)?;
     parse(path, &text, seed, duration_s, Harvester::load)
 }
 
