@@ -4,14 +4,24 @@
 //! enough for a one-line error whatever the input: at most [`QUOTE_CHARS`] characters of it,
 //! then `…` when there was more. Control characters are escaped (`\0`, `\u{1b}`) so that a
 //! quoted line cannot move the cursor or clear the terminal, and count as the characters of
-//! their escape. The whole quote is never longer than `QUOTE_CHARS` + 3 characters.
+//! their escape. The whole quote is never longer than `QUOTE_CHARS` + 3 characters. [`cut`] does
+//! the same without the quotes and with a length of the caller's choice (lists of names from a
+//! file, messages of other libraries that quote input).
 
 /// How many characters of the quoted text an error message shows.
 pub const QUOTE_CHARS: usize = 40;
 
+/// How many characters of a list of names from a file an error message shows.
+pub const LIST_CHARS: usize = 120;
+
 /// `text` in single quotes, cut to [`QUOTE_CHARS`] characters (with `…` when cut).
 pub fn quote(text: &str) -> String {
-    let mut out = String::from("'");
+    format!("'{}'", cut(text, QUOTE_CHARS))
+}
+
+/// `text` cut to `chars` characters (then `…`), control characters escaped.
+pub fn cut(text: &str, chars: usize) -> String {
+    let mut out = String::new();
     let mut shown = 0;
     for c in text.chars() {
         let piece: String = if c.is_control() {
@@ -20,14 +30,13 @@ pub fn quote(text: &str) -> String {
             c.to_string()
         };
         let width = piece.chars().count();
-        if shown + width > QUOTE_CHARS {
+        if shown + width > chars {
             out.push('…');
             break;
         }
         out.push_str(&piece);
         shown += width;
     }
-    out.push('\'');
     out
 }
 

@@ -85,6 +85,7 @@ fn dev_zero_as_a_config_a_script_or_a_scenario_ends_at_once() {
         &["run", config, "--fast", "--for", "1s"],
         &format!("nodes[0]: cannot read /dev/zero: {limit}"),
     );
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// `text` with a `//` comment added at its end so that it is exactly `len` bytes.
@@ -128,6 +129,7 @@ fn a_file_of_the_limit_is_read_one_byte_more_is_refused() {
             &format!("{path}: larger than 1 MiB (1048576 bytes), the limit for a config, node script or scenario"),
         );
     }
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -153,4 +155,37 @@ fn an_over_long_trace_line_is_named_and_quoted_short() {
         &["replay", path, "--fast"],
         &format!("{path}:2: '1.0 1 {}…'", "Z".repeat(34)),
     );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn long_names_in_configs_scripts_and_scenarios_are_quoted_short() {
+    let dir = scratch("cli_limits", "names");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs");
+    let long = "N".repeat(100_000);
+    let scenario = std::fs::read_to_string(root.join("scenarios/crash.ron"))
+        .unwrap()
+        .replace(
+            "Scenario(\n",
+            &format!("Scenario(\n    config: \"{}/harvester.ron\",\n", root.display()),
+        )
+        .replace("Crash(\"D3\")", &format!("Crash(\"{long}\")"));
+    let script = std::fs::read_to_string(root.join("nodes/d3.ron")).unwrap();
+    let unknown_field = script.replacen("NodeScript(", &format!("NodeScript(\n    {long}: 1,"), 1);
+    let cut = "N".repeat(40);
+    for (name, text, words) in [
+        ("scenario.ron", scenario, format!("unknown node '{cut}…' (nodes: ")),
+        ("field.ron", unknown_field, format!("`{cut}…`")),
+    ] {
+        let file = dir.join(name);
+        std::fs::write(&file, text).unwrap();
+        let out = common::harvemu(&["validate", file.to_str().unwrap()]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{name}: {err}");
+        assert!(err.contains(&words), "{name}: {err}");
+        for l in err.lines() {
+            assert!(l.chars().count() < 400, "{name}: {} characters: {l}", l.len());
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
 }

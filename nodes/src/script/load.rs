@@ -7,6 +7,7 @@ use bus::Frame;
 use bus::catalogue::{self, Direction, MessageDef};
 use bus::filter::AcceptanceFilter;
 use bus::ident::Address;
+use bus::text::{LIST_CHARS, cut, quote};
 use std::collections::BTreeSet;
 use std::path::Path;
 
@@ -95,7 +96,11 @@ pub fn validate(file: &str, s: &NodeScript, signals: &dyn Signals) -> Vec<Proble
         if !states.contains(&name) {
             c.problem(
                 field,
-                format!("unknown state '{name}' (states: {})", states.join(", ")),
+                format!(
+                    "unknown state {} (states: {})",
+                    quote(name),
+                    cut(&states.join(", "), LIST_CHARS)
+                ),
             );
         }
     };
@@ -131,7 +136,7 @@ pub fn validate(file: &str, s: &NodeScript, signals: &dyn Signals) -> Vec<Proble
             if let Some(v) = &ack.count_var
                 && !vars.contains(v.as_str())
             {
-                c.problem(format!("{at}.ack.count_var"), format!("unknown variable '{v}'"));
+                c.problem(format!("{at}.ack.count_var"), format!("unknown variable {}", quote(&v)));
             }
         }
         for (j, f) in m.frames.iter().enumerate() {
@@ -151,7 +156,7 @@ pub fn validate(file: &str, s: &NodeScript, signals: &dyn Signals) -> Vec<Proble
                 match def.field(name) {
                     None => c.problem(
                         format!("{fat}.fields.{name}"),
-                        format!("{} has no field '{name}'", def.name),
+                        format!("{} has no field {}", def.name, quote(name)),
                     ),
                     Some(fd) if fd.constant.is_some() => c.problem(
                         format!("{fat}.fields.{name}"),
@@ -197,7 +202,7 @@ pub fn validate(file: &str, s: &NodeScript, signals: &dyn Signals) -> Vec<Proble
                 if def.field(name).is_none() {
                     c.problem(
                         format!("{at}.when.{name}"),
-                        format!("{} has no field '{name}'", def.name),
+                        format!("{} has no field {}", def.name, quote(name)),
                     );
                 }
             }
@@ -223,7 +228,7 @@ pub fn validate(file: &str, s: &NodeScript, signals: &dyn Signals) -> Vec<Proble
         if !signals.is_signal(&f.signal) {
             c.problem(
                 format!("faults[{i}].signal"),
-                format!("unknown plant signal '{}'", f.signal),
+                format!("unknown plant signal {}", quote(&f.signal)),
             );
         }
     }
@@ -285,7 +290,7 @@ fn duplicates<'a>(c: &mut Checker, field: &str, names: impl Iterator<Item = &'a 
     let mut seen = BTreeSet::new();
     for n in names {
         if !seen.insert(n) {
-            c.problem(field, format!("'{n}' is defined twice"));
+            c.problem(field, format!("{} is defined twice", quote(&n)));
         }
     }
 }
@@ -300,7 +305,7 @@ fn message(
     let Some(def) = catalogue::by_name(name) else {
         c.problem(
             format!("{at}.message"),
-            format!("'{name}' is not in the message catalogue"),
+            format!("{} is not in the message catalogue", quote(&name)),
         );
         return None;
     };
@@ -336,11 +341,11 @@ fn expr(
 ) {
     match e {
         Expr::Const(v) if !v.is_finite() => c.problem(at, "not a finite number"),
-        Expr::Signal(s) if !signals.is_signal(s) => c.problem(at, format!("unknown plant signal '{s}'")),
-        Expr::Var(v) if !vars.contains(v.as_str()) => c.problem(at, format!("unknown variable '{v}'")),
+        Expr::Signal(s) if !signals.is_signal(s) => c.problem(at, format!("unknown plant signal {}", quote(&s))),
+        Expr::Var(v) if !vars.contains(v.as_str()) => c.problem(at, format!("unknown variable {}", quote(&v))),
         Expr::Field(f) => match frame {
             None => c.problem(at, format!("Field(\"{f}\") only has a meaning in a reaction")),
-            Some(def) if def.field(f).is_none() => c.problem(at, format!("{} has no field '{f}'", def.name)),
+            Some(def) if def.field(f).is_none() => c.problem(at, format!("{} has no field {}", def.name, quote(f))),
             _ => {}
         },
         Expr::Quantize(_, step) if step.is_nan() || *step <= 0.0 => {
@@ -369,23 +374,23 @@ fn actions(
         let here = format!("{at}.actions[{k}]");
         match a {
             Action::SetState(s) if !states.contains(&s.as_str()) => {
-                c.problem(here, format!("unknown state '{s}'"))
+                c.problem(here, format!("unknown state {}", quote(&s)))
             }
             Action::Start(m) | Action::Stop(m) | Action::Send(m) if !sends.contains(&m.as_str()) => {
-                c.problem(here, format!("unknown message '{m}'"))
+                c.problem(here, format!("unknown message {}", quote(&m)))
             }
             Action::Restart(t) if !timers.contains(&t.as_str()) => {
-                c.problem(here, format!("unknown timer '{t}'"))
+                c.problem(here, format!("unknown timer {}", quote(&t)))
             }
             Action::Write(s, e) => {
                 if !signals.is_input(s) {
-                    c.problem(here.clone(), format!("'{s}' is not a plant input"));
+                    c.problem(here.clone(), format!("{} is not a plant input", quote(&s)));
                 }
                 expr(c, &here, e, signals, vars, frame);
             }
             Action::Set(v, e) => {
                 if !vars.contains(v.as_str()) {
-                    c.problem(here.clone(), format!("unknown variable '{v}'"));
+                    c.problem(here.clone(), format!("unknown variable {}", quote(&v)));
                 }
                 expr(c, &here, e, signals, vars, frame);
             }

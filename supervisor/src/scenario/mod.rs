@@ -23,6 +23,7 @@ use bus::candump::parse_frame;
 use bus::engine::{BitPosition, ControllerConfig, Effect, Filter, Rule, Schedule};
 use bus::hub::{Attach, Control, GetErrorCounters, GetSnapshot, Replace, Submit, runtime};
 use bus::node::{Apply, NodeActor, NodeLogic};
+use bus::text::{LIST_CHARS, cut, quote};
 use bus::time::BusTime;
 use nodes::plant::Plant;
 use nodes::script::ScriptedNode;
@@ -149,7 +150,11 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
             p.push(Problem::at(
                 file,
                 field,
-                format!("unknown node '{n}' (nodes: {})", names.join(", ")),
+                format!(
+                    "unknown node {} (nodes: {})",
+                    quote(n),
+                    cut(&names.join(", "), LIST_CHARS)
+                ),
             ));
         }
     };
@@ -201,7 +206,7 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
                 p.push(Problem::at(
                     file,
                     format!("{at}.action.target"),
-                    format!("'{id}' is not an 8-digit 29-bit identifier"),
+                    format!("{} is not an 8-digit 29-bit identifier", quote(&id)),
                 ))
             }
             Target::Priority(pr) if *pr > 31 => p.push(Problem::at(
@@ -330,7 +335,7 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
                     p.push(Problem::at(
                         file,
                         format!("{at}.action.signal"),
-                        format!("unknown plant signal '{signal}'"),
+                        format!("unknown plant signal {}", quote(&signal)),
                     ));
                 }
             }
@@ -339,7 +344,7 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
                     p.push(Problem::at(
                         file,
                         format!("{at}.action.input"),
-                        format!("'{input}' is not a plant input"),
+                        format!("{} is not a plant input", quote(&input)),
                     ));
                 }
                 if !value.is_finite() {
@@ -446,7 +451,7 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
                     p.push(Problem::at(
                         file,
                         format!("{at}.field"),
-                        format!("the display has no field '{field}'"),
+                        format!("the display has no field {}", quote(&field)),
                     ));
                 }
                 bounds_ok(&mut p, *min, *max);
@@ -456,7 +461,7 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
                     p.push(Problem::at(
                         file,
                         format!("{at}.signal"),
-                        format!("unknown plant signal '{signal}'"),
+                        format!("unknown plant signal {}", quote(&signal)),
                     ));
                 }
                 bounds_ok(&mut p, *min, *max);
