@@ -62,7 +62,10 @@ pub fn parse_hex_bytes(text: &str) -> Result<Vec<u8>, Error> {
         )));
     }
     if !digits.len().is_multiple_of(2) {
-        return Err(syntax(format!("data {} has an odd number of hex digits", quote(text))));
+        return Err(syntax(format!(
+            "data {} has an odd number of hex digits",
+            quote(text)
+        )));
     }
     if digits.len() > 16 {
         return Err(Error::TooMuchData(digits.len() / 2));

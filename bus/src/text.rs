@@ -67,7 +67,11 @@ mod tests {
         let zeros = quote(&"\0".repeat(1000));
         assert_eq!(zeros, format!("'{}…'", "\\0".repeat(20)));
         for text in ["\u{1}".repeat(500), "\t".repeat(500), "€".repeat(500)] {
-            assert!(quote(&text).chars().count() <= QUOTE_CHARS + 3, "{}", quote(&text));
+            assert!(
+                quote(&text).chars().count() <= QUOTE_CHARS + 3,
+                "{}",
+                quote(&text)
+            );
         }
     }
 }

@@ -35,8 +35,15 @@ fn read_limited(path: &Path, limit: u64) -> io::Result<String> {
             ),
         ));
     }
-    String::from_utf8(bytes)
-        .map_err(|e| io::Error::new(io::ErrorKind::InvalidData, format!("not UTF-8 text (byte {} is not)", e.utf8_error().valid_up_to() + 1)))
+    String::from_utf8(bytes).map_err(|e| {
+        io::Error::new(
+            io::ErrorKind::InvalidData,
+            format!(
+                "not UTF-8 text (byte {} is not)",
+                e.utf8_error().valid_up_to() + 1
+            ),
+        )
+    })
 }
 
 #[cfg(test)]

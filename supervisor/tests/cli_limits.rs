@@ -63,10 +63,16 @@ fn dev_zero_as_a_trace_ends_at_once() {
 #[test]
 fn dev_zero_as_a_config_a_script_or_a_scenario_ends_at_once() {
     let limit = "larger than 1 MiB (1048576 bytes)";
-    refused(&["run", "/dev/zero", "--fast", "--for", "1s"], &format!("/dev/zero: {limit}"));
+    refused(
+        &["run", "/dev/zero", "--fast", "--for", "1s"],
+        &format!("/dev/zero: {limit}"),
+    );
     refused(&["validate", "/dev/zero"], &format!("/dev/zero: {limit}"));
     refused(&["scenario", "/dev/zero"], &format!("/dev/zero: {limit}"));
-    refused(&["replay", "/dev/zero", "--config", "/dev/zero"], &format!("/dev/zero: {limit}"));
+    refused(
+        &["replay", "/dev/zero", "--config", "/dev/zero"],
+        &format!("/dev/zero: {limit}"),
+    );
     // A harvester config naming /dev/zero as a node script.
     let dir = scratch("cli_limits", "script");
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs");
@@ -121,12 +127,18 @@ fn a_file_of_the_limit_is_read_one_byte_more_is_refused() {
         std::fs::write(&file, padded(&text, MAX_FILE)).unwrap();
         let out = common::harvemu(&["validate", path]);
         let said = String::from_utf8_lossy(&out.stdout);
-        assert!(out.status.success(), "{name}: {}", String::from_utf8_lossy(&out.stderr));
+        assert!(
+            out.status.success(),
+            "{name}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
         assert_eq!(said.trim_end(), format!("{path}: ok ({kind})"));
         std::fs::write(&file, padded(&text, MAX_FILE + 1)).unwrap();
         refused(
             &["validate", path],
-            &format!("{path}: larger than 1 MiB (1048576 bytes), the limit for a config, node script or scenario"),
+            &format!(
+                "{path}: larger than 1 MiB (1048576 bytes), the limit for a config, node script or scenario"
+            ),
         );
     }
     let _ = std::fs::remove_dir_all(&dir);
@@ -144,12 +156,18 @@ fn an_over_long_trace_line_is_named_and_quoted_short() {
     let path = log.to_str().unwrap();
     refused(
         &["replay", path, "--fast"],
-        &format!("{path}:2: longer than 65536 bytes, the limit for a trace line: '(1.000001) can0 123#AAAAAAAAAAAAAAAAAAAA…'"),
+        &format!(
+            "{path}:2: longer than 65536 bytes, the limit for a trace line: '(1.000001) can0 123#AAAAAAAAAAAAAAAAAAAA…'"
+        ),
     );
     // A token of the limit's length within a line: the error quotes 40 characters of it.
     let asc = dir.join("long.asc");
     let token = "Z".repeat(60_000);
-    std::fs::write(&asc, format!("base hex  timestamps absolute\n1.0 1 {token} Rx d 1 00\n")).unwrap();
+    std::fs::write(
+        &asc,
+        format!("base hex  timestamps absolute\n1.0 1 {token} Rx d 1 00\n"),
+    )
+    .unwrap();
     let path = asc.to_str().unwrap();
     refused(
         &["replay", path, "--fast"],
@@ -174,7 +192,11 @@ fn long_names_in_configs_scripts_and_scenarios_are_quoted_short() {
     let unknown_field = script.replacen("NodeScript(", &format!("NodeScript(\n    {long}: 1,"), 1);
     let cut = "N".repeat(40);
     for (name, text, words) in [
-        ("scenario.ron", scenario, format!("unknown node '{cut}…' (nodes: ")),
+        (
+            "scenario.ron",
+            scenario,
+            format!("unknown node '{cut}…' (nodes: "),
+        ),
         ("field.ron", unknown_field, format!("`{cut}…`")),
     ] {
         let file = dir.join(name);

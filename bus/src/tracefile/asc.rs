@@ -30,8 +30,8 @@
 
 use super::{Entry, parse_time};
 use crate::frame::{extended_id, standard_id};
-use crate::time::BusTime;
 use crate::text::quote;
+use crate::time::BusTime;
 use crate::{Frame, Id};
 use core::fmt::Write;
 use std::time::SystemTime;
@@ -86,7 +86,12 @@ impl ReadState {
                     Some("relative") => true,
                     _ => return Err(format!("{}: timestamps are absolute or relative", quote(line))),
                 },
-                Some(_) => return Err(format!("{}: base hex|dec timestamps absolute|relative", quote(line))),
+                Some(_) => {
+                    return Err(format!(
+                        "{}: base hex|dec timestamps absolute|relative",
+                        quote(line)
+                    ));
+                }
             };
             return Ok(None);
         }
@@ -112,7 +117,9 @@ impl ReadState {
                 Ok(Some((at, Entry::Error(None))))
             }
             [channel, id, dir, fields @ ..] if is_channel(channel) && is_direction(dir) => {
-                let frame = self.frame(id, fields).map_err(|e| format!("{}: {e}", quote(line)))?;
+                let frame = self
+                    .frame(id, fields)
+                    .map_err(|e| format!("{}: {e}", quote(line)))?;
                 Ok(Some((at, Entry::Frame(frame))))
             }
             // Events: start of measurement, statistics, chip status, SV:, J1939TP, ...
@@ -150,7 +157,10 @@ impl ReadState {
             Some(d) => {
                 let dlc = self.number(d, "DLC")?;
                 if dlc > 8 {
-                    return Err(format!("DLC {} is above 8: only classic CAN is supported", quote(d)));
+                    return Err(format!(
+                        "DLC {} is above 8: only classic CAN is supported",
+                        quote(d)
+                    ));
                 }
                 Some(dlc as usize)
             }

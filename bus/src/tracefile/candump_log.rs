@@ -14,7 +14,12 @@ pub(super) fn parse_line(line: &str) -> Result<(BusTime, Entry), String> {
     let (time, rest) = line
         .strip_prefix('(')
         .and_then(|l| l.split_once(')'))
-        .ok_or_else(|| format!("{} is not a candump log line: (secs.usecs) iface ID#DATA", quote(line)))?;
+        .ok_or_else(|| {
+            format!(
+                "{} is not a candump log line: (secs.usecs) iface ID#DATA",
+                quote(line)
+            )
+        })?;
     let at = parse_time(time)?;
     let mut fields = rest.split_whitespace();
     let (Some(_iface), Some(frame)) = (fields.next(), fields.next()) else {

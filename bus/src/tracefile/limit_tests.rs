@@ -24,7 +24,10 @@ fn a_line_of_the_limit_is_read_one_byte_more_is_refused() {
     let records = read_str(&fits, ErrorFrames::Keep).unwrap();
     assert_eq!(records.len(), 1);
     assert_eq!(records[0].line, 3);
-    let over = format!("base hex  timestamps absolute\n{}\n{frame}", comment(MAX_LINE + 1));
+    let over = format!(
+        "base hex  timestamps absolute\n{}\n{frame}",
+        comment(MAX_LINE + 1)
+    );
     let e = read_str(&over, ErrorFrames::Keep).unwrap_err();
     let text = e.to_string();
     assert!(matches!(e, Error::TraceLine { line: 2, .. }), "{text}");

@@ -105,7 +105,9 @@ impl<R: BufRead> Lines<R> {
     fn skip_rest(&mut self) -> io::Result<bool> {
         loop {
             self.buf.clear();
-            let n = (&mut self.input).take(SKIP_CHUNK).read_until(b'\n', &mut self.buf)?;
+            let n = (&mut self.input)
+                .take(SKIP_CHUNK)
+                .read_until(b'\n', &mut self.buf)?;
             if n == 0 {
                 return Ok(false);
             }
@@ -169,10 +171,17 @@ mod tests {
         let long = [vec![b'x'; 10_000_000], b"\nnext\n".to_vec()].concat();
         let mut lines = Lines::new(BufReader::new(&long[..]), 100);
         assert!(matches!(lines.next_line(), Some(Err(LineError::TooLong { .. }))));
-        assert_eq!(lines.next_line().map(|l| l.unwrap().to_vec()), Some(b"next".to_vec()));
+        assert_eq!(
+            lines.next_line().map(|l| l.unwrap().to_vec()),
+            Some(b"next".to_vec())
+        );
         assert!(lines.next_line().is_none());
         // Skipped in chunks: the buffer stays far below the 10 MB of the line.
-        assert!(lines.buf.capacity() <= 4 * SKIP_CHUNK as usize, "{}", lines.buf.capacity());
+        assert!(
+            lines.buf.capacity() <= 4 * SKIP_CHUNK as usize,
+            "{}",
+            lines.buf.capacity()
+        );
     }
 
     /// The lines of `input` as `BufRead::split` would give them, with `\r` before `\n` removed.
@@ -181,7 +190,10 @@ mod tests {
         let mut rest = input;
         while !rest.is_empty() {
             let (line, next) = match rest.iter().position(|&b| b == b'\n') {
-                Some(i) => (rest[..i].strip_suffix(b"\r").unwrap_or(&rest[..i]), &rest[i + 1..]),
+                Some(i) => (
+                    rest[..i].strip_suffix(b"\r").unwrap_or(&rest[..i]),
+                    &rest[i + 1..],
+                ),
                 None => (rest, &rest[rest.len()..]),
             };
             out.push(line.to_vec());

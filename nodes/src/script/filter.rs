@@ -115,7 +115,7 @@ pub(super) fn register_image(text: &str) -> Result<[u8; 4], String> {
         }
     };
     if digits.len() != 4 {
-        return Err(format!("{} is not four register bytes", quote(&text)));
+        return Err(format!("{} is not four register bytes", quote(text)));
     }
     let mut image = [0u8; 4];
     for (slot, byte) in image.iter_mut().zip(&digits) {
@@ -132,12 +132,12 @@ pub(super) fn register_image(text: &str) -> Result<[u8; 4], String> {
 pub(super) fn word(text: &str) -> Result<u32, String> {
     let digits = strip_0x(text.trim());
     if digits.is_empty() || !digits.bytes().all(|b| b.is_ascii_hexdigit()) {
-        return Err(format!("{} is not a hex number", quote(&text)));
+        return Err(format!("{} is not a hex number", quote(text)));
     }
     if digits.len() > 8 {
-        return Err(format!("{} is wider than the 32 bits of a can_id", quote(&text)));
+        return Err(format!("{} is wider than the 32 bits of a can_id", quote(text)));
     }
-    u32::from_str_radix(digits, 16).map_err(|_| format!("{} is not a hex number", quote(&text)))
+    u32::from_str_radix(digits, 16).map_err(|_| format!("{} is not a hex number", quote(text)))
 }
 
 fn strip_0x(s: &str) -> &str {

@@ -136,7 +136,10 @@ pub fn validate(file: &str, s: &NodeScript, signals: &dyn Signals) -> Vec<Proble
             if let Some(v) = &ack.count_var
                 && !vars.contains(v.as_str())
             {
-                c.problem(format!("{at}.ack.count_var"), format!("unknown variable {}", quote(&v)));
+                c.problem(
+                    format!("{at}.ack.count_var"),
+                    format!("unknown variable {}", quote(v)),
+                );
             }
         }
         for (j, f) in m.frames.iter().enumerate() {
@@ -290,7 +293,7 @@ fn duplicates<'a>(c: &mut Checker, field: &str, names: impl Iterator<Item = &'a 
     let mut seen = BTreeSet::new();
     for n in names {
         if !seen.insert(n) {
-            c.problem(field, format!("{} is defined twice", quote(&n)));
+            c.problem(field, format!("{} is defined twice", quote(n)));
         }
     }
 }
@@ -305,7 +308,7 @@ fn message(
     let Some(def) = catalogue::by_name(name) else {
         c.problem(
             format!("{at}.message"),
-            format!("{} is not in the message catalogue", quote(&name)),
+            format!("{} is not in the message catalogue", quote(name)),
         );
         return None;
     };
@@ -341,11 +344,15 @@ fn expr(
 ) {
     match e {
         Expr::Const(v) if !v.is_finite() => c.problem(at, "not a finite number"),
-        Expr::Signal(s) if !signals.is_signal(s) => c.problem(at, format!("unknown plant signal {}", quote(&s))),
-        Expr::Var(v) if !vars.contains(v.as_str()) => c.problem(at, format!("unknown variable {}", quote(&v))),
+        Expr::Signal(s) if !signals.is_signal(s) => {
+            c.problem(at, format!("unknown plant signal {}", quote(s)))
+        }
+        Expr::Var(v) if !vars.contains(v.as_str()) => c.problem(at, format!("unknown variable {}", quote(v))),
         Expr::Field(f) => match frame {
             None => c.problem(at, format!("Field(\"{f}\") only has a meaning in a reaction")),
-            Some(def) if def.field(f).is_none() => c.problem(at, format!("{} has no field {}", def.name, quote(f))),
+            Some(def) if def.field(f).is_none() => {
+                c.problem(at, format!("{} has no field {}", def.name, quote(f)))
+            }
             _ => {}
         },
         Expr::Quantize(_, step) if step.is_nan() || *step <= 0.0 => {
@@ -374,23 +381,23 @@ fn actions(
         let here = format!("{at}.actions[{k}]");
         match a {
             Action::SetState(s) if !states.contains(&s.as_str()) => {
-                c.problem(here, format!("unknown state {}", quote(&s)))
+                c.problem(here, format!("unknown state {}", quote(s)))
             }
             Action::Start(m) | Action::Stop(m) | Action::Send(m) if !sends.contains(&m.as_str()) => {
-                c.problem(here, format!("unknown message {}", quote(&m)))
+                c.problem(here, format!("unknown message {}", quote(m)))
             }
             Action::Restart(t) if !timers.contains(&t.as_str()) => {
-                c.problem(here, format!("unknown timer {}", quote(&t)))
+                c.problem(here, format!("unknown timer {}", quote(t)))
             }
             Action::Write(s, e) => {
                 if !signals.is_input(s) {
-                    c.problem(here.clone(), format!("{} is not a plant input", quote(&s)));
+                    c.problem(here.clone(), format!("{} is not a plant input", quote(s)));
                 }
                 expr(c, &here, e, signals, vars, frame);
             }
             Action::Set(v, e) => {
                 if !vars.contains(v.as_str()) {
-                    c.problem(here.clone(), format!("unknown variable {}", quote(&v)));
+                    c.problem(here.clone(), format!("unknown variable {}", quote(v)));
                 }
                 expr(c, &here, e, signals, vars, frame);
             }

@@ -26,6 +26,7 @@ use bus::ident::{Address, AppId};
 use bus::time::BusTime;
 use bus::tracefile::{Entry, Record};
 use std::collections::BTreeSet;
+use std::convert::Infallible;
 
 /// How many times the trace is played.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -166,10 +167,7 @@ impl Schedule {
 
     /// Plans the replay of records held in memory (tests, and traces built by a program).
     pub fn from_records(records: Vec<Record>, skip: &BTreeSet<Address>, passes: Passes) -> Schedule {
-        let survey = match Survey::new(records.iter().map(|r| Ok::<_, ()>(*r)), skip) {
-            Ok(s) => s,
-            Err(()) => Survey::default(),
-        };
+        let Ok(survey) = Survey::new(records.iter().map(|r| Ok::<_, Infallible>(*r)), skip);
         let source: Source = Box::new(move || Box::new(records.clone().into_iter().map(Ok)));
         Schedule::new(survey, skip.clone(), passes, source)
     }
@@ -193,7 +191,9 @@ impl Schedule {
     pub fn end(&self) -> Option<u64> {
         let last = self.survey.last_frame?;
         match self.passes {
-            Passes::Times(n) => Some(last.saturating_add(u64::from(n.max(1) - 1).saturating_mul(self.period))),
+            Passes::Times(n) => {
+                Some(last.saturating_add(u64::from(n.max(1) - 1).saturating_mul(self.period)))
+            }
             Passes::Forever => None,
         }
     }
@@ -364,7 +364,11 @@ mod tests {
         let (taken, opened) = (Rc::new(Cell::new(0)), Rc::new(Cell::new(0)));
         let source = counting(taken.clone(), opened.clone());
         let mut s = Schedule::new(survey, BTreeSet::new(), Passes::Times(2), source);
-        assert_eq!(opened.get(), 0, "nothing is read before the first frame is asked for");
+        assert_eq!(
+            opened.get(),
+            0,
+            "nothing is read before the first frame is asked for"
+        );
         let offsets: Vec<u64> = s.by_ref().take(3).map(|d| d.unwrap().offset / 1000).collect();
         // The third frame is the fourth record (the base frame, out of order, at 400 µs).
         assert_eq!(offsets, [0, 400, 400]);

@@ -206,7 +206,7 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
                 p.push(Problem::at(
                     file,
                     format!("{at}.action.target"),
-                    format!("{} is not an 8-digit 29-bit identifier", quote(&id)),
+                    format!("{} is not an 8-digit 29-bit identifier", quote(id)),
                 ))
             }
             Target::Priority(pr) if *pr > 31 => p.push(Problem::at(
@@ -335,7 +335,7 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
                     p.push(Problem::at(
                         file,
                         format!("{at}.action.signal"),
-                        format!("unknown plant signal {}", quote(&signal)),
+                        format!("unknown plant signal {}", quote(signal)),
                     ));
                 }
             }
@@ -344,7 +344,7 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
                     p.push(Problem::at(
                         file,
                         format!("{at}.action.input"),
-                        format!("{} is not a plant input", quote(&input)),
+                        format!("{} is not a plant input", quote(input)),
                     ));
                 }
                 if !value.is_finite() {
@@ -451,7 +451,7 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
                     p.push(Problem::at(
                         file,
                         format!("{at}.field"),
-                        format!("the display has no field {}", quote(&field)),
+                        format!("the display has no field {}", quote(field)),
                     ));
                 }
                 bounds_ok(&mut p, *min, *max);
@@ -461,7 +461,7 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
                     p.push(Problem::at(
                         file,
                         format!("{at}.signal"),
-                        format!("unknown plant signal {}", quote(&signal)),
+                        format!("unknown plant signal {}", quote(signal)),
                     ));
                 }
                 bounds_ok(&mut p, *min, *max);
