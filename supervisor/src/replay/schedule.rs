@@ -8,7 +8,9 @@
 //!   to send as a [`Due`], in time order, with its offset from the start of the replay, reading
 //!   one record ahead of the frame it gives. It reads no clock and does no I/O of its own.
 //! - An error from the source (a line that has become bad since the survey, a file that cannot
-//!   be opened again) is given once and ends the schedule.
+//!   be opened again) is given once and ends the schedule; so is a pass that finds no frame to
+//!   send although the survey found some (the trace was emptied since), which would otherwise
+//!   make `--loop` open the file again and again without end.
 //! - Offsets are measured from the first record of the trace, whatever its kind, so frames keep
 //!   their place relative to the whole recording. The trace reader refuses times that go
 //!   backwards; records built otherwise that do are sent right after the one before them: offsets
@@ -21,6 +23,7 @@
 //!   plus its mean interval between records (1 ms when all records share one instant), so the
 //!   times of a looped trace keep increasing by the trace's own rhythm.
 
+use crate::BadInput;
 use bus::Frame;
 use bus::ident::{Address, AppId};
 use bus::time::BusTime;
@@ -225,6 +228,15 @@ impl Iterator for Schedule {
                 }
                 None => {
                     self.reading = None;
+                    if self.begun == self.pass {
+                        // The survey found frames to send, this reading none: the trace changed.
+                        self.done = true;
+                        let e = BadInput(format!(
+                            "the trace changed while it was replayed: pass {} found no frame to send",
+                            self.pass + 1
+                        ));
+                        return Some(Err(e.into()));
+                    }
                     if self.another_pass() {
                         self.pass += 1;
                     } else {
@@ -390,6 +402,22 @@ mod tests {
             .map(|d| d.map(|d| d.offset / 1000).map_err(|e| e.to_string()))
             .collect();
         assert_eq!(got, [Ok(0), Ok(400), Err("t.log:3: bad".to_string())]);
+        // A trace emptied after the survey ends a looping schedule with an error.
+        let survey = Survey::new(trace().into_iter().map(Ok::<_, ()>), &BTreeSet::new()).unwrap();
+        let mut opened = 0;
+        let source: Source = Box::new(move || {
+            opened += 1;
+            let records = if opened == 1 { trace() } else { Vec::new() };
+            Box::new(records.into_iter().map(Ok))
+        });
+        let got: Vec<Result<u64, String>> = Schedule::new(survey, BTreeSet::new(), Passes::Forever, source)
+            .map(|d| d.map(|d| d.offset / 1000).map_err(|e| e.to_string()))
+            .collect();
+        assert_eq!(got.len(), 5, "{got:?}");
+        assert_eq!(
+            got[4],
+            Err("the trace changed while it was replayed: pass 2 found no frame to send".to_string())
+        );
         // The survey stops at the first error too.
         let bad = trace().into_iter().map(Ok).take(2).chain([Err("line 3")]);
         assert_eq!(Survey::new(bad, &BTreeSet::new()), Err("line 3"));
