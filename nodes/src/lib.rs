@@ -3,7 +3,8 @@
 //! by bus time and frames.
 //!
 //! Contract: nothing here reads a clock, does I/O (except [`file::read_text`], which reads
-//! configs, scripts and scenarios up to [`file::MAX_FILE`], and [`script::load`], which uses it) or draws randomness except from generators seeded by the run's seed and the node.
+//! configs, scripts and scenarios up to [`file::MAX_FILE`], and [`script::load`], which uses it)
+//! or draws randomness except from generators seeded by the run's seed and the node.
 //! Bad scripts give [`Error`] listing every problem with file, node and field.
 #![warn(missing_docs)]
 
