@@ -71,6 +71,8 @@ mod tests {
                 over.display()
             )
         );
+        let _ = std::fs::remove_file(fits);
+        let _ = std::fs::remove_file(over);
     }
 
     #[test]
