@@ -6,6 +6,7 @@
 //! - Data bytes may be separated by dots: `123#DE.AD.BE.EF`.
 
 use crate::frame::{extended_id, standard_id};
+use crate::text::quote;
 use crate::{Error, Frame, Id};
 use core::fmt::Write;
 
@@ -14,14 +15,14 @@ pub fn parse_frame(text: &str) -> Result<Frame, Error> {
     let text = text.trim();
     let (id_text, data_text) = text
         .split_once('#')
-        .ok_or_else(|| syntax(format!("'{text}' has no '#' between identifier and data")))?;
+        .ok_or_else(|| syntax(format!("{} has no '#' between identifier and data", quote(text))))?;
     let id = parse_id(id_text)?;
     if let Some(dlc) = data_text.strip_prefix(['R', 'r']) {
         let dlc = match dlc {
             "" => 0,
             d => d
                 .parse::<usize>()
-                .map_err(|_| syntax(format!("remote frame DLC '{d}' is not a digit 0-8")))?,
+                .map_err(|_| syntax(format!("remote frame DLC {} is not a digit 0-8", quote(d))))?,
         };
         return Frame::new_remote(id, dlc);
     }
@@ -32,7 +33,7 @@ pub fn parse_frame(text: &str) -> Result<Frame, Error> {
 /// Parses an identifier: 3 hex digits for a base frame, 8 for an extended frame.
 pub fn parse_id(text: &str) -> Result<Id, Error> {
     if text.is_empty() || !text.chars().all(|c| c.is_ascii_hexdigit()) {
-        return Err(syntax(format!("identifier '{text}' is not hexadecimal")));
+        return Err(syntax(format!("identifier {} is not hexadecimal", quote(text))));
     }
     match text.len() {
         3 => {
@@ -44,7 +45,8 @@ pub fn parse_id(text: &str) -> Result<Id, Error> {
             Ok(Id::Extended(extended_id(raw)?))
         }
         n => Err(syntax(format!(
-            "identifier '{text}' has {n} hex digits; use 3 for a base frame or 8 for an extended frame"
+            "identifier {} has {n} hex digits; use 3 for a base frame or 8 for an extended frame",
+            quote(text)
         ))),
     }
 }
@@ -54,12 +56,16 @@ pub fn parse_hex_bytes(text: &str) -> Result<Vec<u8>, Error> {
     let digits: Vec<u8> = text.bytes().filter(|&b| b != b'.').collect();
     if let Some(bad) = digits.iter().find(|b| !b.is_ascii_hexdigit()) {
         return Err(syntax(format!(
-            "data '{text}' has a non-hex character '{}'",
-            *bad as char
+            "data {} has a non-hex character {}",
+            quote(text),
+            quote(&char::from(*bad).to_string())
         )));
     }
     if !digits.len().is_multiple_of(2) {
-        return Err(syntax(format!("data '{text}' has an odd number of hex digits")));
+        return Err(syntax(format!(
+            "data {} has an odd number of hex digits",
+            quote(text)
+        )));
     }
     if digits.len() > 16 {
         return Err(Error::TooMuchData(digits.len() / 2));

@@ -17,6 +17,7 @@
 //! - [`tracefile`] reads candump logs and Vector ASC traces, and writes ASC.
 //! - [`pacing`] decides when a real-time hub commits bus time, and the overrun policy (bus time
 //!   slips after a stall instead of bursting); it is given the wall clock, it does not read it.
+//! - [`text::quote`] cuts input quoted in error messages to a few dozen characters.
 //!
 //! Nothing here does I/O, reads a clock or panics on input; fallible input gives [`Error`].
 #![warn(missing_docs)]
@@ -35,6 +36,7 @@ pub mod hub;
 pub mod ident;
 pub mod node;
 pub mod pacing;
+pub mod text;
 pub mod time;
 pub mod trace;
 pub mod tracefile;

@@ -1,14 +1,21 @@
 //! Trace readers (candump log and Vector ASC): whole-text and line-by-line reading agree, error
 //! frames are the only difference between keeping and skipping them, bad lines are named by
-//! number, and every record written back in its own format reads back the same.
+//! number, errors are one short line, and every record written back in its own format reads back
+//! the same. The bounded line reader under them, with a small limit, gives no line over it and
+//! every other line as a plain split does.
 #![no_main]
 
 use bus::Error;
 use bus::time::BusTime;
-use bus::tracefile::{self, Entry, ErrorFrames, Format, Reader, Record};
+use bus::tracefile::{self, Entry, ErrorFrames, Format, LineError, Lines, Reader, Record};
 use libfuzzer_sys::fuzz_target;
+use std::io::BufReader;
+
+/// The longest an error about a line may be, characters.
+const SHORT: usize = 200;
 
 fuzz_target!(|input: &[u8]| {
+    bounded_lines(input);
     let Ok(text) = std::str::from_utf8(input) else {
         // Not UTF-8: the streaming reader stops at the bad line with an error naming it.
         for r in tracefile::read(input, ErrorFrames::Keep) {
@@ -54,6 +61,8 @@ fuzz_target!(|input: &[u8]| {
         }
         (Err(a), Err(b)) => {
             assert_eq!(a, b);
+            let shown = a.to_string();
+            assert!(shown.chars().count() < SHORT && !shown.contains('\n'), "{shown}");
             assert!(
                 matches!(a, Error::TraceLine { line, .. } if (1..=lines).contains(line)),
                 "{a}"
@@ -82,4 +91,42 @@ fn write_back(format: Format, records: &[Record]) {
         assert_eq!(a.entry, b.entry, "{out}");
         assert_eq!(BusTime(a.at.0 / 1000 * 1000), b.at, "{out}");
     }
+}
+
+/// The first byte is a limit (0–63) and the rest is read with it, 7 bytes at a time: every line
+/// given is at most the limit and is the line a plain split on `\n` gives (without a `\r` before
+/// the `\n`); every longer line is refused, and nothing else.
+fn bounded_lines(input: &[u8]) {
+    let Some((&limit, rest)) = input.split_first() else {
+        return;
+    };
+    let limit = usize::from(limit % 64);
+    let mut want: Vec<&[u8]> = rest.split(|&b| b == b'\n').collect();
+    if rest.is_empty() || rest.ends_with(b"\n") {
+        want.pop();
+    }
+    let last = want.len().saturating_sub(1);
+    let mut lines = Lines::new(BufReader::with_capacity(7, rest), limit);
+    for (i, w) in want.iter().enumerate() {
+        let ends_in_newline = i < last || rest.ends_with(b"\n");
+        let w = if ends_in_newline {
+            w.strip_suffix(b"\r").unwrap_or(w)
+        } else {
+            w
+        };
+        match lines.next_line() {
+            Some(Ok(got)) => {
+                assert!(got.len() <= limit, "{} bytes, limit {limit}", got.len());
+                assert_eq!(got, w);
+            }
+            Some(Err(LineError::TooLong { start })) => {
+                assert!(w.len() > limit, "{} bytes refused, limit {limit}", w.len());
+                assert!(start.len() <= 3 * limit, "{start:?}");
+            }
+            Some(Err(LineError::Io(e))) => panic!("{e}"),
+            None => panic!("line {} of {} missing", i + 1, want.len()),
+        }
+        assert_eq!(lines.number(), i + 1);
+    }
+    assert!(lines.next_line().is_none());
 }

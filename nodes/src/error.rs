@@ -1,3 +1,4 @@
+use bus::text::{LIST_CHARS, QUOTE_CHARS, cut};
 use std::fmt;
 use thiserror::Error;
 
@@ -30,16 +31,18 @@ impl Problem {
 }
 
 impl fmt::Display for Problem {
+    /// `file:line:col: node N: field: message`; the node's name and the field's path come from
+    /// the file, so they are cut to a few dozen characters.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "{}", self.file)?;
         if let Some((line, col)) = self.position {
             write!(f, ":{line}:{col}")?;
         }
         if let Some(node) = &self.node {
-            write!(f, ": node {node}")?;
+            write!(f, ": node {}", cut(node, QUOTE_CHARS))?;
         }
         if let Some(field) = &self.field {
-            write!(f, ": {field}")?;
+            write!(f, ": {}", cut(field, LIST_CHARS))?;
         }
         write!(f, ": {}", self.message)
     }
@@ -71,7 +74,8 @@ fn list(problems: &[Problem]) -> String {
 }
 
 /// Parses RON text as `T`; a syntax error or an unknown field comes back as one [`Problem`]
-/// with its line and column.
+/// with its line and column. What the message quotes from the text (between backticks) is cut
+/// to a few dozen characters.
 pub fn parse_ron<T: serde::de::DeserializeOwned>(file: &str, text: &str) -> Result<T, Error> {
     ron::from_str::<T>(text).map_err(|e| {
         Error::Invalid(vec![Problem {
@@ -79,7 +83,27 @@ pub fn parse_ron<T: serde::de::DeserializeOwned>(file: &str, text: &str) -> Resu
             position: Some((e.span.start.line, e.span.start.col)),
             node: None,
             field: None,
-            message: e.code.to_string(),
+            message: short_quotes(&e.code.to_string()),
         }])
     })
 }
+
+/// `message` with every part between backticks (what RON's messages quote) cut to
+/// [`QUOTE_CHARS`], and the whole cut to a few lines' worth.
+fn short_quotes(message: &str) -> String {
+    let parts: Vec<String> = message
+        .split('`')
+        .enumerate()
+        .map(|(i, part)| {
+            if i % 2 == 1 {
+                cut(part, QUOTE_CHARS)
+            } else {
+                part.to_string()
+            }
+        })
+        .collect();
+    cut(&parts.join("`"), MESSAGE_CHARS)
+}
+
+/// The longest RON message shown, characters: room for the list of a struct's fields.
+const MESSAGE_CHARS: usize = 400;

@@ -2,13 +2,15 @@
 //! node, the plant model the nodes sample, and the monitor, all as sans-IO state machines driven
 //! by bus time and frames.
 //!
-//! Contract: nothing here reads a clock, does I/O (except [`script::load`], which reads script
-//! files) or draws randomness except from generators seeded by the run's seed and the node.
+//! Contract: nothing here reads a clock, does I/O (except [`file::read_text`], which reads
+//! configs, scripts and scenarios up to [`file::MAX_FILE`], and [`script::load`], which uses it)
+//! or draws randomness except from generators seeded by the run's seed and the node.
 //! Bad scripts give [`Error`] listing every problem with file, node and field.
 #![warn(missing_docs)]
 
 pub mod environment;
 mod error;
+pub mod file;
 pub mod monitor;
 pub mod plant;
 pub mod script;

@@ -61,12 +61,10 @@ pub struct Harvester {
 
 impl Harvester {
     /// Reads and checks a harvester config and every script it names; every problem is
-    /// reported at once.
+    /// reported at once. Each file is read with [`nodes::file::read_text`]: at most
+    /// [`nodes::file::MAX_FILE`] bytes.
     pub fn load(path: &Path) -> Result<Harvester, Error> {
-        let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
-            path: path.display().to_string(),
-            source,
-        })?;
+        let text = nodes::file::read_text(path)?;
         let signals = nodes::environment::PlantSignals;
         Harvester::from_text(path, &text, |script| nodes::script::load(script, &signals))
     }

@@ -187,7 +187,7 @@ pub struct ValidateArgs {
 pub fn validate(args: &ValidateArgs) -> anyhow::Result<()> {
     let mut problems = Vec::new();
     for f in &args.files {
-        let text = std::fs::read_to_string(f).map_err(|e| BadInput(format!("{}: {e}", f.display())))?;
+        let text = nodes::file::read_text(f).map_err(|e| BadInput(e.to_string()))?;
         // The struct name at the top of the file says what it is.
         let body: String = text
             .lines()

@@ -23,7 +23,7 @@ fn run(h: Harvester, trace: Option<&str>, until: BusTime) -> (Vec<Line>, Display
     let skip = replay::emulated(&h);
     let schedule = trace.map(|t| {
         let records = tracefile::read_str(t, ErrorFrames::Keep).expect("the trace reads");
-        Schedule::new(&records, &skip, Passes::Times(1))
+        Schedule::from_records(records, &skip, Passes::Times(1))
     });
     let (display, played) = System::with_tokio_rt(|| runtime(true).expect("runtime")).block_on(async move {
         let mut running = harvester::start(&h, Some(Box::new(o))).await.expect("starts");

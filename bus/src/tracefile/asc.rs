@@ -30,6 +30,7 @@
 
 use super::{Entry, parse_time};
 use crate::frame::{extended_id, standard_id};
+use crate::text::quote;
 use crate::time::BusTime;
 use crate::{Frame, Id};
 use core::fmt::Write;
@@ -76,28 +77,36 @@ impl ReadState {
             self.radix = match tokens.next().map(str::to_ascii_lowercase).as_deref() {
                 Some("hex") => 16,
                 Some("dec") => 10,
-                _ => return Err(format!("'{line}': the base is hex or dec")),
+                _ => return Err(format!("{}: the base is hex or dec", quote(line))),
             };
             self.relative = match tokens.next().map(str::to_ascii_lowercase).as_deref() {
                 None => false,
                 Some("timestamps") => match tokens.next().map(str::to_ascii_lowercase).as_deref() {
                     Some("absolute") => false,
                     Some("relative") => true,
-                    _ => return Err(format!("'{line}': timestamps are absolute or relative")),
+                    _ => return Err(format!("{}: timestamps are absolute or relative", quote(line))),
                 },
-                Some(_) => return Err(format!("'{line}': base hex|dec timestamps absolute|relative")),
+                Some(_) => {
+                    return Err(format!(
+                        "{}: base hex|dec timestamps absolute|relative",
+                        quote(line)
+                    ));
+                }
             };
             return Ok(None);
         }
         let mut at = parse_time(first).map_err(|_| {
-            format!("'{line}' is not an ASC line (a header line, a // comment or a timestamped line)")
+            format!(
+                "{} is not an ASC line (a header line, a // comment or a timestamped line)",
+                quote(line)
+            )
         })?;
         if self.relative {
             at = BusTime(
                 self.clock
                     .as_nanos()
                     .checked_add(at.as_nanos())
-                    .ok_or_else(|| format!("'{line}': the accumulated time is too large"))?,
+                    .ok_or_else(|| format!("{}: the accumulated time is too large", quote(line)))?,
             );
             self.clock = at;
         }
@@ -108,7 +117,9 @@ impl ReadState {
                 Ok(Some((at, Entry::Error(None))))
             }
             [channel, id, dir, fields @ ..] if is_channel(channel) && is_direction(dir) => {
-                let frame = self.frame(id, fields).map_err(|e| format!("'{line}': {e}"))?;
+                let frame = self
+                    .frame(id, fields)
+                    .map_err(|e| format!("{}: {e}", quote(line)))?;
                 Ok(Some((at, Entry::Frame(frame))))
             }
             // Events: start of measurement, statistics, chip status, SV:, J1939TP, ...
@@ -119,7 +130,7 @@ impl ReadState {
     fn number(&self, text: &str, what: &str) -> Result<u32, String> {
         u32::from_str_radix(text, self.radix).map_err(|_| {
             let base = if self.radix == 16 { "hex" } else { "decimal" };
-            format!("{what} '{text}' is not a {base} number")
+            format!("{what} {} is not a {base} number", quote(text))
         })
     }
 
@@ -131,7 +142,10 @@ impl ReadState {
             None => {
                 let raw = self.number(id, "identifier")?;
                 let raw = u16::try_from(raw).map_err(|_| {
-                    format!("identifier {id} does not fit in 11 bits (an extended identifier ends in x)")
+                    format!(
+                        "identifier {} does not fit in 11 bits (an extended identifier ends in x)",
+                        quote(id)
+                    )
                 })?;
                 Id::Standard(standard_id(raw).map_err(|e| e.to_string())?)
             }
@@ -143,7 +157,10 @@ impl ReadState {
             Some(d) => {
                 let dlc = self.number(d, "DLC")?;
                 if dlc > 8 {
-                    return Err(format!("DLC {d} is above 8: only classic CAN is supported"));
+                    return Err(format!(
+                        "DLC {} is above 8: only classic CAN is supported",
+                        quote(d)
+                    ));
                 }
                 Some(dlc as usize)
             }
@@ -163,12 +180,12 @@ impl ReadState {
                     .iter()
                     .map(|b| match self.number(b, "data byte")? {
                         v @ 0..=255 => Ok(v as u8),
-                        _ => Err(format!("data byte '{b}' is above 255")),
+                        _ => Err(format!("data byte {} is above 255", quote(b))),
                     })
                     .collect::<Result<Vec<u8>, String>>()?;
                 Frame::new_data(id, &data).map_err(|e| e.to_string())
             }
-            other => Err(format!("frame type '{other}': d (data) or r (remote)")),
+            other => Err(format!("frame type {}: d (data) or r (remote)", quote(other))),
         }
     }
 

@@ -5,6 +5,7 @@
 use super::{Entry, parse_time};
 use crate::candump::{parse_frame, parse_hex_bytes};
 use crate::filter::CAN_ERR_FLAG;
+use crate::text::quote;
 use crate::time::BusTime;
 use crate::trace::ErrorFrame;
 
@@ -13,25 +14,31 @@ pub(super) fn parse_line(line: &str) -> Result<(BusTime, Entry), String> {
     let (time, rest) = line
         .strip_prefix('(')
         .and_then(|l| l.split_once(')'))
-        .ok_or_else(|| format!("'{line}' is not a candump log line: (secs.usecs) iface ID#DATA"))?;
+        .ok_or_else(|| {
+            format!(
+                "{} is not a candump log line: (secs.usecs) iface ID#DATA",
+                quote(line)
+            )
+        })?;
     let at = parse_time(time)?;
     let mut fields = rest.split_whitespace();
     let (Some(_iface), Some(frame)) = (fields.next(), fields.next()) else {
-        return Err(format!("'{line}' lacks the interface or the frame"));
+        return Err(format!("{} lacks the interface or the frame", quote(line)));
     };
     match fields.next() {
         None | Some("R" | "T" | "r" | "t") if fields.next().is_none() => {}
-        _ => return Err(format!("'{line}' has text after the frame")),
+        _ => return Err(format!("{} has text after the frame", quote(line))),
     }
     if frame.contains("##") {
         return Err(format!(
-            "'{frame}' is a CAN FD frame: only classic CAN is supported"
+            "{} is a CAN FD frame: only classic CAN is supported",
+            quote(frame)
         ));
     }
     if let Some(error) = error_frame(frame)? {
         return Ok((at, Entry::Error(Some(error))));
     }
-    let frame = parse_frame(frame).map_err(|e| format!("frame '{frame}': {e}"))?;
+    let frame = parse_frame(frame).map_err(|e| format!("frame {}: {e}", quote(frame)))?;
     Ok((at, Entry::Frame(frame)))
 }
 
@@ -46,10 +53,11 @@ fn error_frame(text: &str) -> Result<Option<ErrorFrame>, String> {
     };
     if can_id > CAN_ERR_FLAG | 0x1FFF_FFFF {
         return Err(format!(
-            "error frame identifier {id} has flags other than CAN_ERR_FLAG"
+            "error frame identifier {} has flags other than CAN_ERR_FLAG",
+            quote(id)
         ));
     }
-    let bytes = parse_hex_bytes(data).map_err(|e| format!("error frame '{text}': {e}"))?;
+    let bytes = parse_hex_bytes(data).map_err(|e| format!("error frame {}: {e}", quote(text)))?;
     let mut data = [0u8; 8];
     data[..bytes.len()].copy_from_slice(&bytes);
     Ok(Some(ErrorFrame { can_id, data }))

@@ -9,6 +9,11 @@
 //!   silently except what the format defines as not being a frame (ASC header, comment and event
 //!   lines such as `Start of measurement`, statistics or chip status).
 //! - Every bad line gives [`Error::TraceLine`] with its 1-based line number; nothing panics.
+//!   Text from the line is quoted in the reason cut to a few dozen characters
+//!   ([`crate::text::quote`]), so an error is one short line whatever the input.
+//! - [`read`] reads at most [`MAX_LINE`] (64 KiB) of a line: a longer line is a bad line as soon
+//!   as that much of it has been read, so input without line breaks (`/dev/zero`) ends at once
+//!   and memory stays bounded ([`Lines`]).
 //! - Times never go backwards: a frame or error frame (kept or skipped) stamped earlier than the
 //!   one before it is a bad line. Equal times are fine. Nothing is sorted or held back, so memory
 //!   does not grow with the trace.
@@ -23,10 +28,15 @@ pub mod asc;
 mod candump_log;
 mod convert;
 #[cfg(test)]
+mod limit_tests;
+mod lines;
+#[cfg(test)]
 mod tests;
 
 pub use convert::AscWriter;
+pub use lines::{LineError, Lines, MAX_LINE};
 
+use crate::text::quote;
 use crate::time::BusTime;
 use crate::trace::ErrorFrame;
 use crate::{Error, Frame};
@@ -142,25 +152,42 @@ impl Reader {
     }
 }
 
-/// Reads every record of a trace from `input`; a line that cannot be read (bad text, not UTF-8,
-/// an I/O error) ends it with an error naming the line.
+/// Reads every record of a trace from `input`, one line at a time: memory does not grow with the
+/// trace. A line that cannot be read (longer than [`MAX_LINE`], bad text, not UTF-8, an I/O
+/// error) ends it with an error naming the line.
 pub fn read(input: impl BufRead, errors: ErrorFrames) -> impl Iterator<Item = Result<Record, Error>> {
     let mut reader = Reader::new(errors);
-    let mut lines = input.lines();
+    let mut lines = Lines::new(input, MAX_LINE);
     let mut failed = false;
     std::iter::from_fn(move || {
         while !failed {
-            let text = match lines.next()? {
-                Ok(text) => text,
-                Err(e) => {
-                    failed = true;
-                    return Some(Err(Error::TraceLine {
-                        line: reader.lines() + 1,
-                        reason: format!("cannot read: {e}"),
-                    }));
-                }
+            // Every line given or refused counts one.
+            let line = lines.number() + 1;
+            let result = match lines.next_line()? {
+                Ok(bytes) => match std::str::from_utf8(bytes) {
+                    Ok(text) => reader.line(text),
+                    Err(e) => Err(Error::TraceLine {
+                        line,
+                        reason: format!(
+                            "not UTF-8 text (byte {} is not): {}",
+                            e.valid_up_to() + 1,
+                            quote(&String::from_utf8_lossy(bytes))
+                        ),
+                    }),
+                },
+                Err(LineError::TooLong { start }) => Err(Error::TraceLine {
+                    line,
+                    reason: format!(
+                        "longer than {MAX_LINE} bytes, the limit for a trace line: {}",
+                        quote(&start)
+                    ),
+                }),
+                Err(LineError::Io(e)) => Err(Error::TraceLine {
+                    line,
+                    reason: format!("cannot read: {e}"),
+                }),
             };
-            match reader.line(&text) {
+            match result {
                 Ok(Some(record)) => return Some(Ok(record)),
                 Ok(None) => {}
                 Err(e) => {
@@ -180,7 +207,7 @@ pub fn read_str(text: &str, errors: ErrorFrames) -> Result<Vec<Record>, Error> {
 
 /// Reads `secs.fraction` exactly (up to 9 fraction digits; more are cut off).
 fn parse_time(text: &str) -> Result<BusTime, String> {
-    let bad = || format!("'{text}' is not a time in seconds (e.g. 1.234567)");
+    let bad = || format!("{} is not a time in seconds (e.g. 1.234567)", quote(text));
     let (secs, fraction) = text.split_once('.').unwrap_or((text, ""));
     if secs.is_empty()
         || !secs.bytes().all(|b| b.is_ascii_digit())
@@ -197,5 +224,5 @@ fn parse_time(text: &str) -> Result<BusTime, String> {
     secs.checked_mul(1_000_000_000)
         .and_then(|s| s.checked_add(nanos))
         .map(BusTime)
-        .ok_or_else(|| format!("time '{text}' is too large"))
+        .ok_or_else(|| format!("time {} is too large", quote(text)))
 }

@@ -8,6 +8,7 @@
 use super::model::{FilterDef, SocketCanDef};
 use bus::engine::Filter;
 use bus::filter::{AtmelFilter, Sja1000Filter, SocketCanFilter, SocketCanFilterSet};
+use bus::text::quote;
 
 /// What is wrong with one field of a filter declaration.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -98,7 +99,8 @@ pub(super) fn register_image(text: &str) -> Result<[u8; 4], String> {
             let one = strip_0x(one);
             if one.len() != 8 {
                 return Err(format!(
-                    "'{text}' is not four register bytes: write them as \"18 05 07 A8\""
+                    "{} is not four register bytes: write them as \"18 05 07 A8\"",
+                    quote(text)
                 ));
             }
             (0..4).filter_map(|i| one.get(2 * i..2 * i + 2)).collect()
@@ -106,17 +108,18 @@ pub(super) fn register_image(text: &str) -> Result<[u8; 4], String> {
         bytes if bytes.len() == 4 => bytes.iter().map(|b| strip_0x(b)).collect(),
         bytes => {
             return Err(format!(
-                "'{text}' has {} bytes: the filter has four registers",
+                "{} has {} bytes: the filter has four registers",
+                quote(text),
                 bytes.len()
             ));
         }
     };
     if digits.len() != 4 {
-        return Err(format!("'{text}' is not four register bytes"));
+        return Err(format!("{} is not four register bytes", quote(text)));
     }
     let mut image = [0u8; 4];
     for (slot, byte) in image.iter_mut().zip(&digits) {
-        let bad = || format!("'{text}': '{byte}' is not a hex byte");
+        let bad = || format!("{}: {} is not a hex byte", quote(text), quote(byte));
         if byte.len() != 2 || !byte.bytes().all(|b| b.is_ascii_hexdigit()) {
             return Err(bad());
         }
@@ -129,12 +132,12 @@ pub(super) fn register_image(text: &str) -> Result<[u8; 4], String> {
 pub(super) fn word(text: &str) -> Result<u32, String> {
     let digits = strip_0x(text.trim());
     if digits.is_empty() || !digits.bytes().all(|b| b.is_ascii_hexdigit()) {
-        return Err(format!("'{text}' is not a hex number"));
+        return Err(format!("{} is not a hex number", quote(text)));
     }
     if digits.len() > 8 {
-        return Err(format!("'{text}' is wider than the 32 bits of a can_id"));
+        return Err(format!("{} is wider than the 32 bits of a can_id", quote(text)));
     }
-    u32::from_str_radix(digits, 16).map_err(|_| format!("'{text}' is not a hex number"))
+    u32::from_str_radix(digits, 16).map_err(|_| format!("{} is not a hex number", quote(text)))
 }
 
 fn strip_0x(s: &str) -> &str {

@@ -7,6 +7,7 @@ use bus::Frame;
 use bus::catalogue::{self, Direction, MessageDef};
 use bus::filter::AcceptanceFilter;
 use bus::ident::Address;
+use bus::text::{LIST_CHARS, cut, quote};
 use std::collections::BTreeSet;
 use std::path::Path;
 
@@ -23,14 +24,11 @@ pub fn parse(file: &str, text: &str) -> Result<NodeScript, Error> {
     crate::parse_ron(file, text)
 }
 
-/// Reads, parses and validates a script file.
+/// Reads ([`crate::file::read_text`], so at most [`crate::file::MAX_FILE`] bytes), parses and
+/// validates a script file.
 pub fn load(path: &Path, signals: &dyn Signals) -> Result<NodeScript, Error> {
-    let file = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
-        path: file.clone(),
-        source,
-    })?;
-    from_text(&file, &text, signals)
+    let text = crate::file::read_text(path)?;
+    from_text(&path.display().to_string(), &text, signals)
 }
 
 /// Parses and validates a script held in memory; `file` names it in problems. [`load`] is this
@@ -119,7 +117,11 @@ pub fn validate(file: &str, s: &NodeScript, signals: &dyn Signals) -> Vec<Proble
         if !states.contains(&name) {
             c.problem(
                 field,
-                format!("unknown state '{name}' (states: {})", states.join(", ")),
+                format!(
+                    "unknown state {} (states: {})",
+                    quote(name),
+                    cut(&states.join(", "), LIST_CHARS)
+                ),
             );
         }
     };
@@ -155,7 +157,10 @@ pub fn validate(file: &str, s: &NodeScript, signals: &dyn Signals) -> Vec<Proble
             if let Some(v) = &ack.count_var
                 && !vars.contains(v.as_str())
             {
-                c.problem(format!("{at}.ack.count_var"), format!("unknown variable '{v}'"));
+                c.problem(
+                    format!("{at}.ack.count_var"),
+                    format!("unknown variable {}", quote(v)),
+                );
             }
         }
         for (j, f) in m.frames.iter().enumerate() {
@@ -175,7 +180,7 @@ pub fn validate(file: &str, s: &NodeScript, signals: &dyn Signals) -> Vec<Proble
                 match def.field(name) {
                     None => c.problem(
                         format!("{fat}.fields.{name}"),
-                        format!("{} has no field '{name}'", def.name),
+                        format!("{} has no field {}", def.name, quote(name)),
                     ),
                     Some(fd) if fd.constant.is_some() => c.problem(
                         format!("{fat}.fields.{name}"),
@@ -224,7 +229,7 @@ pub fn validate(file: &str, s: &NodeScript, signals: &dyn Signals) -> Vec<Proble
                 if def.field(name).is_none() {
                     c.problem(
                         format!("{at}.when.{name}"),
-                        format!("{} has no field '{name}'", def.name),
+                        format!("{} has no field {}", def.name, quote(name)),
                     );
                 }
             }
@@ -250,7 +255,7 @@ pub fn validate(file: &str, s: &NodeScript, signals: &dyn Signals) -> Vec<Proble
         if !signals.is_signal(&f.signal) {
             c.problem(
                 format!("faults[{i}].signal"),
-                format!("unknown plant signal '{}'", f.signal),
+                format!("unknown plant signal {}", quote(&f.signal)),
             );
         }
         if let Some(m) = f.fault.problem() {
@@ -315,7 +320,7 @@ fn duplicates<'a>(c: &mut Checker, field: &str, names: impl Iterator<Item = &'a 
     let mut seen = BTreeSet::new();
     for n in names {
         if !seen.insert(n) {
-            c.problem(field, format!("'{n}' is defined twice"));
+            c.problem(field, format!("{} is defined twice", quote(n)));
         }
     }
 }
@@ -330,7 +335,7 @@ fn message(
     let Some(def) = catalogue::by_name(name) else {
         c.problem(
             format!("{at}.message"),
-            format!("'{name}' is not in the message catalogue"),
+            format!("{} is not in the message catalogue", quote(name)),
         );
         return None;
     };
@@ -366,11 +371,15 @@ fn expr(
 ) {
     match e {
         Expr::Const(v) => finite(c, at, "Const", *v),
-        Expr::Signal(s) if !signals.is_signal(s) => c.problem(at, format!("unknown plant signal '{s}'")),
-        Expr::Var(v) if !vars.contains(v.as_str()) => c.problem(at, format!("unknown variable '{v}'")),
+        Expr::Signal(s) if !signals.is_signal(s) => {
+            c.problem(at, format!("unknown plant signal {}", quote(s)))
+        }
+        Expr::Var(v) if !vars.contains(v.as_str()) => c.problem(at, format!("unknown variable {}", quote(v))),
         Expr::Field(f) => match frame {
             None => c.problem(at, format!("Field(\"{f}\") only has a meaning in a reaction")),
-            Some(def) if def.field(f).is_none() => c.problem(at, format!("{} has no field '{f}'", def.name)),
+            Some(def) if def.field(f).is_none() => {
+                c.problem(at, format!("{} has no field {}", def.name, quote(f)))
+            }
             _ => {}
         },
         Expr::Scaled(inner, gain, offset) => {
@@ -431,23 +440,23 @@ fn actions(
         let here = format!("{at}.actions[{k}]");
         match a {
             Action::SetState(s) if !states.contains(&s.as_str()) => {
-                c.problem(here, format!("unknown state '{s}'"))
+                c.problem(here, format!("unknown state {}", quote(s)))
             }
             Action::Start(m) | Action::Stop(m) | Action::Send(m) if !sends.contains(&m.as_str()) => {
-                c.problem(here, format!("unknown message '{m}'"))
+                c.problem(here, format!("unknown message {}", quote(m)))
             }
             Action::Restart(t) if !timers.contains(&t.as_str()) => {
-                c.problem(here, format!("unknown timer '{t}'"))
+                c.problem(here, format!("unknown timer {}", quote(t)))
             }
             Action::Write(s, e) => {
                 if !signals.is_input(s) {
-                    c.problem(here.clone(), format!("'{s}' is not a plant input"));
+                    c.problem(here.clone(), format!("{} is not a plant input", quote(s)));
                 }
                 expr(c, &here, e, signals, vars, frame);
             }
             Action::Set(v, e) => {
                 if !vars.contains(v.as_str()) {
-                    c.problem(here.clone(), format!("unknown variable '{v}'"));
+                    c.problem(here.clone(), format!("unknown variable {}", quote(v)));
                 }
                 expr(c, &here, e, signals, vars, frame);
             }

@@ -2,7 +2,10 @@
 //! harvester.
 //!
 //! Contract: the whole trace is read and checked before anything starts (a bad line is bad input
-//! naming `file:line`). The replay is one more controller on the hub, with no receive filter
+//! naming `file:line`), then read again as it is played, once per pass: it is never held in
+//! memory, so memory does not grow with the trace ([`schedule`]), and it must be a file that can
+//! be read more than once (not a pipe). A line longer than [`bus::tracefile::MAX_LINE`] is a bad
+//! line. The replay is one more controller on the hub, with no receive filter
 //! match, so its frames arbitrate with the emulated nodes' and reach them through their filters.
 //! Each frame is handed to that controller at the start of the replay plus its offset
 //! ([`schedule`]), in virtual time (`--fast`) or in real time; the bus is run up to that moment
@@ -24,7 +27,7 @@ use bus::hub::{Attach, GetSnapshot, RunUntil, SubmitAt, runtime};
 use bus::ident::Address;
 use bus::time::BusTime;
 use bus::tracefile::{self, ErrorFrames, Record};
-use schedule::{Passes, Schedule};
+use schedule::{Passes, Schedule, Source, Survey};
 use std::collections::BTreeSet;
 use std::io::BufReader;
 use std::path::{Path, PathBuf};
@@ -81,19 +84,33 @@ pub struct Played {
     pub refused: u64,
 }
 
-/// Reads a whole trace; a bad line is bad input naming `file:line`.
-pub fn load(path: &Path) -> anyhow::Result<Vec<Record>> {
-    let file =
-        std::fs::File::open(path).map_err(|e| BadInput(format!("cannot open {}: {e}", path.display())))?;
-    tracefile::read(BufReader::new(file), ErrorFrames::Keep)
-        .collect::<Result<Vec<_>, _>>()
-        .map_err(|e| match e {
-            bus::Error::TraceLine { line, reason } => {
-                BadInput(format!("{}:{line}: {reason}", path.display()))
-            }
-            other => BadInput(format!("{}: {other}", path.display())),
-        })
-        .map_err(Into::into)
+/// The records of a trace file, read as they are taken; a bad line is bad input naming
+/// `file:line`, a file that cannot be opened is bad input too.
+pub fn records(path: &Path) -> Box<dyn Iterator<Item = anyhow::Result<Record>>> {
+    let file = match std::fs::File::open(path) {
+        Ok(f) => f,
+        Err(e) => {
+            let e = BadInput(format!("cannot open {}: {e}", path.display()));
+            return Box::new(std::iter::once(Err(e.into())));
+        }
+    };
+    let path = path.to_path_buf();
+    Box::new(
+        tracefile::read(BufReader::new(file), ErrorFrames::Keep).map(move |r| {
+            r.map_err(|e| match e {
+                bus::Error::TraceLine { line, reason } => {
+                    BadInput(format!("{}:{line}: {reason}", path.display())).into()
+                }
+                other => BadInput(format!("{}: {other}", path.display())).into(),
+            })
+        }),
+    )
+}
+
+/// The trace file at `path` read again for each pass.
+pub fn source(path: &Path) -> Source {
+    let path = path.to_path_buf();
+    Box::new(move || records(&path))
 }
 
 /// The addresses of the nodes the harvester emulates.
@@ -146,6 +163,7 @@ pub async fn play(
     played: &mut Played,
 ) -> anyhow::Result<()> {
     for due in schedule.by_ref() {
+        let due = due?;
         let at = start + due.offset;
         if end.is_some_and(|e| at >= e) {
             break;
@@ -193,16 +211,16 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
         bus::backend::socketcan::check(name).map_err(|e| BadInput(e.to_string()))?;
         for_interface(&mut h, args.with_emulated);
     }
-    let records = load(&args.file)?;
-    if records.is_empty() {
-        return Err(BadInput(format!("{}: no frames in this trace", args.file.display())).into());
-    }
     let skip = if args.skip_emulated {
         emulated(&h)
     } else {
         BTreeSet::new()
     };
-    let mut schedule = Schedule::new(&records, &skip, passes);
+    let survey = Survey::new(records(&args.file), &skip)?;
+    if survey.counts().read == 0 {
+        return Err(BadInput(format!("{}: no frames in this trace", args.file.display())).into());
+    }
+    let mut schedule = Schedule::new(survey, skip, passes, source(&args.file));
     let counts = schedule.counts();
     let (trace, recording) = crate::record::create_opt(args.record.as_ref())?;
     eprintln!(

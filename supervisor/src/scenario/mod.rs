@@ -23,6 +23,7 @@ use bus::candump::parse_frame;
 use bus::engine::{BitPosition, ControllerConfig, Effect, Filter, Rule, Schedule};
 use bus::hub::{Attach, Control, GetErrorCounters, GetSnapshot, Replace, Submit, runtime};
 use bus::node::{Apply, NodeActor, NodeLogic};
+use bus::text::{LIST_CHARS, cut, quote};
 use bus::time::BusTime;
 use nodes::plant::Plant;
 use nodes::script::ScriptedNode;
@@ -40,7 +41,8 @@ pub struct Loaded {
     pub harvester: Harvester,
 }
 
-/// Reads and checks a scenario and its harvester; every problem is listed.
+/// Reads and checks a scenario and its harvester; every problem is listed. Files are read with
+/// [`nodes::file::read_text`]: at most [`nodes::file::MAX_FILE`] bytes each.
 pub fn load(path: &Path, seed: Option<u64>) -> Result<Loaded, Error> {
     load_with(path, seed, None)
 }
@@ -48,10 +50,7 @@ pub fn load(path: &Path, seed: Option<u64>) -> Result<Loaded, Error> {
 /// [`load`], with the run's length replaced by `duration_s` when given (before the random
 /// faults are drawn, so that they cover the new length).
 pub fn load_with(path: &Path, seed: Option<u64>, duration_s: Option<f64>) -> Result<Loaded, Error> {
-    let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
-        path: path.display().to_string(),
-        source,
-    })?;
+    let text = nodes::file::read_text(path)?;
     parse(path, &text, seed, duration_s, Harvester::load)
 }
 
@@ -155,7 +154,11 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
             p.push(Problem::at(
                 file,
                 field,
-                format!("unknown node '{n}' (nodes: {})", names.join(", ")),
+                format!(
+                    "unknown node {} (nodes: {})",
+                    quote(n),
+                    cut(&names.join(", "), LIST_CHARS)
+                ),
             ));
         }
     };
@@ -207,7 +210,7 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
                 p.push(Problem::at(
                     file,
                     format!("{at}.action.target"),
-                    format!("'{id}' is not an 8-digit 29-bit identifier"),
+                    format!("{} is not an 8-digit 29-bit identifier", quote(id)),
                 ))
             }
             Target::Priority(pr) if *pr > 31 => p.push(Problem::at(
@@ -350,7 +353,7 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
                     p.push(Problem::at(
                         file,
                         format!("{at}.action.signal"),
-                        format!("unknown plant signal '{signal}'"),
+                        format!("unknown plant signal {}", quote(signal)),
                     ));
                 }
             }
@@ -358,7 +361,7 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
                 None => p.push(Problem::at(
                     file,
                     format!("{at}.action.input"),
-                    format!("'{input}' is not a plant input"),
+                    format!("{} is not a plant input", quote(input)),
                 )),
                 // The plant refuses it when the step runs, which would end the run there.
                 Some(range) if !range.contains(*value) => p.push(Problem::at(
@@ -468,7 +471,7 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
                     p.push(Problem::at(
                         file,
                         format!("{at}.field"),
-                        format!("the display has no field '{field}'"),
+                        format!("the display has no field {}", quote(field)),
                     ));
                 }
                 bounds_ok(&mut p, *min, *max);
@@ -478,7 +481,7 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
                     p.push(Problem::at(
                         file,
                         format!("{at}.signal"),
-                        format!("unknown plant signal '{signal}'"),
+                        format!("unknown plant signal {}", quote(signal)),
                     ));
                 }
                 bounds_ok(&mut p, *min, *max);

@@ -13,6 +13,7 @@
 //!   the restart policy); babbling idiots never overlap. A fault with no node free is skipped.
 
 use super::{Action, ErrorKind, Hits, SeenBy, Step, Target};
+use bus::text::{LIST_CHARS, cut, quote};
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -140,7 +141,11 @@ pub fn problems(r: &RandomFaults, duration_s: f64, names: &[String]) -> Vec<(Str
         if !names.contains(n) {
             bad(
                 "nodes",
-                format!("unknown node '{n}' (nodes: {})", names.join(", ")),
+                format!(
+                    "unknown node {} (nodes: {})",
+                    quote(n),
+                    cut(&names.join(", "), LIST_CHARS)
+                ),
             );
         }
     }
