@@ -186,6 +186,21 @@ pub async fn play(
     Ok(())
 }
 
+/// Refuses a trace that cannot be read twice (a pipe, a FIFO, a terminal): the check before
+/// the run would drain it, and the replay would then find it empty and send nothing.
+fn readable_twice(path: &Path) -> anyhow::Result<()> {
+    match std::fs::metadata(path) {
+        Ok(m) if !m.is_file() => Err(BadInput(format!(
+            "{}: not a regular file (a pipe, a FIFO or a device): replay reads its trace twice, \
+             once to check it and once as it plays, so save it to a file first",
+            path.display()
+        ))
+        .into()),
+        // A missing file is reported by the reader, with the reason.
+        _ => Ok(()),
+    }
+}
+
 /// Runs `harvemu replay`. A stop signal ends it at any moment; the trace is finished in every
 /// case.
 pub fn run(args: &Args) -> anyhow::Result<Ended> {
@@ -216,6 +231,7 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
     } else {
         BTreeSet::new()
     };
+    readable_twice(&args.file)?;
     let survey = Survey::new(records(&args.file), &skip)?;
     if survey.counts().read == 0 {
         return Err(BadInput(format!("{}: no frames in this trace", args.file.display())).into());
