@@ -218,3 +218,57 @@ fn harvemu_reads_what_python_can_writes() {
         "{err}"
     );
 }
+
+/// The README's socketcand example, from the command line: python-can sends the README's
+/// example frame through `harvemu run --socketcand` and a second python-can client sees it.
+const SOCKETCAND: &str = r#"
+import sys, time, can
+host, port = sys.argv[1].rsplit(":", 1)
+sender = can.Bus(interface="socketcand", channel="harv0", host=host, port=int(port))
+watcher = can.Bus(interface="socketcand", channel="harv0", host=host, port=int(port))
+sender.send(can.Message(arbitration_id=0x0300A0F5, data=[1, 1]))
+sender.send(can.Message(arbitration_id=0x1ABCDEF0, data=[0xDE, 0xAD]))
+seen, end = [], time.time() + 5
+while time.time() < end and (0x1ABCDEF0, "dead") not in seen:
+    m = watcher.recv(1)
+    if m is not None:
+        seen.append((m.arbitration_id, bytes(m.data).hex()))
+print((0x0300A0F5, "0101") in seen, (0x1ABCDEF0, "dead") in seen, len(seen))
+sender.shutdown()
+watcher.shutdown()
+"#;
+
+#[test]
+fn python_can_sends_the_readme_frame_through_harvemu_run_socketcand() {
+    use std::io::BufRead;
+    require_python_can();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_harvemu"))
+        .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
+        .args(["run", "--for", "15s", "--socketcand", "127.0.0.1:0"])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let stderr = child.stderr.take().unwrap();
+    let mut lines = std::io::BufReader::new(stderr).lines();
+    let addr = lines
+        .by_ref()
+        .map_while(Result::ok)
+        .find_map(|l| {
+            l.strip_prefix("harvemu: socketcand gateway on ")
+                .and_then(|rest| rest.split(',').next())
+                .map(str::to_string)
+        })
+        .expect("the gateway's address on stderr");
+    // Keep reading stderr so that the child never blocks on a full pipe.
+    std::thread::spawn(move || lines.for_each(drop));
+    let out = Command::new(interpreter())
+        .args(["-c", SOCKETCAND, &addr])
+        .output()
+        .unwrap();
+    let _ = child.kill();
+    let _ = child.wait();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let words: Vec<&str> = stdout.split_whitespace().collect();
+    assert_eq!(words[..2], ["True", "True"], "{stdout}");
+}
