@@ -190,7 +190,8 @@ fn sends_as_python_can_writes_them_reach_the_bus() {
         let (_hub, gw) = bus_with_ticker(1_000_000).await;
         let mut a = handshake(gw.addr).await;
         let mut b = handshake(gw.addr).await;
-        a.write(b"< send 0300A0F5 2 1 1 >< send 7FF 3 a 0 ff >< send 300A0F5 0 >").await;
+        a.write(b"< send 0300A0F5 2 1 1 >< send 7FF 3 a 0 ff >< send 300A0F5 0 >")
+            .await;
         let want = [
             "< frame 0300A0F5 ",
             " 0101 >",
@@ -405,11 +406,21 @@ fn bcm_mode_runs_on_the_bus_clock() {
         for (name, node) in [("ticker", Some(ticker.recipient())), ("listener", None)] {
             let controller = ControllerConfig::named(name);
             let reaction = Duration::ZERO;
-            hub.send(Attach { controller, node, reaction }).await.unwrap();
-        }
-        let gw = Gateway::start(hub.clone(), "127.0.0.1:0".parse().unwrap(), GatewayConfig::default())
+            hub.send(Attach {
+                controller,
+                node,
+                reaction,
+            })
             .await
             .unwrap();
+        }
+        let gw = Gateway::start(
+            hub.clone(),
+            "127.0.0.1:0".parse().unwrap(),
+            GatewayConfig::default(),
+        )
+        .await
+        .unwrap();
         let run_to = |ms: u64| hub.send(RunUntil(BusTime::from_millis(ms)));
         run_to(100).await.unwrap().unwrap();
         let open = |addr| async move {
@@ -420,11 +431,15 @@ fn bcm_mode_runs_on_the_bus_clock() {
             c
         };
         let (mut a, mut b) = (open(gw.addr).await, open(gw.addr).await);
-        b.write(b"< subscribe 0 0 123 >< subscribe 0 100000 0601F5D0 >< filter 0 0 124 1 FF >").await;
+        b.write(b"< subscribe 0 0 123 >< subscribe 0 100000 0601F5D0 >< filter 0 0 124 1 FF >")
+            .await;
         assert!(drain(&mut b).await.is_empty(), "BCM mode sends nothing unasked");
         // Every 20 ms from 100 ms (sent at once, as the kernel's STARTTIMER does).
         a.write(b"< add 0 20000 123 4 42 42 42 42 >").await;
-        assert!(drain(&mut a).await.is_empty(), "no answer to add, and nothing unsubscribed");
+        assert!(
+            drain(&mut a).await.is_empty(),
+            "no answer to add, and nothing unsubscribed"
+        );
         run_to(1100).await.unwrap().unwrap();
         let got = drain(&mut b).await;
         let cyclic = frames_of(&got, "123");
@@ -459,11 +474,17 @@ fn bcm_mode_runs_on_the_bus_clock() {
         run_to(1600).await.unwrap().unwrap();
         let got = drain(&mut b).await;
         assert!(frames_of(&got, "123").is_empty(), "{got:?}");
-        assert_eq!(frames_of(&got, "124").iter().map(|f| &f.1).collect::<Vec<_>>(), ["01 00"]);
+        assert_eq!(
+            frames_of(&got, "124").iter().map(|f| &f.1).collect::<Vec<_>>(),
+            ["01 00"]
+        );
         a.write(b"< update 124 2 1 FF >").await;
         drain(&mut a).await;
         run_to(1700).await.unwrap().unwrap();
-        assert!(frames_of(&drain(&mut b).await, "124").is_empty(), "byte 1 is not under the mask");
+        assert!(
+            frames_of(&drain(&mut b).await, "124").is_empty(),
+            "byte 1 is not under the mask"
+        );
         a.write(b"< update 124 2 2 FF >").await;
         drain(&mut a).await;
         run_to(1800).await.unwrap().unwrap();
@@ -497,7 +518,9 @@ fn the_beacon_goes_to_port_42000_by_default() {
         eprintln!("port 42000 is taken: the beacon on the real port is not checked");
         return;
     };
-    listener.set_read_timeout(Some(Duration::from_millis(200))).unwrap();
+    listener
+        .set_read_timeout(Some(Duration::from_millis(200)))
+        .unwrap();
     in_real_time(async move {
         let (_hub, gw) = bus_with_ticker(1_000_000).await;
         let want = format!("<URL>can://{}</URL>", gw.addr);

@@ -9,13 +9,13 @@
 mod common;
 
 use actix::prelude::*;
+use bus::Frame;
 use bus::candump::parse_frame;
 use bus::engine::ControllerConfig;
 use bus::gateway::{Gateway, GatewayConfig, GatewayStats};
 use bus::hub::{Attach, Hub, HubConfig, RunUntil, Subscribe, runtime};
 use bus::node::NodeActor;
 use bus::time::BusTime;
-use bus::Frame;
 use common::Periodic;
 use std::collections::HashMap;
 use std::net::SocketAddr;
@@ -220,7 +220,13 @@ impl Bench {
                 for (name, node) in [("ticker", Some(ticker.recipient())), ("listener", None)] {
                     let controller = ControllerConfig::named(name);
                     let reaction = Duration::ZERO;
-                    hub.send(Attach { controller, node, reaction }).await.unwrap();
+                    hub.send(Attach {
+                        controller,
+                        node,
+                        reaction,
+                    })
+                    .await
+                    .unwrap();
                 }
                 let gw = Gateway::start(hub.clone(), "127.0.0.1:0".parse().unwrap(), config)
                     .await
@@ -299,7 +305,10 @@ fn a_python_can_notifier_survives_malformed_lines_and_a_full_run() {
     assert!(count("before") >= 10, "{out:?}");
     assert!(count("after") >= count("before") + 30, "{out:?}");
     assert!(count("end") >= count("after") + 100, "{out:?}");
-    let want: Vec<Frame> = ["123#FF", "0300A0F5#0101"].iter().map(|t| parse_frame(t).unwrap()).collect();
+    let want: Vec<Frame> = ["123#FF", "0300A0F5#0101"]
+        .iter()
+        .map(|t| parse_frame(t).unwrap())
+        .collect();
     assert_eq!(sent, want);
     // Nine bad lines; "garbage" is bytes outside a message; `< send 123 1 1FF >` is a good one
     // (1FF is read as FF) but python-can's Notifier does not see it, as it is the client's own.
@@ -326,7 +335,12 @@ fn python_can_detects_the_beacon() {
     let addr = bench.addr;
     bench.finish();
     let found = lines(&out, "found");
-    let want = ["socketcand".to_string(), "127.0.0.1".into(), addr.port().to_string(), "harv0".into()];
+    let want = [
+        "socketcand".to_string(),
+        "127.0.0.1".into(),
+        addr.port().to_string(),
+        "harv0".into(),
+    ];
     assert_eq!(found, [&want[..]], "{out:?}");
 }
 
@@ -349,6 +363,10 @@ fn a_bcm_client_written_from_the_protocol() {
     assert_eq!(filters[0][1..], ["first", "['01", "00']"], "{out:?}");
     assert_eq!(filters[1][1..], ["unmasked", "[]"], "{out:?}");
     assert_eq!(filters[2][1..], ["masked", "['02", "FF']"], "{out:?}");
-    assert_eq!(num("quiet", 0), 0, "a BCM client gets only what it subscribed to: {out:?}");
+    assert_eq!(
+        num("quiet", 0),
+        0,
+        "a BCM client gets only what it subscribed to: {out:?}"
+    );
     assert_eq!(stats.malformed, 0, "{stats:?}");
 }

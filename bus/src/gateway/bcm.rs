@@ -68,7 +68,11 @@ fn data8(frame: &Frame) -> [u8; 8] {
 impl Bcm {
     /// `add`; false when the table is full.
     pub fn add(&mut self, interval: u64, frame: Frame) -> bool {
-        let interval = if interval == 0 { 0 } else { interval.max(MIN_INTERVAL) };
+        let interval = if interval == 0 {
+            0
+        } else {
+            interval.max(MIN_INTERVAL)
+        };
         let job = TxJob {
             frame,
             interval,
@@ -178,8 +182,7 @@ impl Bcm {
         };
         if let (Some(mask), Some((_, last))) = (o.mask, o.last) {
             let (new, old) = (data8(frame), data8(&last));
-            let changed = !frame.data().is_empty()
-                && (0..8).any(|i| new[i] & mask[i] != old[i] & mask[i]);
+            let changed = !frame.data().is_empty() && (0..8).any(|i| new[i] & mask[i] != old[i] & mask[i]);
             if !changed {
                 return (None, None);
             }
@@ -280,7 +283,11 @@ mod tests {
         assert!(run(&mut b, ms(200)).1.is_empty());
         assert_eq!(b.deadline(), None);
         assert_eq!(b.frame0(ms(250), &x(4)), Some((ms(250), x(4))));
-        assert_eq!(b.frame0(ms(400), &x(5)), Some((ms(400), x(5))), "a gap longer than 100 ms");
+        assert_eq!(
+            b.frame0(ms(400), &x(5)),
+            Some((ms(400), x(5))),
+            "a gap longer than 100 ms"
+        );
         assert_eq!(b.frame0(ms(1), &f("124#00")), None, "not subscribed");
         assert!(b.unsubscribe(f("123#").id()));
         assert_eq!(b.frame0(ms(500), &x(6)), None);
@@ -292,8 +299,16 @@ mod tests {
         b.subscribe(f("123#").id(), 0, Some([0xFF, 0, 0xF8, 0, 0, 0, 0, 0]));
         let first = f("123#0011220000000000");
         assert_eq!(b.frame0(ms(0), &first), Some((ms(0), first)));
-        assert_eq!(b.frame0(ms(1), &f("123#00FF220000000000")), None, "byte 1 not masked");
-        assert_eq!(b.frame0(ms(2), &f("123#0011270000000000")), None, "low bits of byte 2");
+        assert_eq!(
+            b.frame0(ms(1), &f("123#00FF220000000000")),
+            None,
+            "byte 1 not masked"
+        );
+        assert_eq!(
+            b.frame0(ms(2), &f("123#0011270000000000")),
+            None,
+            "low bits of byte 2"
+        );
         let change = f("123#00112A0000000000");
         assert_eq!(b.frame0(ms(3), &change), Some((ms(3), change)));
         assert_eq!(b.frame0(ms(4), &f("123#")), None, "no data never differs");

@@ -84,7 +84,10 @@ mod tests {
     #[test]
     fn the_beacon_is_socketcands_xml() {
         let m = message("127.0.0.1:29536".parse().unwrap(), "a\"<b>");
-        assert!(m.starts_with("<CANBeacon name=\"harvemu\" type=\"SocketCAN\""), "{m}");
+        assert!(
+            m.starts_with("<CANBeacon name=\"harvemu\" type=\"SocketCAN\""),
+            "{m}"
+        );
         assert!(m.contains("<URL>can://127.0.0.1:29536</URL>"), "{m}");
         assert!(m.contains("<Bus name=\"a&quot;&lt;b&gt;\"/>"), "{m}");
         assert!(m.ends_with("</CANBeacon>"), "{m}");

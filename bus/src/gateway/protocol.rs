@@ -274,6 +274,63 @@ fn interval(v: &[u64]) -> Result<u64, Malformed> {
     }
 }
 
+/// What the server does about one message.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Action {
+    /// Answers this.
+    Reply(&'static str),
+    /// Switched to this mode: the client's BCM jobs end (socketcand closes its BCM socket);
+    /// answered `< ok >`.
+    Switch(Mode),
+    /// Puts the frame on the bus.
+    Send(Frame),
+    /// A BCM command for the client's jobs and subscriptions.
+    Bcm(Command),
+    /// Closes the connection (the client asked for a bus this server does not have).
+    Close,
+    /// Nothing: the message is malformed, unknown, or not valid in this mode.
+    Ignore(Malformed),
+}
+
+/// A client's place in the protocol: before `open` (`mode` is `None`), then in BCM or raw mode.
+#[derive(Clone, Debug, Default)]
+pub struct Session {
+    /// The mode, once the bus is open.
+    pub mode: Option<Mode>,
+}
+
+impl Session {
+    /// Handles one message from the [`Splitter`] for a server of bus `bus`.
+    pub fn handle(&mut self, bus: &str, message: Result<String, Malformed>) -> Action {
+        let command = match message.and_then(|m| parse(&m)) {
+            Ok(command) => command,
+            Err(e) => return Action::Ignore(e),
+        };
+        let ignore = |why: &str| Action::Ignore(bad(why));
+        match (self.mode, command) {
+            (None, Command::Open(name)) if name == bus => {
+                self.mode = Some(Mode::Bcm);
+                Action::Reply("< ok >")
+            }
+            // socketcand answers `< error could not open bus >` and closes; that message would
+            // read as an error frame, so the connection is only closed.
+            (None, Command::Open(_)) => Action::Close,
+            (None, _) => ignore("open the bus first"),
+            (Some(_), Command::Open(_)) => ignore("the bus is open already"),
+            (Some(_), Command::Echo) => Action::Reply("< echo >"),
+            (Some(_), Command::Send(frame)) => Action::Send(frame),
+            (Some(old), Command::Mode(new)) if old != new => {
+                self.mode = Some(new);
+                Action::Switch(new)
+            }
+            // socketcand treats these as unknown commands.
+            (Some(_), Command::Mode(_)) => ignore("in that mode already"),
+            (Some(Mode::Raw), _) => ignore("a BCM command in raw mode"),
+            (Some(Mode::Bcm), command) => Action::Bcm(command),
+        }
+    }
+}
+
 fn id_text(s: &mut String, id: Id) {
     let _ = match id {
         Id::Standard(id) => write!(s, "{:03X}", id.as_raw()),
@@ -361,7 +418,10 @@ mod tests {
             // python-can 4.2 and later: padded identifiers, bytes in as few digits as needed.
             ("< send 0300A0F5 2 1 1 >", Some("0300A0F5#0101")),
             ("< send 123 0  >", Some("123#")),
-            ("< send 7FF 8 0 1 a ff 10 7f 80 fe >", Some("7FF#00010AFF107F80FE")),
+            (
+                "< send 7FF 8 0 1 a ff 10 7f 80 fe >",
+                Some("7FF#00010AFF107F80FE"),
+            ),
             ("< send 1FFFFFFF 3 f8 f9 fa >", Some("1FFFFFFF#F8F9FA")),
             // socketcand's own examples.
             ("< send 123 0 >", Some("123#")),
@@ -438,7 +498,10 @@ mod tests {
                 }),
             ),
             ("< add 0 0 123 2 1 >", None),
-            ("< update 123 3 11 22 33 >", Some(Command::Update(frame("123#112233")))),
+            (
+                "< update 123 3 11 22 33 >",
+                Some(Command::Update(frame("123#112233"))),
+            ),
             ("< delete 123 >", Some(Command::Delete(id("123")))),
             ("< delete 00000123 >", Some(Command::Delete(id("00000123")))),
             ("< delete >", None),
@@ -481,7 +544,10 @@ mod tests {
             ("< echo >", Some(Command::Echo)),
             ("<echo>", None),
             ("< echo  >", None),
-            ("< muxfilter 0 0 123 2 FF 00 00 00 00 00 00 00 33 FF FF FF FF FF FF FF >", None),
+            (
+                "< muxfilter 0 0 123 2 FF 00 00 00 00 00 00 00 33 FF FF FF FF FF FF FF >",
+                None,
+            ),
             ("< isotpmode >", None),
             ("< controlmode >", None),
             ("< >", None),
@@ -493,17 +559,69 @@ mod tests {
     }
 
     #[test]
+    fn a_session_opens_switches_and_ignores_what_its_mode_does_not_take() {
+        let mut s = Session::default();
+        let mut say = |m: &str| s.handle("harv0", Ok(m.to_string()));
+        assert!(matches!(say("< rawmode >"), Action::Ignore(_)), "not open yet");
+        assert!(matches!(say("< send 123 0 >"), Action::Ignore(_)));
+        assert_eq!(say("< open harv0 >"), Action::Reply("< ok >"));
+        assert!(matches!(say("< open harv0 >"), Action::Ignore(_)));
+        assert!(matches!(say("< bcmmode >"), Action::Ignore(_)), "BCM already");
+        assert_eq!(
+            say("< subscribe 0 0 123 >"),
+            Action::Bcm(parse("< subscribe 0 0 123 >").unwrap())
+        );
+        assert_eq!(say("< rawmode >"), Action::Switch(Mode::Raw));
+        assert!(
+            matches!(say("< subscribe 0 0 123 >"), Action::Ignore(_)),
+            "raw mode"
+        );
+        assert_eq!(say("< send 123 0 >"), Action::Send(frame("123#")));
+        assert_eq!(say("< echo >"), Action::Reply("< echo >"));
+        assert_eq!(say("< bcmmode >"), Action::Switch(Mode::Bcm));
+        assert_eq!(
+            Session::default().handle("harv0", Ok("< open can0 >".into())),
+            Action::Close
+        );
+    }
+
+    proptest::proptest! {
+        /// Whatever comes in, the only answers are `< ok >` and `< echo >`.
+        #[test]
+        fn any_bytes_get_only_socketcand_answers(
+            bytes in proptest::collection::vec(proptest::prelude::any::<u8>(), 0..400),
+            prefix in proptest::sample::select(vec!["", "< open harv0 >", "< open harv0 >< rawmode >"]),
+        ) {
+            let mut s = Session::default();
+            let stream = [prefix.as_bytes(), &bytes].concat();
+            for message in Splitter::default().push(&stream) {
+                match s.handle("harv0", message) {
+                    Action::Reply(text) => proptest::prop_assert!(text == "< ok >" || text == "< echo >"),
+                    Action::Send(f) => proptest::prop_assert!(f.dlc() <= 8 && !f.is_remote()),
+                    _ => {}
+                }
+            }
+        }
+    }
+
+    #[test]
     fn frames_are_written_as_socketcand_does() {
         let f = frame("0601F5D0#200D0002FFBFFF00");
         assert_eq!(
             frame_message(BusTime(1_500_000_000), &f),
             "< frame 0601F5D0 1.500000 200D0002FFBFFF00 >"
         );
-        assert_eq!(frame_message(BusTime(0), &frame("123#")), "< frame 123 0.000000  >");
+        assert_eq!(
+            frame_message(BusTime(0), &frame("123#")),
+            "< frame 123 0.000000  >"
+        );
         assert_eq!(
             bcm_frame_message(BusTime(23_424_242_000), &frame("123#1A220344")),
             "< frame 123 23.424242 1A 22 03 44  >"
         );
-        assert_eq!(bcm_frame_message(BusTime(0), &frame("00000005#")), "< frame 00000005 0.000000  >");
+        assert_eq!(
+            bcm_frame_message(BusTime(0), &frame("00000005#")),
+            "< frame 00000005 0.000000  >"
+        );
     }
 }

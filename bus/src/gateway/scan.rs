@@ -92,7 +92,10 @@ fn number(s: &[u8], start: usize, conv: Conv) -> Option<(u64, usize)> {
         i += 2;
     }
     while let Some(d) = s.get(i).and_then(|&b| (b as char).to_digit(radix)) {
-        match value.checked_mul(u64::from(radix)).and_then(|v| v.checked_add(u64::from(d))) {
+        match value
+            .checked_mul(u64::from(radix))
+            .and_then(|v| v.checked_add(u64::from(d)))
+        {
             Some(v) => value = v,
             None => overflow = true,
         }
@@ -148,11 +151,23 @@ mod tests {
         // truncation). Worked out from the C rules by hand.
         let table: &[(&str, &[Conv], &[u64])] = &[
             ("< send 123 2 1 f1 >", &[Hex, Dec, Hex, Hex], &[0x123, 2, 1, 0xF1]),
-            ("< send 0300A0F5 2 1 1 >", &[Hex, Dec, Hex, Hex], &[0x0300A0F5, 2, 1, 1]),
+            (
+                "< send 0300A0F5 2 1 1 >",
+                &[Hex, Dec, Hex, Hex],
+                &[0x0300A0F5, 2, 1, 1],
+            ),
             // Three digits and more: the whole number (the caller keeps the low byte).
-            ("< send 1 2 1FF 100 >", &[Hex, Dec, Hex, Hex], &[1, 2, 0x1FF, 0x100]),
+            (
+                "< send 1 2 1FF 100 >",
+                &[Hex, Dec, Hex, Hex],
+                &[1, 2, 0x1FF, 0x100],
+            ),
             // Sign and prefix.
-            ("< send 0x7ff +2 -1 0X0a >", &[Hex, Dec, Hex, Hex], &[0x7FF, 2, u64::MAX, 10]),
+            (
+                "< send 0x7ff +2 -1 0X0a >",
+                &[Hex, Dec, Hex, Hex],
+                &[0x7FF, 2, u64::MAX, 10],
+            ),
             // "0x" with no digit after it is 0; the scan goes on after the "x".
             ("< send 0xg >", &[Hex, Hex], &[0]),
             // Numbers need no space between them: "12" then "-3"... and stop at a non-digit.

@@ -4,7 +4,7 @@
 use super::backoff::{AcceptBackoff, REPORT_INTERVAL};
 use super::bcm::Bcm;
 use super::beacon;
-use super::protocol::{self, Command, Malformed, Mode, Splitter};
+use super::protocol::{self, Action, Command, Malformed, Mode, Session, Splitter};
 use crate::engine::{ControllerConfig, Filter, NodeId};
 use crate::hub::{Attach, Control, Hub, Observed, Submit, Subscribe};
 use crate::node::{Report, Wake};
@@ -113,7 +113,11 @@ impl LogLimit {
         {
             let n = std::mem::take(&mut self.unreported);
             self.last = Some(now);
-            tracing::warn!(client, ignored = n, "gateway ignored {n} client message(s), last: {what}");
+            tracing::warn!(
+                client,
+                ignored = n,
+                "gateway ignored {n} client message(s), last: {what}"
+            );
         }
     }
 }
@@ -148,7 +152,10 @@ impl Shared {
             None => true,
             Some(t) => self.armed.is_none_or(|a| t < a),
         };
-        if needed && !self.poked && let Some(node) = self.node {
+        if needed
+            && !self.poked
+            && let Some(node) = self.node
+        {
             self.poked = true;
             self.hub.do_send(Control::SetHung(node, false));
         }
@@ -208,7 +215,9 @@ impl Gateway {
             Some(Some(to)) => {
                 actix::spawn(beacon::run(addr, to, config.bus_name));
             }
-            Some(None) => tracing::info!(%addr, "no socketcand beacon: it is sent from loopback addresses only"),
+            Some(None) => {
+                tracing::info!(%addr, "no socketcand beacon: it is sent from loopback addresses only")
+            }
             None => {}
         }
         Ok(Gateway { addr, shared })
@@ -234,7 +243,9 @@ impl Handler<Wake> for Timers {
     type Result = ();
 
     fn handle(&mut self, wake: Wake, _: &mut Context<Self>) {
-        let Wake { now, frames, reply, .. } = wake;
+        let Wake {
+            now, frames, reply, ..
+        } = wake;
         let mut sh = self.shared.borrow_mut();
         let sh = &mut *sh;
         let mut transmit = Vec::new();
@@ -369,82 +380,62 @@ async fn accept(
     }
 }
 
-/// What a command asks of the connection besides its effect on the shared state.
-enum Then {
-    Nothing,
-    Reply(&'static str),
-    Submit(Frame),
-    Close,
-}
-
-/// Carries out one message of client `id`.
-fn command(sh: &mut Shared, id: u64, config: &GatewayConfig, message: Result<String, Malformed>) -> Then {
+/// Carries out one action for client `id`, whose session is now in `mode`; what the connection
+/// does next.
+fn apply(sh: &mut Shared, id: u64, mode: Option<Mode>, action: Action) -> Action {
     let Some(c) = sh.clients.iter_mut().find(|c| c.id == id) else {
-        return Then::Close;
+        return Action::Close;
     };
-    let command = match message.and_then(|m| protocol::parse(&m)) {
-        Ok(command) => command,
-        Err(e) => {
-            sh.malformed(id, &e);
-            return Then::Nothing;
-        }
-    };
-    let bcm = &mut c.bcm;
-    let ok = match (c.mode, command) {
-        (None, Command::Open(bus)) if bus == config.bus_name => {
-            c.mode = Some(Mode::Bcm);
-            return Then::Reply("< ok >");
-        }
-        (None, Command::Open(bus)) => {
-            // socketcand says `< error could not open bus >` and closes; that message would
-            // read as an error frame, so the connection is only closed.
-            tracing::info!(client = id, bus, "gateway client asked for another bus: closed");
-            return Then::Close;
-        }
-        (None, _) => Err("open the bus first"),
-        (Some(_), Command::Open(_)) => Err("the bus is open already"),
-        (Some(_), Command::Echo) => return Then::Reply("< echo >"),
-        (Some(_), Command::Send(frame)) => return Then::Submit(frame),
-        (Some(old), Command::Mode(new)) if old != new => {
+    c.mode = mode;
+    let refused = match &action {
+        Action::Switch(_) => {
             // Leaving BCM mode closes socketcand's BCM socket, which ends its jobs.
-            *bcm = Bcm::default();
-            c.mode = Some(new);
-            return Then::Reply("< ok >");
+            c.bcm = Bcm::default();
+            None
         }
-        (Some(_), Command::Mode(_)) => Err("in that mode already"),
-        (Some(Mode::Raw), _) => Err("a BCM command in raw mode"),
-        (Some(Mode::Bcm), Command::Add { interval, frame }) => {
-            if bcm.add(interval, frame) {
-                sh.wake_by(None);
-                Ok(())
-            } else {
-                Err("too many cyclic sends")
+        Action::Bcm(command) => match *command {
+            Command::Add { interval, frame } => {
+                let ok = c.bcm.add(interval, frame);
+                if ok {
+                    sh.wake_by(None);
+                }
+                (!ok).then_some("too many cyclic sends")
             }
+            // The kernel sets up an idle job for an update without one: nothing to see.
+            Command::Update(frame) => {
+                c.bcm.update(frame);
+                None
+            }
+            Command::Delete(ident) => {
+                c.bcm.delete(ident);
+                None
+            }
+            Command::Subscribe { throttle, id } => {
+                (!c.bcm.subscribe(id, throttle, None)).then_some("too many subscriptions")
+            }
+            Command::Filter { throttle, id, mask } => {
+                (!c.bcm.subscribe(id, throttle, Some(mask))).then_some("too many subscriptions")
+            }
+            Command::Unsubscribe(ident) => {
+                c.bcm.unsubscribe(ident);
+                None
+            }
+            Command::Open(_) | Command::Mode(_) | Command::Echo | Command::Send(_) => None,
+        },
+        Action::Ignore(why) => {
+            sh.malformed(id, why);
+            None
         }
-        (Some(Mode::Bcm), Command::Update(frame)) => {
-            // The kernel sets up an idle job for an update without one; nothing to see.
-            bcm.update(frame);
-            Ok(())
+        Action::Close => {
+            tracing::info!(client = id, "gateway client asked for another bus: closed");
+            None
         }
-        (Some(Mode::Bcm), Command::Delete(ident)) => {
-            bcm.delete(ident);
-            Ok(())
-        }
-        (Some(Mode::Bcm), Command::Subscribe { throttle, id: ident }) => {
-            bcm.subscribe(ident, throttle, None).then_some(()).ok_or("too many subscriptions")
-        }
-        (Some(Mode::Bcm), Command::Filter { throttle, id: ident, mask }) => {
-            bcm.subscribe(ident, throttle, Some(mask)).then_some(()).ok_or("too many subscriptions")
-        }
-        (Some(Mode::Bcm), Command::Unsubscribe(ident)) => {
-            bcm.unsubscribe(ident);
-            Ok(())
-        }
+        Action::Reply(_) | Action::Send(_) => None,
     };
-    if let Err(what) = ok {
-        sh.malformed(id, &Malformed(what.into()));
+    if let Some(why) = refused {
+        sh.malformed(id, &Malformed(why.into()));
     }
-    Then::Nothing
+    action
 }
 
 async fn serve(
@@ -484,6 +475,7 @@ async fn serve(
     };
     reply("< hi >");
     let mut splitter = Splitter::default();
+    let mut session = Session::default();
     let mut buf = [0u8; 1024];
     'read: loop {
         let n = match reader.read(&mut buf).await {
@@ -491,12 +483,15 @@ async fn serve(
             Ok(n) => n,
         };
         for message in splitter.push(&buf[..n]) {
-            let then = command(&mut shared.borrow_mut(), id, &config, message);
-            match then {
-                Then::Nothing => {}
-                Then::Reply(text) => reply(text),
-                Then::Close => break 'read,
-                Then::Submit(frame) => {
+            let action = session.handle(&config.bus_name, message);
+            // Bound first: a borrow in the match's head would last through the arms.
+            let action = apply(&mut shared.borrow_mut(), id, session.mode, action);
+            match action {
+                Action::Reply(text) => reply(text),
+                Action::Switch(_) => reply("< ok >"),
+                Action::Close => break 'read,
+                Action::Bcm(_) | Action::Ignore(_) => {}
+                Action::Send(frame) => {
                     // Noted before it is submitted: the bus may send it before `send` returns.
                     shared.borrow_mut().in_flight.push_back((id, frame));
                     let queued = matches!(hub.send(Submit { node, frame }).await, Ok(Ok(true)));
