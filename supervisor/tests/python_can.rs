@@ -243,8 +243,14 @@ fn readme_socketcand_script() -> String {
         .lines()
         .find(|l| l.starts_with("python3 -c 'import can;") && l.contains("socketcand"))
         .expect("the README's python-can example");
-    let script = line.strip_prefix("python3 -c '").and_then(|l| l.strip_suffix('\'')).unwrap();
-    assert!(script.contains("0x0300A0F5") && script.contains("port=29536"), "{script}");
+    let script = line
+        .strip_prefix("python3 -c '")
+        .and_then(|l| l.strip_suffix('\''))
+        .unwrap();
+    assert!(
+        script.contains("0x0300A0F5") && script.contains("port=29536"),
+        "{script}"
+    );
     script.to_string()
 }
 
