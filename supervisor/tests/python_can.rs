@@ -218,3 +218,74 @@ fn harvemu_reads_what_python_can_writes() {
         "{err}"
     );
 }
+
+/// The README's socketcand example, from the command line: the README's python-can one-liner
+/// (argv[2], its port replaced) receives a frame and sends the README's example frame through
+/// `harvemu run --socketcand`, and a second python-can client sees it.
+const SOCKETCAND: &str = r#"
+import sys, time, can
+host, port = sys.argv[1].rsplit(":", 1)
+watcher = can.Bus(interface="socketcand", channel="harv0", host=host, port=int(port))
+exec(sys.argv[2].replace("port=29536", "port=" + port))
+seen, end = [], time.time() + 5
+while time.time() < end and (0x0300A0F5, "0101") not in seen:
+    m = watcher.recv(1)
+    if m is not None:
+        seen.append((m.arbitration_id, bytes(m.data).hex()))
+print("seen", (0x0300A0F5, "0101") in seen, len(seen))
+watcher.shutdown()
+"#;
+
+/// The python-can one-liner of the README's socketcand example.
+fn readme_socketcand_script() -> String {
+    let readme = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../README.md")).unwrap();
+    let line = readme
+        .lines()
+        .find(|l| l.starts_with("python3 -c 'import can;") && l.contains("socketcand"))
+        .expect("the README's python-can example");
+    let script = line
+        .strip_prefix("python3 -c '")
+        .and_then(|l| l.strip_suffix('\''))
+        .unwrap();
+    assert!(
+        script.contains("0x0300A0F5") && script.contains("port=29536"),
+        "{script}"
+    );
+    script.to_string()
+}
+
+#[test]
+fn python_can_sends_the_readme_frame_through_harvemu_run_socketcand() {
+    use std::io::BufRead;
+    require_python_can();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_harvemu"))
+        .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
+        .args(["run", "--for", "15s", "--socketcand", "127.0.0.1:0"])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let stderr = child.stderr.take().unwrap();
+    let mut lines = std::io::BufReader::new(stderr).lines();
+    let addr = lines
+        .by_ref()
+        .map_while(Result::ok)
+        .find_map(|l| {
+            l.strip_prefix("harvemu: socketcand gateway on ")
+                .and_then(|rest| rest.split(',').next())
+                .map(str::to_string)
+        })
+        .expect("the gateway's address on stderr");
+    // Keep reading stderr so that the child never blocks on a full pipe.
+    std::thread::spawn(move || lines.for_each(drop));
+    let out = Command::new(interpreter())
+        .args(["-c", SOCKETCAND, &addr, &readme_socketcand_script()])
+        .output()
+        .unwrap();
+    let _ = child.kill();
+    let _ = child.wait();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("seen True"), "{stdout}");
+    // The one-liner printed the frame it received.
+    assert!(stdout.starts_with("Timestamp:"), "{stdout}");
+}

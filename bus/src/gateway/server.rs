@@ -1,15 +1,21 @@
-//! The TCP side of the gateway, on the actor system's tokio runtime.
+//! The TCP side of the gateway, on the actor system's tokio runtime, and the actor that runs the
+//! BCM clients' timers on the hub's clock.
 
 use super::backoff::{AcceptBackoff, REPORT_INTERVAL};
-use super::protocol::{self, Command, Splitter};
+use super::bcm::Bcm;
+use super::beacon;
+use super::protocol::{self, Action, Command, Malformed, Mode, Session, Splitter};
 use crate::engine::{ControllerConfig, Filter, NodeId};
-use crate::hub::{Attach, Hub, Observed, Submit, Subscribe};
+use crate::hub::{Attach, Control, Hub, Observed, Submit, Subscribe};
+use crate::node::{Report, Wake};
+use crate::time::BusTime;
 use crate::{Error, Frame};
-use actix::Addr;
+use actix::prelude::*;
 use std::cell::RefCell;
 use std::collections::VecDeque;
 use std::net::SocketAddr;
 use std::rc::Rc;
+use std::time::Instant;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::mpsc;
@@ -26,6 +32,9 @@ pub struct GatewayConfig {
     pub client_queue: usize,
     /// Most clients at once.
     pub max_clients: usize,
+    /// The UDP port of the discovery beacon ([`beacon::BEACON_PORT`] by default), `None` for
+    /// no beacon. It is sent only from a loopback address (see [`super::beacon`]).
+    pub beacon_port: Option<u16>,
 }
 
 impl Default for GatewayConfig {
@@ -34,6 +43,7 @@ impl Default for GatewayConfig {
             bus_name: "harv0".into(),
             client_queue: 1024,
             max_clients: 256,
+            beacon_port: Some(beacon::BEACON_PORT),
         }
     }
 }
@@ -47,19 +57,69 @@ pub struct GatewayStats {
     pub accepted: u64,
     /// Frames not sent to a client because its queue was full.
     pub dropped: u64,
-    /// Frames clients sent onto the bus.
+    /// Frames clients sent onto the bus, cyclic sends included.
     pub sent: u64,
-    /// Malformed messages answered with an error.
-    pub errors: u64,
+    /// Frames clients sent that the gateway's transmit queue had no room for.
+    pub refused: u64,
+    /// Messages ignored: malformed, unknown, or not valid in the client's mode.
+    pub malformed: u64,
     /// Failed `accept` calls (e.g. out of file descriptors).
     pub accept_errors: u64,
 }
 
 struct Client {
     id: u64,
-    raw: bool,
+    /// `None` until the client opened the bus.
+    mode: Option<Mode>,
     tx: mpsc::Sender<String>,
     dropped: u64,
+    bcm: Bcm,
+}
+
+impl Client {
+    /// Queues a message; false when the queue was full and it was dropped.
+    fn queue(&mut self, line: String) -> bool {
+        if self.tx.try_send(line).is_ok() {
+            return true;
+        }
+        self.dropped += 1;
+        if self.dropped.is_power_of_two() {
+            tracing::warn!(
+                client = self.id,
+                dropped = self.dropped,
+                "gateway client too slow: frames dropped"
+            );
+        }
+        false
+    }
+}
+
+/// At most one warning per [`REPORT_INTERVAL`] about what clients did wrong, counting the
+/// messages since the last one; each is logged at debug level.
+#[derive(Default)]
+struct LogLimit {
+    last: Option<Instant>,
+    unreported: u64,
+}
+
+impl LogLimit {
+    fn note(&mut self, client: u64, what: &str) {
+        tracing::debug!(client, "gateway ignored a message: {what}");
+        self.unreported += 1;
+        let now = Instant::now();
+        if self
+            .last
+            .is_none_or(|t| now.saturating_duration_since(t) >= REPORT_INTERVAL)
+        {
+            let n = std::mem::take(&mut self.unreported);
+            self.last = Some(now);
+            tracing::warn!(
+                client,
+                ignored = n,
+                "gateway ignored {n} client message(s), last: {what}"
+            );
+        }
+    }
 }
 
 struct Shared {
@@ -68,6 +128,38 @@ struct Shared {
     /// sent each: the bus sends them in this order, so the head tells whose frame came out.
     in_flight: VecDeque<(u64, Frame)>,
     stats: GatewayStats,
+    log: LogLimit,
+    hub: Addr<Hub>,
+    /// The gateway's controller on the bus, once attached.
+    node: Option<NodeId>,
+    /// The timer the hub holds for the gateway: what the last wake reported.
+    armed: Option<BusTime>,
+    /// The hub was asked for a wake that has not come yet.
+    poked: bool,
+}
+
+impl Shared {
+    fn malformed(&mut self, client: u64, what: &Malformed) {
+        self.stats.malformed += 1;
+        self.log.note(client, &what.0);
+    }
+
+    /// Makes sure the hub wakes the timers by `at` (`None`: at once). The hub learns a node's
+    /// next deadline only from its answer to a wake, so a timer set between wakes needs one now:
+    /// `SetHung(node, false)`, which on a node that is not hung only wakes it at the present.
+    fn wake_by(&mut self, at: Option<BusTime>) {
+        let needed = match at {
+            None => true,
+            Some(t) => self.armed.is_none_or(|a| t < a),
+        };
+        if needed
+            && !self.poked
+            && let Some(node) = self.node
+        {
+            self.poked = true;
+            self.hub.do_send(Control::SetHung(node, false));
+        }
+    }
 }
 
 /// A running gateway.
@@ -79,12 +171,27 @@ pub struct Gateway {
 
 impl Gateway {
     /// Binds `bind`, attaches a controller for the gateway to the hub, and serves in the
-    /// background of the current actor system.
+    /// background of the current actor system; sends the discovery beacon if the configuration
+    /// asks for it and the address allows it.
     pub async fn start(hub: Addr<Hub>, bind: SocketAddr, config: GatewayConfig) -> Result<Gateway, Error> {
         let listener = TcpListener::bind(bind)
             .await
             .map_err(|e| Error::Syntax(format!("cannot listen on {bind}: {e}")))?;
         let addr = listener.local_addr().map_err(|e| Error::Syntax(e.to_string()))?;
+        let shared = Rc::new(RefCell::new(Shared {
+            clients: Vec::new(),
+            in_flight: VecDeque::new(),
+            stats: GatewayStats::default(),
+            log: LogLimit::default(),
+            hub: hub.clone(),
+            node: None,
+            armed: None,
+            poked: false,
+        }));
+        let timers = Timers {
+            shared: shared.clone(),
+        }
+        .start();
         let node = hub
             .send(Attach {
                 controller: ControllerConfig {
@@ -92,22 +199,27 @@ impl Gateway {
                     ..ControllerConfig::named("gateway")
                 }
                 .with_filter(Filter::Nothing),
-                node: None,
+                node: Some(timers.recipient()),
                 reaction: std::time::Duration::ZERO,
             })
             .await
             .map_err(|e| Error::Syntax(e.to_string()))?;
+        shared.borrow_mut().node = Some(node);
         let (tx, rx) = mpsc::channel(4096);
         hub.send(Subscribe(tx))
             .await
             .map_err(|e| Error::Syntax(e.to_string()))?;
-        let shared = Rc::new(RefCell::new(Shared {
-            clients: Vec::new(),
-            in_flight: VecDeque::new(),
-            stats: GatewayStats::default(),
-        }));
         actix::spawn(distribute(rx, node, shared.clone()));
-        actix::spawn(accept(listener, hub, node, config, shared.clone()));
+        actix::spawn(accept(listener, hub, node, config.clone(), shared.clone()));
+        match config.beacon_port.map(|port| beacon::target(addr, port)) {
+            Some(Some(to)) => {
+                actix::spawn(beacon::run(addr, to, config.bus_name));
+            }
+            Some(None) => {
+                tracing::info!(%addr, "no socketcand beacon: it is sent from loopback addresses only")
+            }
+            None => {}
+        }
         Ok(Gateway { addr, shared })
     }
 
@@ -117,7 +229,55 @@ impl Gateway {
     }
 }
 
-/// Fans every frame on the bus out to the clients in raw mode.
+/// Runs the BCM clients' cyclic sends and throttle timers when the hub wakes it, at the bus's
+/// time; the frames it sends go out through the gateway's controller.
+struct Timers {
+    shared: Rc<RefCell<Shared>>,
+}
+
+impl Actor for Timers {
+    type Context = Context<Self>;
+}
+
+impl Handler<Wake> for Timers {
+    type Result = ();
+
+    fn handle(&mut self, wake: Wake, _: &mut Context<Self>) {
+        let Wake {
+            now, frames, reply, ..
+        } = wake;
+        let mut sh = self.shared.borrow_mut();
+        let sh = &mut *sh;
+        let mut transmit = Vec::new();
+        let mut deliver = Vec::new();
+        let mut next: Option<BusTime> = None;
+        let mut dropped = 0;
+        for c in &mut sh.clients {
+            let first = transmit.len();
+            c.bcm.run(now, &mut transmit, &mut deliver);
+            for f in &transmit[first..] {
+                sh.in_flight.push_back((c.id, *f));
+            }
+            for (at, f) in deliver.drain(..) {
+                dropped += u64::from(!c.queue(protocol::bcm_frame_message(at, &f)));
+            }
+            next = [next, c.bcm.deadline()].into_iter().flatten().min();
+        }
+        sh.stats.sent += transmit.len() as u64;
+        sh.stats.dropped += dropped;
+        sh.armed = next;
+        sh.poked = false;
+        reply.send(Report {
+            transmit,
+            next_timeout: next,
+            frames_handled: frames.len() as u64,
+            ..Report::default()
+        });
+    }
+}
+
+/// Fans every frame on the bus out to the clients in raw mode and to the subscriptions of those
+/// in BCM mode.
 async fn distribute(mut rx: mpsc::Receiver<Observed>, gateway: NodeId, shared: Rc<RefCell<Shared>>) {
     while let Some(o) = rx.recv().await {
         let mut sh = shared.borrow_mut();
@@ -130,22 +290,33 @@ async fn distribute(mut rx: mpsc::Receiver<Observed>, gateway: NodeId, shared: R
         } else {
             None
         };
-        let line = protocol::frame_message(o.at, &o.frame);
+        let mut raw_line = None;
         let mut dropped = 0;
-        for c in sh.clients.iter_mut().filter(|c| c.raw && Some(c.id) != origin) {
-            if c.tx.try_send(line.clone()).is_err() {
-                c.dropped += 1;
-                dropped += 1;
-                if c.dropped.is_power_of_two() {
-                    tracing::warn!(
-                        client = c.id,
-                        dropped = c.dropped,
-                        "gateway client too slow: frames dropped"
-                    );
+        let mut timer: Option<BusTime> = None;
+        for c in &mut sh.clients {
+            let line = match c.mode {
+                // A raw client does not get its own frames back, as with a raw CAN socket.
+                Some(Mode::Raw) if Some(c.id) != origin => raw_line
+                    .get_or_insert_with(|| protocol::frame_message(o.at, &o.frame))
+                    .clone(),
+                // A BCM client gets the frames it subscribed to, its own included, as the
+                // kernel's broadcast manager delivers them.
+                Some(Mode::Bcm) => {
+                    let (now, started) = c.bcm.frame(o.at, &o.frame);
+                    timer = [timer, started].into_iter().flatten().min();
+                    match now {
+                        Some((at, f)) => protocol::bcm_frame_message(at, &f),
+                        None => continue,
+                    }
                 }
-            }
+                _ => continue,
+            };
+            dropped += u64::from(!c.queue(line));
         }
         sh.stats.dropped += dropped;
+        if let Some(t) = timer {
+            sh.wake_by(Some(t));
+        }
     }
 }
 
@@ -161,7 +332,7 @@ async fn accept(
     loop {
         let (stream, peer) = match listener.accept().await {
             Ok(x) => {
-                if let Some(n) = backoff.succeeded(std::time::Instant::now()) {
+                if let Some(n) = backoff.succeeded(Instant::now()) {
                     tracing::warn!(errors = n, "gateway accepting again after {n} more accept errors");
                 }
                 x
@@ -171,7 +342,7 @@ async fn accept(
                 // fail again at once. Wait, and log at a bounded rate; the clients already
                 // connected are served meanwhile.
                 shared.borrow_mut().stats.accept_errors += 1;
-                let (wait, report) = backoff.failed(std::time::Instant::now());
+                let (wait, report) = backoff.failed(Instant::now());
                 match report {
                     Some(1) => tracing::warn!(error = %e, "gateway accept failed; backing off"),
                     Some(n) => tracing::warn!(
@@ -186,19 +357,15 @@ async fn accept(
                 continue;
             }
         };
+        if shared.borrow().clients.len() >= config.max_clients {
+            // Closed at once: socketcand's clients have no message for this.
+            tracing::warn!(%peer, "gateway full ({} clients): connection closed", config.max_clients);
+            continue;
+        }
         let _ = stream.set_nodelay(true);
         // A bounded kernel buffer too: what a client does not read piles up in its queue, where
         // it is counted and dropped, not in the kernel.
         let _ = socket2::SockRef::from(&stream).set_send_buffer_size(SEND_BUFFER);
-        if shared.borrow().clients.len() >= config.max_clients {
-            actix::spawn(async move {
-                let mut stream = stream;
-                let _ = stream
-                    .write_all(protocol::error_message("too many clients").as_bytes())
-                    .await;
-            });
-            continue;
-        }
         let id = next_id;
         next_id += 1;
         tracing::info!(client = id, %peer, "gateway client connected");
@@ -211,6 +378,64 @@ async fn accept(
             shared.clone(),
         ));
     }
+}
+
+/// Carries out one action for client `id`, whose session is now in `mode`; what the connection
+/// does next.
+fn apply(sh: &mut Shared, id: u64, mode: Option<Mode>, action: Action) -> Action {
+    let Some(c) = sh.clients.iter_mut().find(|c| c.id == id) else {
+        return Action::Close;
+    };
+    c.mode = mode;
+    let refused = match &action {
+        Action::Switch(_) => {
+            // Leaving BCM mode closes socketcand's BCM socket, which ends its jobs.
+            c.bcm = Bcm::default();
+            None
+        }
+        Action::Bcm(command) => match *command {
+            Command::Add { interval, frame } => {
+                let ok = c.bcm.add(interval, frame);
+                if ok {
+                    sh.wake_by(None);
+                }
+                (!ok).then_some("too many cyclic sends")
+            }
+            // The kernel sets up an idle job for an update without one: nothing to see.
+            Command::Update(frame) => {
+                c.bcm.update(frame);
+                None
+            }
+            Command::Delete(ident) => {
+                c.bcm.delete(ident);
+                None
+            }
+            Command::Subscribe { throttle, id } => {
+                (!c.bcm.subscribe(id, throttle, None)).then_some("too many subscriptions")
+            }
+            Command::Filter { throttle, id, mask } => {
+                (!c.bcm.subscribe(id, throttle, Some(mask))).then_some("too many subscriptions")
+            }
+            Command::Unsubscribe(ident) => {
+                c.bcm.unsubscribe(ident);
+                None
+            }
+            Command::Open(_) | Command::Mode(_) | Command::Echo | Command::Send(_) => None,
+        },
+        Action::Ignore(why) => {
+            sh.malformed(id, why);
+            None
+        }
+        Action::Close => {
+            tracing::info!(client = id, "gateway client asked for another bus: closed");
+            None
+        }
+        Action::Reply(_) | Action::Send(_) => None,
+    };
+    if let Some(why) = refused {
+        sh.malformed(id, &Malformed(why.into()));
+    }
+    action
 }
 
 async fn serve(
@@ -227,9 +452,10 @@ async fn serve(
         let mut sh = shared.borrow_mut();
         sh.clients.push(Client {
             id,
-            raw: false,
+            mode: None,
             tx: tx.clone(),
             dropped: 0,
+            bcm: Bcm::default(),
         });
         sh.stats.clients += 1;
         sh.stats.accepted += 1;
@@ -243,39 +469,29 @@ async fn serve(
             }
         }
     });
-    let reply = |text: String| {
+    let reply = |text: &str| {
         // Replies go through the same bounded queue; a client that does not read loses them.
-        let _ = tx.try_send(text);
+        let _ = tx.try_send(text.to_string());
     };
-    reply("< hi >".into());
+    reply("< hi >");
     let mut splitter = Splitter::default();
-    let mut opened = false;
+    let mut session = Session::default();
     let mut buf = [0u8; 1024];
-    loop {
+    'read: loop {
         let n = match reader.read(&mut buf).await {
             Ok(0) | Err(_) => break,
             Ok(n) => n,
         };
         for message in splitter.push(&buf[..n]) {
-            let command = message.and_then(|m| protocol::parse(&m));
-            match command {
-                Ok(Command::Open(bus)) if bus == config.bus_name => {
-                    opened = true;
-                    reply("< ok >".into());
-                }
-                Ok(Command::Open(bus)) => reply(protocol::error_message(&format!(
-                    "no bus '{bus}' (this server has '{}')",
-                    config.bus_name
-                ))),
-                Ok(Command::Echo) => reply("< echo >".into()),
-                Ok(_) if !opened => reply(protocol::error_message("open a bus first")),
-                Ok(Command::RawMode) => {
-                    if let Some(c) = shared.borrow_mut().clients.iter_mut().find(|c| c.id == id) {
-                        c.raw = true;
-                    }
-                    reply("< ok >".into());
-                }
-                Ok(Command::Send(frame)) => {
+            let action = session.handle(&config.bus_name, message);
+            // Bound first: a borrow in the match's head would last through the arms.
+            let action = apply(&mut shared.borrow_mut(), id, session.mode, action);
+            match action {
+                Action::Reply(text) => reply(text),
+                Action::Switch(_) => reply("< ok >"),
+                Action::Close => break 'read,
+                Action::Bcm(_) | Action::Ignore(_) => {}
+                Action::Send(frame) => {
                     // Noted before it is submitted: the bus may send it before `send` returns.
                     shared.borrow_mut().in_flight.push_back((id, frame));
                     let queued = matches!(hub.send(Submit { node, frame }).await, Ok(Ok(true)));
@@ -286,13 +502,9 @@ async fn serve(
                         if let Some(i) = sh.in_flight.iter().rposition(|(c, f)| *c == id && *f == frame) {
                             sh.in_flight.remove(i);
                         }
-                        drop(sh);
-                        reply(protocol::error_message("transmit queue full or bus gone"));
+                        sh.stats.refused += 1;
+                        sh.log.note(id, "transmit queue full: frame not sent");
                     }
-                }
-                Err(e) => {
-                    shared.borrow_mut().stats.errors += 1;
-                    reply(protocol::error_message(&e));
                 }
             }
         }
