@@ -507,16 +507,19 @@ fn bcm_mode_runs_on_the_bus_clock() {
     });
 }
 
-/// The beacon goes to socketcand's port by default. Checked on the real port only when no other
-/// program holds it: a test cannot ask another program to let go of it, and failing then would
-/// test the machine, not the gateway. The beacon's content and its way to python-can are
-/// checked on a free port (`gateway_python_can.rs`).
+/// The beacon goes to socketcand's port by default, checked on the real port. A machine where
+/// another program holds 127.0.0.1:42000 (a socketcand client listening for beacons) cannot run
+/// this check, and the test then fails saying so rather than pass unchecked. The beacon's content
+/// and its way to python-can are checked on a free port (`gateway_python_can.rs`).
 #[test]
 fn the_beacon_goes_to_port_42000_by_default() {
     assert_eq!(GatewayConfig::default().beacon_port, Some(42000));
-    let Ok(listener) = std::net::UdpSocket::bind("127.0.0.1:42000") else {
-        eprintln!("port 42000 is taken: the beacon on the real port is not checked");
-        return;
+    let listener = match std::net::UdpSocket::bind("127.0.0.1:42000") {
+        Ok(l) => l,
+        Err(e) => panic!(
+            "cannot listen on 127.0.0.1:42000 ({e}): another program holds socketcand's beacon \
+             port, so the default beacon cannot be checked here; stop it and run again"
+        ),
     };
     listener
         .set_read_timeout(Some(Duration::from_millis(200)))
