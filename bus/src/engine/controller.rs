@@ -129,6 +129,11 @@ pub struct ControllerCounters {
     pub rx_missed: u64,
     /// Frames it sent itself that its own filter accepts (a controller does not receive them).
     pub rx_own: u64,
+    /// Frames its filter accepts that completed on the bus while it was on the bus but had
+    /// detected an error in them: its error flag did not destroy them for the others (an error
+    /// passive node's flag is recessive), so the frame is valid for everyone else and lost to it.
+    #[serde(default)]
+    pub rx_errored: u64,
     /// Frames the node took out of the receive FIFO.
     pub rx_read: u64,
     /// Frames dropped from the receive FIFO by a reset (restart, power cycle).

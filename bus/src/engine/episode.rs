@@ -72,6 +72,12 @@ struct Tally {
     deferred_3a: Vec<bool>,
     /// The frame's `Frame` event is out (identical frames sent together give one).
     sent_frame: bool,
+    /// Per controller: it took the frame at its last but one EOF bit.
+    received: Vec<bool>,
+    /// Per controller: it sent the frame successfully.
+    sent: Vec<bool>,
+    /// The frame that completed, with who was on the bus when it did.
+    completed: Option<(crate::Frame, Vec<bool>)>,
 }
 
 /// Per transmitter: the attempt it lost, for the `ErrorFrame` event.
@@ -152,6 +158,9 @@ impl Bus {
             destroyed: Vec::new(),
             deferred_3a: vec![false; n],
             sent_frame: false,
+            received: vec![false; n],
+            sent: vec![false; n],
+            completed: None,
         };
         let mut drives = vec![wire::REC; n];
         let mut k: u32 = 0;
@@ -224,8 +233,14 @@ impl Bus {
         let Tally {
             mut events,
             destroyed,
+            received,
+            sent,
+            completed,
             ..
         } = tally;
+        if let Some((frame, on_bus)) = completed {
+            self.place_unreceived(&frame, &on_bus, &received, &sent);
+        }
         for d in &destroyed {
             self.stats.error(d.error.name());
             let c = &self.controllers[d.node];
@@ -247,6 +262,24 @@ impl Bus {
         self.events.extend(events);
         self.idle_at = self.idle_at.max(busy_to);
         self.committed = self.committed.max(sof);
+    }
+
+    /// Books a completed frame for every controller whose filter accepts it but that neither
+    /// sent nor received it, as the closed form does for a clean frame: a controller off the bus
+    /// missed it; one on the bus had detected an error in it that did not destroy it for the
+    /// others (its passive flag, or a disturbance only it sampled). Without this, an accepted
+    /// frame that completed in an episode would be in no counter of such a controller.
+    fn place_unreceived(&mut self, frame: &crate::Frame, on_bus: &[bool], received: &[bool], sent: &[bool]) {
+        for (i, c) in self.controllers.iter_mut().enumerate() {
+            if received[i] || sent[i] || !c.config.filter.accepts(frame) {
+                continue;
+            }
+            if on_bus[i] {
+                c.counters.rx_errored += 1;
+            } else {
+                c.counters.rx_missed += 1;
+            }
+        }
     }
 
     /// A bus-off controller counts the bit towards recovery (rule 12).
@@ -275,6 +308,9 @@ impl Bus {
             destroyed,
             deferred_3a,
             sent_frame,
+            received,
+            sent,
+            completed,
         } = tally;
         let node = NodeId(i as u16);
         let bit = self.bit_ns;
@@ -385,6 +421,7 @@ impl Bus {
                 else {
                     return;
                 };
+                received[i] = true;
                 let c = &mut self.controllers[i];
                 let recovering = c.fault.rec() > 0;
                 let changes = c.fault.receive_success();
@@ -408,6 +445,7 @@ impl Bus {
                 let end = next;
                 let c = &mut self.controllers[i];
                 let Some(p) = c.tx.pop_front() else { return };
+                sent[i] = true;
                 c.counters.tx_frames += 1;
                 if c.config.filter.accepts(&p.frame) {
                     c.counters.rx_own += 1;
@@ -424,6 +462,10 @@ impl Bus {
                 if !*sent_frame {
                     *sent_frame = true;
                     let frame = p.frame;
+                    // Receivers took it at the bit before (EOF 6): who is on the bus now is who
+                    // was when it became valid for them.
+                    let on_bus = self.controllers.iter().map(|c| c.on_bus()).collect();
+                    *completed = Some((frame, on_bus));
                     let bits = ((end - sof) / bit) as u32 + wire::INTERMISSION_BITS as u32;
                     let priority = if frame.is_extended() {
                         (frame.raw_id() >> 24) as usize

@@ -624,6 +624,80 @@ fn receive_books_place_every_frame() {
     assert_eq!(b.stats().frames, 14);
 }
 
+/// The receive counters of a node whose filter accepts every frame below, summed as the books
+/// sum them: each accepted frame that completed on the bus is in exactly one.
+fn placed(b: &Bus, node: NodeId) -> (u64, u64, u64) {
+    let c = b.controller(node).unwrap().counters();
+    let all = c.rx_own + c.rx_missed + c.rx_overruns + c.rx_errored + c.rx_frames;
+    (all, c.rx_errored, c.rx_missed)
+}
+
+/// An error-passive receiver that alone detects an error in a frame sends a recessive flag: the
+/// frame completes for the others and is lost to it. It is booked as errored, not left out.
+#[test]
+fn a_frame_an_error_passive_receiver_alone_flagged_is_booked() {
+    let mut b = bus();
+    let rx = b.attach(ControllerConfig::named("rx"));
+    let tx = b.attach(ControllerConfig::named("tx").with_filter(Filter::Nothing));
+    // A third node acknowledges while `rx` is busy with its error flag.
+    b.attach(ControllerConfig::named("ack").with_filter(Filter::Nothing));
+    // `rx` alone samples a dominant bus for a while during a frame of its own: it loses
+    // arbitration, detects an error as a receiver, and the dominant bits after its flag raise
+    // its REC past 127. Its retransmission then succeeds, which leaves its REC alone: it stays
+    // error passive.
+    b.disturb(Disturbance {
+        at: BusTime(20 * BIT),
+        bits: 160,
+        level: Some(false),
+        nodes: Some(vec![rx]),
+    });
+    b.submit(rx, f("1F00A0F5#01"), BusTime(0)).unwrap();
+    run(&mut b, 100_000_000);
+    let c = b.controller(rx).unwrap();
+    assert_eq!((c.fault().state(), c.tx_len()), (ErrorState::Passive, 0));
+    let before = placed(&b, rx);
+    // A disturbance only `rx` samples, in the identifier of the next frame.
+    let at = BusTime(300_000_000);
+    b.disturb(Disturbance {
+        at: at + 10 * BIT,
+        bits: 1,
+        level: None,
+        nodes: Some(vec![rx]),
+    });
+    b.submit(tx, f("0500F5B1#02"), at).unwrap();
+    let events = run(&mut b, 400_000_000);
+    assert_eq!(frames(&events).len(), 1, "{events:?}");
+    assert!(events.iter().any(|e| matches!(
+        e,
+        Event::BusError { node, transmitting: false, .. } if *node == rx
+    )));
+    assert_eq!(b.controller(rx).unwrap().fault().state(), ErrorState::Passive);
+    let after = placed(&b, rx);
+    assert_eq!(after, (before.0 + 1, before.1 + 1, before.2));
+}
+
+/// A frame that completes bit by bit (a disturbance reaches the attempt) while a node is
+/// disconnected is booked as missed, as a clean frame is.
+#[test]
+fn a_frame_completed_bit_by_bit_is_missed_by_a_disconnected_node() {
+    let mut b = bus();
+    let rx = b.attach(ControllerConfig::named("rx"));
+    let tx = b.attach(ControllerConfig::named("tx").with_filter(Filter::Nothing));
+    b.attach(ControllerConfig::named("ack").with_filter(Filter::Nothing));
+    b.set_connected(rx, false, BusTime(0)).unwrap();
+    // A disturbance that reaches nobody sends the attempt down the bit-level path.
+    b.disturb(Disturbance {
+        at: BusTime(0),
+        bits: 1,
+        level: None,
+        nodes: Some(Vec::new()),
+    });
+    b.submit(tx, f("0500F5B1#02"), BusTime(0)).unwrap();
+    let events = run(&mut b, 100_000_000);
+    assert_eq!(frames(&events).len(), 1, "{events:?}");
+    assert_eq!(placed(&b, rx), (1, 0, 1));
+}
+
 /// A clean attempt committed in closed form and the same attempt run bit by bit give the same
 /// frames, deliveries and confirmations at the same times (a disturbance that reaches nobody
 /// sends the second run down the bit-level path without changing anything on the wire).

@@ -74,6 +74,10 @@ impl MonitorBooks {
             ("sent by the monitor itself", c.rx_own),
             ("missed: monitor off the bus (disconnected, bus off)", c.rx_missed),
             ("lost: receive FIFO overrun", c.rx_overruns),
+            (
+                "lost: an error only the monitor flagged (error passive)",
+                c.rx_errored,
+            ),
             ("lost: receive FIFO cleared at a restart", c.rx_cleared),
             ("lost: in a wake the logic crashed on", h.crashed),
             ("lost: held for a logic that was replaced", h.dropped_at_replace),
@@ -104,9 +108,9 @@ impl MonitorBooks {
                 right: self.accounted(),
             },
             Check {
-                what: "on the bus = own + missed + overrun + stored (controller)",
+                what: "on the bus = own + missed + overrun + errored + stored (controller)",
                 left: self.on_bus,
-                right: c.rx_own + c.rx_missed + c.rx_overruns + c.rx_frames,
+                right: c.rx_own + c.rx_missed + c.rx_overruns + c.rx_errored + c.rx_frames,
             },
             Check {
                 what: "stored = read + cleared + in FIFO (controller)",

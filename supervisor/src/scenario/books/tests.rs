@@ -1,6 +1,7 @@
 use super::*;
 
-/// 1000 frames to the monitor: 10 missed while it was away, 5 overruns, 985 stored; of those 3
+/// 1000 frames to the monitor: 8 missed while it was away, 2 lost to an error only it flagged,
+/// 5 overruns, 985 stored; of those 3
 /// cleared at a restart, 2 still in the FIFO, 980 read; of those 4 in a crashed wake, 6 dropped at
 /// the replacement, 1 held, 969 handled; of those 7 did not fit, 950 processed, 2 queued, 10
 /// dropped with a replaced logic.
@@ -10,7 +11,8 @@ fn balanced() -> MonitorBooks {
         untracked: 0,
         in_trace: Some(1000),
         controller: ControllerCounters {
-            rx_missed: 10,
+            rx_missed: 8,
+            rx_errored: 2,
             rx_overruns: 5,
             rx_frames: 985,
             rx_cleared: 3,
@@ -44,6 +46,31 @@ fn balanced_books_sum_to_the_frames_on_the_bus_in_every_layer() {
     // Frames addressed to others (filtered) are nobody's loss.
     assert!(!b.reasons().iter().any(|(_, n)| *n == 123_456));
     assert!(b.table().starts_with("        1000  frames addressed to F5"));
+}
+
+#[test]
+fn a_frame_lost_to_an_error_only_the_monitor_flagged_is_a_reason() {
+    let b = balanced();
+    assert!(
+        b.reasons()
+            .contains(&("lost: an error only the monitor flagged (error passive)", 2))
+    );
+    // Without that counter the controller's identity no longer holds.
+    let mut b = balanced();
+    b.controller.rx_errored = 0;
+    let failed: Vec<&str> = b
+        .checks()
+        .into_iter()
+        .filter(|c| !c.holds())
+        .map(|c| c.what)
+        .collect();
+    assert_eq!(
+        failed,
+        [
+            "on the bus = accounted for",
+            "on the bus = own + missed + overrun + errored + stored (controller)"
+        ]
+    );
 }
 
 #[test]
