@@ -304,7 +304,7 @@ impl BitRate {
     pub const SLOWEST: u32 = 10_000;
 
     /// The rule [`BitRate::for_bus`] applies, in words, for error messages.
-    pub const RULE: &str = "a bit rate must be 10000 to 1000000 bit/s and divide 1000000000,         so that a bit lasts a whole number of nanoseconds (125000, 250000, 500000, 800000 and         1000000 do; 300000 does not)";
+    pub const RULE: &str = "a bit rate must be 10000 to 1000000 bit/s and divide 1000000000, so that a bit lasts a whole number of nanoseconds (125000, 250000, 500000, 800000 and 1000000 do; 300000 does not)";
 
     /// A rate the emulated bus runs at: [`BitRate::SLOWEST`] to 1 Mbit/s, with a whole-nanosecond
     /// bit time ([`BitRate::RULE`]).

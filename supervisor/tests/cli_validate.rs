@@ -89,7 +89,7 @@ fn a_bad_harvester_config_gives_exit_2_for_validate_and_run() {
             b1.display()
         ),
         format!(
-            "{}: node B\u{0}3: name: \"B\\03\" holds the control character '\\0'",
+            "{}: node B\\03: name: \"B\\03\" holds the control character '\\0'",
             dir.join("b3.ron").display()
         ),
     ];
@@ -102,6 +102,10 @@ fn a_bad_harvester_config_gives_exit_2_for_validate_and_run() {
         let err = String::from_utf8(out.stderr).unwrap();
         for e in &expected {
             assert!(err.contains(e.as_str()), "{args:?}: missing {e} in:\n{err}");
+        }
+        // A message reads as one line of words: no runs of blanks from a broken continuation.
+        for line in err.lines() {
+            assert!(!line.trim_start().contains("  "), "{args:?}: {line}");
         }
     }
 }

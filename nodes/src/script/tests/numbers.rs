@@ -112,8 +112,8 @@ fn control_characters_and_spaces_in_names_are_refused() {
     assert_eq!(
         problems,
         [
-            "test.ron: node B\u{0}1: name: \"B\\01\" holds the control character '\\0'",
-            "test.ron: node B\u{0}1: states[1].name: \"run\\nning\" holds the control character '\\n'",
+            "test.ron: node B\\01: name: \"B\\01\" holds the control character '\\0'",
+            "test.ron: node B\\01: states[1].name: \"run\\nning\" holds the control character '\\n'",
         ]
     );
     script = parse("test.ron", B1).unwrap();
