@@ -122,6 +122,8 @@ fn main() -> ExitCode {
             tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()),
         )
         .with_writer(std::io::stderr)
+        // Colours only for a terminal: a log file or a CI job's output gets plain text.
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .init();
     // Before anything else: a signal from here on stops a run in order, not the process; the
     // quick commands (and bench, which has no outputs to finish) keep the default.

@@ -106,3 +106,29 @@ fn seed_overrides_the_configs_seed() {
     let bad = harvemu(&["run", "--seed", "x"]);
     assert_eq!(bad.status.code(), Some(2));
 }
+
+/// Diagnostics (`RUST_LOG`) on a stderr that is not a terminal are plain text: a log file or a
+/// CI job's output gets no colour escape sequences (tracing's default wrote them everywhere).
+#[test]
+fn diagnostics_in_a_log_carry_no_escape_sequences() {
+    let out = Command::new(env!("CARGO_BIN_EXE_harvemu"))
+        .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
+        .args(["run", "--fast", "--for", "0.3s"])
+        .env("RUST_LOG", "trace")
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    assert!(
+        err.lines().any(|l| l.contains(" TRACE ")),
+        "no diagnostics at all"
+    );
+    assert!(
+        !err.contains('\u{1b}'),
+        "escape sequences in: {}",
+        &err[..err.len().min(500)]
+    );
+}
