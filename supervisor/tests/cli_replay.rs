@@ -326,3 +326,37 @@ fn onto_an_interface_only_the_trace_goes_unless_emulated_nodes_are_asked_for() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("--iface"), "{err}");
 }
+
+/// A real-time replay that is frozen (SIGSTOP) for 400 ms says so when it ends, as `run` does:
+/// bus time slipped instead of bursting, and the closing line counts the overrun. Lower bounds
+/// only: a loaded machine adds overruns, it cannot remove the freeze.
+#[test]
+fn a_frozen_real_time_replay_reports_its_overrun() {
+    let dir = common::scratch("cli-replay", "overrun");
+    let trace = dir.join("three.log");
+    let mut text = String::new();
+    for i in 0..30 {
+        text += &format!("({}.{:06}) harv0 0300A0F5#0101\n", i / 10, (i % 10) * 100_000);
+    }
+    std::fs::write(&trace, text).unwrap();
+    let child = common::spawn(&["replay", trace.to_str().unwrap(), "--for", "4s"]);
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    common::signal(&child, libc::SIGSTOP);
+    std::thread::sleep(std::time::Duration::from_millis(400));
+    common::signal(&child, libc::SIGCONT);
+    let out = common::finish_within(child, std::time::Duration::from_secs(60));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    let line = err
+        .lines()
+        .find(|l| l.starts_with("harvemu: real time: "))
+        .unwrap_or_else(|| panic!("no overrun line in:\n{err}"));
+    // "harvemu: real time: N overruns, bus time S s behind the wall clock (longest M ms)"
+    let longest: u64 = line
+        .rsplit("(longest ")
+        .next()
+        .and_then(|t| t.strip_suffix(" ms)"))
+        .and_then(|t| t.parse().ok())
+        .unwrap_or_else(|| panic!("cannot read: {line}"));
+    assert!(longest >= 300, "{line}");
+}

@@ -309,6 +309,9 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
             played.refused,
             schedule.passes_begun()
         );
+        if let Some(line) = crate::realtime::overruns_line(&snap) {
+            eprintln!("{line}");
+        }
         anyhow::Ok(Ended {
             expectations_failed: false,
             node_down: crate::run::report_down(&running),
