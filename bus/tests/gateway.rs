@@ -3,35 +3,15 @@
 mod common;
 
 use actix::prelude::*;
-use bus::engine::ControllerConfig;
 use bus::gateway::{Gateway, GatewayConfig};
-use bus::hub::{Attach, Hub, HubConfig, RunUntil, runtime};
-use bus::node::NodeActor;
+use bus::hub::{Hub, RunUntil, runtime};
 use bus::time::BusTime;
-use common::Periodic;
 use std::time::Duration;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::TcpStream;
 
 async fn bus_with_ticker(period_us: u64) -> (Addr<Hub>, Gateway) {
-    let hub = Hub::new(HubConfig::default(), None).unwrap().start();
-    let logic = Periodic::every_us("0601F5D0#200D0002FFBFFF00", period_us, 0);
-    let node = NodeActor::new("ticker", Box::new(logic)).start();
-    hub.send(Attach {
-        controller: ControllerConfig::named("ticker"),
-        node: Some(node.recipient()),
-        reaction: Duration::ZERO,
-    })
-    .await
-    .unwrap();
-    // Someone must acknowledge the gateway's and the ticker's frames.
-    hub.send(Attach {
-        controller: ControllerConfig::named("listener"),
-        node: None,
-        reaction: Duration::ZERO,
-    })
-    .await
-    .unwrap();
+    let hub = common::hub_with_ticker("0601F5D0#200D0002FFBFFF00", period_us).await;
     let gateway = Gateway::start(
         hub.clone(),
         "127.0.0.1:0".parse().unwrap(),
@@ -401,19 +381,7 @@ fn frames_of(messages: &[String], id: &str) -> Vec<(f64, String)> {
 #[test]
 fn bcm_mode_runs_on_the_bus_clock() {
     in_real_time(async {
-        let hub = Hub::new(HubConfig::default(), None).unwrap().start();
-        let ticker = NodeActor::new("ticker", Box::new(Periodic::every_us("0601F5D0#01", 10_000, 0))).start();
-        for (name, node) in [("ticker", Some(ticker.recipient())), ("listener", None)] {
-            let controller = ControllerConfig::named(name);
-            let reaction = Duration::ZERO;
-            hub.send(Attach {
-                controller,
-                node,
-                reaction,
-            })
-            .await
-            .unwrap();
-        }
+        let hub = common::hub_with_ticker("0601F5D0#01", 10_000).await;
         let gw = Gateway::start(
             hub.clone(),
             "127.0.0.1:0".parse().unwrap(),

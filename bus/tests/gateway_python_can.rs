@@ -11,12 +11,9 @@ mod common;
 use actix::prelude::*;
 use bus::Frame;
 use bus::candump::parse_frame;
-use bus::engine::ControllerConfig;
 use bus::gateway::{Gateway, GatewayConfig, GatewayStats};
-use bus::hub::{Attach, Hub, HubConfig, RunUntil, Subscribe, runtime};
-use bus::node::NodeActor;
+use bus::hub::{RunUntil, Subscribe, runtime};
 use bus::time::BusTime;
-use common::Periodic;
 use std::collections::HashMap;
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -215,19 +212,7 @@ impl Bench {
         let (f, s, st) = (frames.clone(), stats.clone(), stop.clone());
         let thread = std::thread::spawn(move || {
             System::with_tokio_rt(|| runtime(false).unwrap()).block_on(async move {
-                let hub = Hub::new(HubConfig::default(), None).unwrap().start();
-                let ticker = NodeActor::new("ticker", Box::new(Periodic::every_us(TICK, 10_000, 0))).start();
-                for (name, node) in [("ticker", Some(ticker.recipient())), ("listener", None)] {
-                    let controller = ControllerConfig::named(name);
-                    let reaction = Duration::ZERO;
-                    hub.send(Attach {
-                        controller,
-                        node,
-                        reaction,
-                    })
-                    .await
-                    .unwrap();
-                }
+                let hub = common::hub_with_ticker(TICK, 10_000).await;
                 let gw = Gateway::start(hub.clone(), "127.0.0.1:0".parse().unwrap(), config)
                     .await
                     .unwrap();

@@ -16,32 +16,18 @@ fn stderr(out: &std::process::Output) -> String {
 
 #[test]
 fn scenario_and_soak_report_a_trace_that_cannot_be_written() {
-    let out = harvemu(&[
-        "scenario",
-        "configs/scenarios/bit_error_once.ron",
-        "--record",
-        "/dev/full",
-    ]);
-    let err = stderr(&out);
-    assert_eq!(out.status.code(), Some(3), "{err}");
-    assert!(
-        err.contains("cannot write /dev/full: No space left on device"),
-        "{err}"
-    );
-    let out = harvemu(&[
-        "soak",
-        "configs/soak/soak_24h.ron",
-        "--hours",
-        "0.001",
-        "--record",
-        "/dev/full",
-    ]);
-    let err = stderr(&out);
-    assert_eq!(out.status.code(), Some(3), "{err}");
-    assert!(
-        err.contains("cannot write /dev/full: No space left on device"),
-        "{err}"
-    );
+    for args in [
+        vec!["scenario", "configs/scenarios/bit_error_once.ron"],
+        vec!["soak", "configs/soak/soak_24h.ron", "--hours", "0.001"],
+    ] {
+        let out = harvemu(&[&args[..], &["--record", "/dev/full"]].concat());
+        let err = stderr(&out);
+        assert_eq!(out.status.code(), Some(3), "{args:?}: {err}");
+        assert!(
+            err.contains("cannot write /dev/full: No space left on device"),
+            "{args:?}: {err}"
+        );
+    }
 }
 
 #[test]

@@ -1,9 +1,31 @@
-//! Node logics the hub's integration tests share.
+//! Node logics, and a small bus, that the hub's integration tests share.
 
+use actix::prelude::*;
 use bus::Frame;
 use bus::candump::parse_frame;
-use bus::node::NodeLogic;
+use bus::engine::ControllerConfig;
+use bus::hub::{Attach, Hub, HubConfig};
+use bus::node::{NodeActor, NodeLogic};
 use bus::time::BusTime;
+use std::time::Duration;
+
+/// A hub with a node `ticker` that sends `frame` every `period_us` from time 0, and a silent
+/// `listener` that acknowledges every frame. Must run inside an actor system.
+#[allow(dead_code)] // not every test file builds a bus
+pub async fn hub_with_ticker(frame: &str, period_us: u64) -> Addr<Hub> {
+    let hub = Hub::new(HubConfig::default(), None).unwrap().start();
+    let ticker = NodeActor::new("ticker", Box::new(Periodic::every_us(frame, period_us, 0))).start();
+    for (name, node) in [("ticker", Some(ticker.recipient())), ("listener", None)] {
+        hub.send(Attach {
+            controller: ControllerConfig::named(name),
+            node,
+            reaction: Duration::ZERO,
+        })
+        .await
+        .unwrap();
+    }
+    hub
+}
 
 /// Sends `frame` every `period` nanoseconds, the first time at `next`.
 pub struct Periodic {
