@@ -45,14 +45,19 @@ pub struct Line {
     pub frame: Frame,
 }
 
-/// Reads a candump log back (error frames are skipped).
+/// Where a virtual-time trace starts: 2024-01-01T00:00:00Z (54 years of 365 days and the 13 leap
+/// days 1972..=2020), in seconds since 1970.
+pub const VIRTUAL_EPOCH_S: u64 = (54 * 365 + 13) * 86_400;
+
+/// Reads a virtual-time candump log back (error frames are skipped), its times back to bus time.
 pub fn parse_trace(text: &str) -> Vec<Line> {
     text.lines()
         .filter_map(|l| {
             let (time, rest) = l.strip_prefix('(')?.split_once(") ")?;
             let (_iface, frame) = rest.split_once(' ')?;
             let (secs, micros) = time.split_once('.')?;
-            let at = BusTime(secs.parse::<u64>().ok()? * 1_000_000_000 + micros.parse::<u64>().ok()? * 1000);
+            let secs = secs.parse::<u64>().ok()?.checked_sub(VIRTUAL_EPOCH_S)?;
+            let at = BusTime(secs * 1_000_000_000 + micros.parse::<u64>().ok()? * 1000);
             // Error frames (CAN_ERR_FLAG in the identifier) are not frames: they fail to parse.
             let frame = bus::candump::parse_frame(frame).ok()?;
             Some(Line { at, frame })

@@ -34,7 +34,7 @@ use crate::engine::{
 use crate::fault::ErrorState;
 use crate::node::{Answer, ControllerEvent, Reply, Report, Wake};
 use crate::pacing::{Overruns, Pace, Pacer};
-use crate::time::BusTime;
+use crate::time::{BusTime, Epoch};
 use crate::{Error, Frame, trace};
 use actix::prelude::*;
 use std::io::Write;
@@ -57,18 +57,31 @@ pub struct HubConfig {
     /// When paced: how far bus time may fall behind its schedule before it slips instead of
     /// catching up ([`crate::pacing`]; [`crate::pacing::OVERRUN_THRESHOLD`] by default).
     pub overrun_threshold: Duration,
+    /// Where bus time zero lies on the wall clock in the trace's timestamps and the gateway's
+    /// frames ([`Epoch`]): by default the wall clock when the config is made if paced, else
+    /// [`Epoch::FIXED`]. Bus time itself starts at zero either way.
+    pub epoch: Epoch,
 }
 
 impl Default for HubConfig {
     fn default() -> Self {
+        let paced = !VIRTUAL_TIME.get();
         HubConfig {
             bus: BusConfig::default(),
             iface: "harv0".to_string(),
             slack: Duration::ZERO,
-            paced: !VIRTUAL_TIME.get(),
+            paced,
             overrun_threshold: crate::pacing::OVERRUN_THRESHOLD,
+            epoch: default_epoch(paced),
         }
     }
+}
+
+/// The epoch a hub takes when not given one: the wall clock now for a paced (real-time) hub, as
+/// `candump -l` stamps with the wall clock; [`Epoch::FIXED`] in virtual time, so that traces are
+/// reproducible.
+pub fn default_epoch(paced: bool) -> Epoch {
+    if paced { Epoch::now() } else { Epoch::FIXED }
 }
 
 struct Slot {
@@ -144,6 +157,7 @@ pub struct Handover {
 pub struct Hub {
     bus: Bus,
     iface: String,
+    epoch: Epoch,
     /// When bus time may be committed, and the overruns (paced hubs only).
     pacer: Pacer,
     paced: bool,
@@ -193,6 +207,7 @@ impl Hub {
         Ok(Hub {
             bus: Bus::new(config.bus)?,
             iface: config.iface,
+            epoch: config.epoch,
             pacer: Pacer::new(config.slack, config.overrun_threshold),
             paced: config.paced,
             slots: Vec::new(),
@@ -347,7 +362,7 @@ impl Hub {
                         .get(n.index())
                         .map_or("?", |c| c.config().name.as_str())
                 };
-                trace::event_line(&mut self.line, &self.iface, name, &event);
+                trace::event_line(&mut self.line, self.epoch, &self.iface, name, &event);
                 if !self.line.is_empty()
                     && let Err(e) = out.write_all(self.line.as_bytes())
                 {
@@ -783,6 +798,18 @@ impl Handler<Subscribe> for Hub {
     type Result = ();
     fn handle(&mut self, Subscribe(tx): Subscribe, _: &mut Context<Self>) {
         self.observers.push(Observer { tx, dropped: 0 });
+    }
+}
+
+/// Asks for the hub's [`Epoch`]: what a bus time is written as ([`Epoch::stamp`]).
+#[derive(Message)]
+#[rtype(result = "Epoch")]
+pub struct GetEpoch;
+
+impl Handler<GetEpoch> for Hub {
+    type Result = MessageResult<GetEpoch>;
+    fn handle(&mut self, _: GetEpoch, _: &mut Context<Self>) -> Self::Result {
+        MessageResult(self.epoch)
     }
 }
 

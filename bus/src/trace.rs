@@ -1,5 +1,8 @@
 //! The bus as a candump log: `(secs.usecs) harv0 0601F5D0#200D0002FFBFFF00`.
 //!
+//! Times are bus time stamped with an [`Epoch`] (seconds since 1970, as `candump -l` writes
+//! them); the line writers take the time to write, [`event_line`] stamps it itself.
+//!
 //! Error frames are written in SocketCAN's error-frame encoding (`include/uapi/linux/can/error.h`):
 //! the identifier is `CAN_ERR_FLAG` with class bits, the 8 data bytes carry the details. Frames
 //! are written on the bus's interface (`harv0`); everything one controller reports is written on
@@ -14,7 +17,7 @@ use crate::candump::write_frame;
 use crate::engine::{BusError, Event, NodeId};
 use crate::fault::ErrorState;
 use crate::filter::CAN_ERR_FLAG;
-use crate::time::BusTime;
+use crate::time::{BusTime, Epoch};
 use core::fmt::Write;
 
 /// Error classes (can_id bits) and data bytes of linux/can/error.h.
@@ -184,12 +187,18 @@ fn error_frame_text(out: &mut String, e: &ErrorFrame) {
     out.push('\n');
 }
 
-/// Appends the log line an engine event gives, if any: frames at their end-of-frame time on
-/// `iface`; a controller's error frames (bus errors at the first bit of its flag, overload flags,
+/// Appends the log line an engine event gives, if any, its time stamped with `epoch`: frames at
+/// their end-of-frame time on `iface`; a controller's error frames (bus errors at the first bit of its flag, overload flags,
 /// state changes, overruns) on `iface.NAME`, with `name` giving each controller's name.
-pub fn event_line<'a>(out: &mut String, iface: &str, name: impl Fn(NodeId) -> &'a str, event: &Event) {
+pub fn event_line<'a>(
+    out: &mut String,
+    epoch: Epoch,
+    iface: &str,
+    name: impl Fn(NodeId) -> &'a str,
+    event: &Event,
+) {
     match event {
-        Event::Frame { end, frame, .. } => frame_line(out, *end, iface, frame),
+        Event::Frame { end, frame, .. } => frame_line(out, epoch.stamp(*end), iface, frame),
         Event::BusError { node, at, .. }
         | Event::Overload { node, at }
         | Event::State { node, at, .. }
@@ -197,7 +206,7 @@ pub fn event_line<'a>(out: &mut String, iface: &str, name: impl Fn(NodeId) -> &'
         | Event::Restarted { node, at }
         | Event::Overrun { node, at } => {
             if let Some(e) = error_frame(event) {
-                let _ = write!(out, "({at}) {iface}.");
+                let _ = write!(out, "({}) {iface}.", epoch.stamp(*at));
                 // A name is one word on the line, as an interface name would be.
                 out.extend(
                     name(*node)
@@ -241,10 +250,14 @@ mod tests {
             rec: 0,
         };
         let mut out = String::new();
-        event_line(&mut out, "harv0", |_| "E0", &ack);
+        event_line(&mut out, Epoch::UNIX, "harv0", |_| "E0", &ack);
         // CAN_ERR_FLAG | PROT 0x8 | ACK 0x20 | BUSERROR 0x80 | CNT 0x200; data[2] TX, data[3] ACK
         // slot, data[6] TEC.
         assert_eq!(out, "(0.001000) harv0.E0 200002A8#0000801900000800\n");
+        out.clear();
+        // The same event a day after 1970 began: only the time moves.
+        event_line(&mut out, Epoch::from_secs(86_400), "harv0", |_| "E0", &ack);
+        assert_eq!(out, "(86400.001000) harv0.E0 200002A8#0000801900000800\n");
         // A receiver's stuff error in the data field, a CRC error, a form error in EOF.
         let seen = |error, location| {
             error_frame(&Event::BusError {

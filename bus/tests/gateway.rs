@@ -4,7 +4,7 @@ mod common;
 
 use actix::prelude::*;
 use bus::gateway::{Gateway, GatewayConfig};
-use bus::hub::{Hub, RunUntil, runtime};
+use bus::hub::{Hub, HubConfig, RunUntil, runtime};
 use bus::time::BusTime;
 use std::time::Duration;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
@@ -381,7 +381,12 @@ fn frames_of(messages: &[String], id: &str) -> Vec<(f64, String)> {
 #[test]
 fn bcm_mode_runs_on_the_bus_clock() {
     in_real_time(async {
-        let hub = common::hub_with_ticker("0601F5D0#01", 10_000).await;
+        // Frames are stamped with the hub's epoch: a million seconds after 1970 here.
+        let config = HubConfig {
+            epoch: bus::time::Epoch::from_secs(1_000_000),
+            ..HubConfig::default()
+        };
+        let hub = common::hub_with_ticker_at(config, "0601F5D0#01", 10_000).await;
         let gw = Gateway::start(
             hub.clone(),
             "127.0.0.1:0".parse().unwrap(),
@@ -434,7 +439,8 @@ fn bcm_mode_runs_on_the_bus_clock() {
         let cyclic = frames_of(&drain(&mut b).await, "123");
         assert_eq!(cyclic.len(), 20, "1100 to 1480 ms: {cyclic:?}");
         assert!(cyclic.iter().all(|(_, d)| d == "11 22 33"), "{cyclic:?}");
-        assert!((cyclic[0].0 - 1.1).abs() < 0.001, "{cyclic:?}");
+        // The first of them at 1.1 s of bus time, written as epoch + bus time.
+        assert!((cyclic[0].0 - 1_000_001.1).abs() < 0.001, "{cyclic:?}");
 
         // delete, and a content filter on byte 0 of 124.
         a.write(b"< delete 123 >< add 0 10000 124 2 1 0 >").await;

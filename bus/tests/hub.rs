@@ -71,6 +71,15 @@ async fn attach(
     .unwrap()
 }
 
+/// A virtual-time hub writes its trace from 2024-01-01T00:00:00Z: 54 years of 365 days and the
+/// 13 leap days 1972..=2020, in nanoseconds.
+const NEW_YEAR_2024_NS: u64 = (54 * 365 + 13) * 86_400 * 1_000_000_000;
+
+/// The time a virtual-time trace writes for bus time `ns`.
+fn stamp(ns: u64) -> BusTime {
+    BusTime(NEW_YEAR_2024_NS + ns)
+}
+
 fn lines(trace: &Shared) -> Vec<String> {
     String::from_utf8(trace.0.borrow().clone())
         .unwrap()
@@ -114,10 +123,10 @@ fn periodic_frames_start_exactly_on_their_deadlines() {
         // SOF at 250 us + k x 100 ms; the candump time is the end of frame.
         let sof = 250_000 + k * 100_000_000;
         let end = sof + (marker - 3) * 4000;
-        expected.push(format!("({}) harv0 0601F5D0#200D0002FFBFFF00", BusTime(end)));
+        expected.push(format!("({}) harv0 0601F5D0#200D0002FFBFFF00", stamp(end)));
         // The monitor answers at once (reaction 0): its reply starts when the bus is idle.
         let reply_end = sof + marker * 4000 + (ack - 3) * 4000;
-        expected.push(format!("({}) harv0 0601D0F5#210D01", BusTime(reply_end)));
+        expected.push(format!("({}) harv0 0601D0F5#210D01", stamp(reply_end)));
     }
     assert_eq!(lines(&trace), expected);
 }
@@ -151,8 +160,8 @@ fn reaction_time_delays_the_reply() {
     assert_eq!(
         lines(&trace),
         [
-            format!("({}) harv0 123#01", BusTime(eof)),
-            format!("({}) harv0 456#02", BusTime(reply_end))
+            format!("({}) harv0 123#01", stamp(eof)),
+            format!("({}) harv0 456#02", stamp(reply_end))
         ]
     );
 }
@@ -432,7 +441,7 @@ fn three_nodes_contend_and_win_in_identifier_order() {
             .unwrap()
             .unwrap();
     });
-    let at = |bits_before: u64, bits: u64| BusTime(1_000_000 + (bits_before + bits - 3) * 4000);
+    let at = |bits_before: u64, bits: u64| stamp(1_000_000 + (bits_before + bits - 3) * 4000);
     assert_eq!(
         lines(&trace),
         [

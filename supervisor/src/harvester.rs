@@ -57,6 +57,10 @@ pub struct Harvester {
     pub config: HarvesterConfig,
     /// The node scripts, in config order.
     pub scripts: Vec<NodeScript>,
+    /// Where bus time zero lies on the wall clock in the trace and the gateway's frames; `None`
+    /// for the hub's default (the wall clock in real time, [`bus::time::Epoch::FIXED`] in
+    /// virtual time). A command that writes the trace itself sets it, so that both agree.
+    pub epoch: Option<bus::time::Epoch>,
 }
 
 impl Harvester {
@@ -148,6 +152,7 @@ impl Harvester {
                 path: path.to_path_buf(),
                 config,
                 scripts,
+                epoch: None,
             })
         } else {
             Err(Error::Invalid(problems))
@@ -374,13 +379,16 @@ pub async fn start(h: &Harvester, trace: Option<Box<dyn Write>>) -> anyhow::Resu
 pub async fn begin(h: &Harvester, trace: Option<Box<dyn Write>>) -> anyhow::Result<Running> {
     let c = &h.config;
     let bitrate = BitRate::new(c.bitrate).ok_or_else(|| BadInput(format!("bit rate {}", c.bitrate)))?;
-    let hub_config = HubConfig {
+    let mut hub_config = HubConfig {
         bus: BusConfig {
             bitrate,
             seed: c.seed,
         },
         ..HubConfig::default()
     };
+    if let Some(epoch) = h.epoch {
+        hub_config.epoch = epoch;
+    }
     let hub = Hub::new(hub_config, trace)?.start();
     let plant: PlantHandle = Rc::new(RefCell::new(Plant::new(c.plant.clone(), c.seed)));
     let display: Option<DisplayHandle> = c.monitor.enabled.then(DisplayHandle::default);

@@ -7,16 +7,20 @@
 //! ([`crate::output`]: a regular file is replaced only by a complete trace, a stream ends on a
 //! whole line). The first write that fails stops the trace; `finish` reports it, naming the file.
 //! A file that cannot be created is an [`crate::OutputFailed`] naming it.
+//!
+//! Timestamps: the hub writes bus time stamped with the run's [`Epoch`] ([`epoch`] picks it:
+//! `--start-time`, else the wall clock at the start of a real-time run, else
+//! [`Epoch::FIXED`]); an ASC file is dated at that epoch and its times count from it.
 
 use crate::OutputFailed;
 use crate::output::{Output, failed};
 use crate::stop::Signal;
+use bus::time::Epoch;
 use bus::tracefile::AscWriter;
 use std::cell::RefCell;
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 use std::rc::Rc;
-use std::time::SystemTime;
 
 /// True when `path` names an ASC file.
 pub fn is_asc(path: &Path) -> bool {
@@ -89,12 +93,24 @@ pub struct Trace {
     state: Rc<RefCell<State>>,
 }
 
-/// Starts the trace file at `path`, in the format its name asks for: the hub's writer and the
-/// trace to finish.
-pub fn create(path: &Path) -> Result<(Box<dyn Write>, Trace), OutputFailed> {
+/// The epoch of a run: `start_time` when given (`--start-time`), else the wall clock now for a
+/// real-time (`paced`) run, as `candump -l` stamps frames, else [`Epoch::FIXED`], so that a
+/// virtual-time run's trace is the same bytes for the same seed.
+pub fn epoch(start_time: Option<Epoch>, paced: bool) -> Epoch {
+    start_time.unwrap_or_else(|| bus::hub::default_epoch(paced))
+}
+
+/// Reads `--start-time`: RFC 3339 (`2024-01-01T00:00:00Z`) or seconds since 1970.
+pub fn parse_start_time(text: &str) -> Result<Epoch, String> {
+    Epoch::parse(text)
+}
+
+/// Starts the trace file at `path`, in the format its name asks for, for a run whose trace is
+/// stamped with `epoch`: the hub's writer and the trace to finish.
+pub fn create(path: &Path, epoch: Epoch) -> Result<(Box<dyn Write>, Trace), OutputFailed> {
     let out = Shared(Rc::new(RefCell::new(Output::create(path)?)));
     let format = if is_asc(path) {
-        let asc = AscWriter::new(out.clone(), SystemTime::now()).map_err(|e| failed("write", path, &e))?;
+        let asc = AscWriter::new(out.clone(), epoch).map_err(|e| failed("write", path, &e))?;
         Format::Asc(asc)
     } else {
         Format::Log
@@ -115,10 +131,10 @@ pub fn create(path: &Path) -> Result<(Box<dyn Write>, Trace), OutputFailed> {
 pub type Recording = (Option<Box<dyn Write>>, Option<Trace>);
 
 /// [`create`] for an optional `--record`.
-pub fn create_opt(path: Option<&PathBuf>) -> Result<Recording, OutputFailed> {
+pub fn create_opt(path: Option<&PathBuf>, epoch: Epoch) -> Result<Recording, OutputFailed> {
     match path {
         Some(p) => {
-            let (w, t) = create(p)?;
+            let (w, t) = create(p, epoch)?;
             Ok((Some(w), Some(t)))
         }
         None => Ok((None, None)),
@@ -184,7 +200,7 @@ mod tests {
         let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("t.asc");
-        let (mut feed, trace) = create(&path).unwrap();
+        let (mut feed, trace) = create(&path, Epoch::UNIX).unwrap();
         feed.write_all(b"(0000000001.000100) harv0 0601F5D0#200D0002FFBFFF00\n")
             .unwrap();
         assert!(!path.exists(), "not there before it is complete");

@@ -32,6 +32,11 @@ pub struct ScenarioArgs {
     /// when expectations fail or the run is interrupted).
     #[arg(long, value_name = "FILE")]
     report: Option<PathBuf>,
+    /// Where bus time zero lies in the trace's timestamps: RFC 3339 (2024-01-01T00:00:00Z) or
+    /// seconds since 1970. Default: 2024-01-01T00:00:00Z (virtual time: a seed gives the same
+    /// trace).
+    #[arg(long, value_name = "TIME", value_parser = crate::record::parse_start_time)]
+    start_time: Option<bus::time::Epoch>,
 }
 
 /// Runs `harvemu scenario`: exit code 0 only when every expectation of every scenario passed.
@@ -41,9 +46,13 @@ pub fn run(args: &ScenarioArgs) -> anyhow::Result<Ended> {
     // Load everything first: a bad file stops the whole batch before anything runs.
     let mut loaded = Vec::new();
     let mut problems = Vec::new();
+    let epoch = crate::record::epoch(args.start_time, false);
     for f in &args.files {
         match scenario::load(f, args.seed) {
-            Ok(l) => loaded.push(l),
+            Ok(mut l) => {
+                l.harvester.epoch = Some(epoch);
+                loaded.push(l)
+            }
             Err(Error::Invalid(p)) => problems.extend(p),
             Err(e) => return Err(harvester::bad(e)),
         }
@@ -159,7 +168,8 @@ fn write(mut out: Output, bytes: &[u8]) -> anyhow::Result<()> {
 }
 
 fn run_one(l: &Loaded, record: Option<&PathBuf>) -> anyhow::Result<scenario::Outcome> {
-    let (trace, recording) = crate::record::create_opt(record)?;
+    let epoch = l.harvester.epoch.unwrap_or(bus::time::Epoch::FIXED);
+    let (trace, recording) = crate::record::create_opt(record, epoch)?;
     let bar = ProgressBar::new(l.scenario.duration_s.ceil() as u64);
     bar.set_style(
         ProgressStyle::with_template("{msg:30} {bar:30} {pos}/{len} s virtual time")

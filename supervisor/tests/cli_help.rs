@@ -11,8 +11,9 @@ const SUBCOMMANDS: [&str; 9] = [
 ];
 
 /// Every placeholder a help may use: files are `<FILE>`, durations `<DURATION>`, counts `<N>`.
-const PLACEHOLDERS: [&str; 12] = [
+const PLACEHOLDERS: [&str; 13] = [
     "<FILE>",
+    "<TIME>",
     "<DURATION>",
     "<N>",
     "<N,...>",

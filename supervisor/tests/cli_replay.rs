@@ -151,7 +151,10 @@ fn an_asc_recording_holds_the_same_frames_as_a_candump_recording() {
     ok(harvemu(&["run", "--fast", "--for", "6s", "--record", &asc]));
     let text = std::fs::read_to_string(&asc).unwrap();
     let all: Vec<&str> = text.lines().collect();
-    assert!(all[0].starts_with("date "), "{}", all[0]);
+    // The date header is the run's epoch, 2024-01-01T00:00:00Z in virtual time, and the ASC's
+    // times count from it, while the candump log carries seconds since 1970.
+    assert_eq!(all[0], "date Mon Jan 01 12:00:00.000 am 2024");
+    const EPOCH_US: u64 = 1_704_067_200_000_000;
     assert_eq!(all[1], "base hex  timestamps absolute");
     assert_eq!(*all.last().unwrap(), "End TriggerBlock");
     // Frame lines, read here: "   0.551520 1  0200F5E0x       Rx   d 7 10 78 00 F4 01 00 00".
@@ -164,7 +167,7 @@ fn an_asc_recording_holds_the_same_frames_as_a_candump_recording() {
             let id = f[2].trim_end_matches('x').to_string();
             let data: String = f[6..].concat();
             (
-                secs.parse::<u64>().unwrap() * 1_000_000 + us.parse::<u64>().unwrap(),
+                EPOCH_US + secs.parse::<u64>().unwrap() * 1_000_000 + us.parse::<u64>().unwrap(),
                 id,
                 data,
             )

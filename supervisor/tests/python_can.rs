@@ -13,7 +13,8 @@ use std::process::Command;
 const DUMP: &str = r#"
 import json, sys, can
 path = sys.argv[1]
-reader = can.ASCReader(path) if path.endswith(".asc") else can.CanutilsLogReader(path)
+# ASC times count from the header's date: read absolute, they must be the candump log's times.
+reader = can.ASCReader(path, relative_timestamp=False) if path.endswith(".asc") else can.CanutilsLogReader(path)
 for m in reader:
     print(json.dumps({
         "t_us": round(m.timestamp * 1e6), "error": m.is_error_frame,
@@ -73,6 +74,8 @@ fn require_python_can() {
 
 fn python(script: &str, arg: &Path) -> Vec<Value> {
     let out = Command::new(interpreter())
+        // ASC dates are UTC; python-can reads and writes them in local time.
+        .env("TZ", "UTC")
         .args(["-c", script])
         .arg(arg)
         .output()
@@ -147,7 +150,7 @@ fn python_can_reads_error_frames_and_remote_frames_harvemu_writes() {
     {
         use std::io::Write;
         let file = std::fs::File::create(&asc_path).unwrap();
-        let mut w = bus::tracefile::AscWriter::new(file, std::time::SystemTime::now()).unwrap();
+        let mut w = bus::tracefile::AscWriter::new(file, bus::time::Epoch::UNIX).unwrap();
         w.write_all(log.as_bytes()).unwrap();
         w.finish().unwrap();
     }

@@ -11,7 +11,8 @@
 //! a raw-mode client never sees its own frames echoed (as with a raw socket); when `accept` fails
 //! (out of file descriptors) the gateway backs off and logs at a bounded rate, and the clients
 //! already connected are served on. A server bound to a loopback address announces itself with
-//! socketcand's discovery beacon, to that address only.
+//! socketcand's discovery beacon, to that address only. Frames carry the bus time at their end
+//! stamped with the hub's [`crate::time::Epoch`] (seconds since 1970, as the trace writes them).
 
 mod backoff;
 mod bcm;

@@ -338,8 +338,9 @@ fn id_text(s: &mut String, id: Id) {
     };
 }
 
-/// `< frame ID SECS.USECS DATA >` for a frame that ended at `at`, as socketcand writes it in raw
-/// mode: DATA contiguous upper-case hex.
+/// `< frame ID SECS.USECS DATA >` for a frame that ended at `at` (bus time already stamped with
+/// the hub's [`crate::time::Epoch`], as socketcand gives the kernel's wall-clock time), as
+/// socketcand writes it in raw mode: DATA contiguous upper-case hex.
 pub fn frame_message(at: BusTime, frame: &Frame) -> String {
     let mut s = String::with_capacity(48);
     s.push_str("< frame ");

@@ -6,9 +6,9 @@ use super::bcm::Bcm;
 use super::beacon;
 use super::protocol::{self, Action, Command, Malformed, Mode, Session, Splitter};
 use crate::engine::{ControllerConfig, Filter, NodeId};
-use crate::hub::{Attach, Control, Hub, Observed, Submit, Subscribe};
+use crate::hub::{Attach, Control, GetEpoch, Hub, Observed, Submit, Subscribe};
 use crate::node::{Report, Wake};
-use crate::time::BusTime;
+use crate::time::{BusTime, Epoch};
 use crate::{Error, Frame};
 use actix::prelude::*;
 use std::cell::RefCell;
@@ -136,6 +136,8 @@ struct Shared {
     armed: Option<BusTime>,
     /// The hub was asked for a wake that has not come yet.
     poked: bool,
+    /// The hub's epoch: frames go out with their bus time stamped with it, as the trace has them.
+    epoch: Epoch,
 }
 
 impl Shared {
@@ -178,6 +180,10 @@ impl Gateway {
             .await
             .map_err(|e| Error::Syntax(format!("cannot listen on {bind}: {e}")))?;
         let addr = listener.local_addr().map_err(|e| Error::Syntax(e.to_string()))?;
+        let epoch = hub
+            .send(GetEpoch)
+            .await
+            .map_err(|e| Error::Syntax(e.to_string()))?;
         let shared = Rc::new(RefCell::new(Shared {
             clients: Vec::new(),
             in_flight: VecDeque::new(),
@@ -187,6 +193,7 @@ impl Gateway {
             node: None,
             armed: None,
             poked: false,
+            epoch,
         }));
         let timers = Timers {
             shared: shared.clone(),
@@ -252,6 +259,7 @@ impl Handler<Wake> for Timers {
         let mut deliver = Vec::new();
         let mut next: Option<BusTime> = None;
         let mut dropped = 0;
+        let epoch = sh.epoch;
         for c in &mut sh.clients {
             let first = transmit.len();
             c.bcm.run(now, &mut transmit, &mut deliver);
@@ -259,7 +267,7 @@ impl Handler<Wake> for Timers {
                 sh.in_flight.push_back((c.id, *f));
             }
             for (at, f) in deliver.drain(..) {
-                dropped += u64::from(!c.queue(protocol::bcm_frame_message(at, &f)));
+                dropped += u64::from(!c.queue(protocol::bcm_frame_message(epoch.stamp(at), &f)));
             }
             next = [next, c.bcm.deadline()].into_iter().flatten().min();
         }
@@ -293,11 +301,12 @@ async fn distribute(mut rx: mpsc::Receiver<Observed>, gateway: NodeId, shared: R
         let mut raw_line = None;
         let mut dropped = 0;
         let mut timer: Option<BusTime> = None;
+        let epoch = sh.epoch;
         for c in &mut sh.clients {
             let line = match c.mode {
                 // A raw client does not get its own frames back, as with a raw CAN socket.
                 Some(Mode::Raw) if Some(c.id) != origin => raw_line
-                    .get_or_insert_with(|| protocol::frame_message(o.at, &o.frame))
+                    .get_or_insert_with(|| protocol::frame_message(epoch.stamp(o.at), &o.frame))
                     .clone(),
                 // A BCM client gets the frames it subscribed to, its own included, as the
                 // kernel's broadcast manager delivers them.
@@ -305,7 +314,7 @@ async fn distribute(mut rx: mpsc::Receiver<Observed>, gateway: NodeId, shared: R
                     let (now, started) = c.bcm.frame(o.at, &o.frame);
                     timer = [timer, started].into_iter().flatten().min();
                     match now {
-                        Some((at, f)) => protocol::bcm_frame_message(at, &f),
+                        Some((at, f)) => protocol::bcm_frame_message(epoch.stamp(at), &f),
                         None => continue,
                     }
                 }

@@ -5,7 +5,7 @@
 //! hub, the harvester assembly and every caller stay unaware of the format, and both formats come
 //! from the same events.
 //!
-//! Contract: the header is written on creation, each candump line becomes one ASC line (frames,
+//! Contract: the header, dated at the measurement's epoch, is written on creation, each candump line becomes one ASC line (frames,
 //! and `ErrorFrame` for SocketCAN error frames, whose class bits ASC cannot carry), `flush`
 //! flushes the file, and the end of the measurement is written by [`AscWriter::finish`] or, at
 //! the latest, when the writer is dropped (an interrupted run still gives a complete file). A line
@@ -14,8 +14,8 @@
 use super::Entry;
 use super::asc;
 use super::candump_log::parse_line;
+use crate::time::Epoch;
 use std::io::{self, Write};
-use std::time::SystemTime;
 
 /// Writes ASC to `W` from candump log lines.
 pub struct AscWriter<W: Write> {
@@ -23,19 +23,23 @@ pub struct AscWriter<W: Write> {
     pending: Vec<u8>,
     out: String,
     finished: bool,
+    epoch: Epoch,
 }
 
 impl<W: Write> AscWriter<W> {
-    /// Starts a measurement that began at `start` (wall clock) and writes its header.
-    pub fn new(mut inner: W, start: SystemTime) -> io::Result<AscWriter<W>> {
+    /// Starts a measurement that began at `epoch` and writes its header, dated `epoch`. The
+    /// candump lines fed to it carry times stamped with the same epoch (as the hub writes them);
+    /// ASC times are relative to the start, so each is written less the epoch.
+    pub fn new(mut inner: W, epoch: Epoch) -> io::Result<AscWriter<W>> {
         let mut out = String::with_capacity(256);
-        asc::header(&mut out, start);
+        asc::header(&mut out, epoch.system_time());
         inner.write_all(out.as_bytes())?;
         Ok(AscWriter {
             inner,
             pending: Vec::with_capacity(256),
             out,
             finished: false,
+            epoch,
         })
     }
 
@@ -58,6 +62,7 @@ impl<W: Write> AscWriter<W> {
             return Ok(());
         }
         let (at, entry) = parse_line(text).map_err(invalid)?;
+        let at = self.epoch.unstamp(at);
         self.out.clear();
         match entry {
             Entry::Frame(frame) => asc::frame_line(&mut self.out, at, 1, &frame),

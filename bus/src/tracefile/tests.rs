@@ -301,7 +301,7 @@ fn asc_header_and_lines() {
 fn the_asc_writer_converts_candump_lines_and_ends_the_file_when_dropped() {
     let mut file = Vec::new();
     {
-        let mut w = AscWriter::new(&mut file, UNIX_EPOCH).unwrap();
+        let mut w = AscWriter::new(&mut file, crate::time::Epoch::UNIX).unwrap();
         // Lines may arrive in pieces.
         w.write_all(b"(0.500000) harv0 0300A0F5#01").unwrap();
         w.write_all(b"01\n(0.600000) harv0 200002A8#0000801900000800\n")
@@ -314,6 +314,28 @@ fn the_asc_writer_converts_candump_lines_and_ends_the_file_when_dropped() {
         "   0.500000 1  0300A0F5x       Rx   d 2 01 01\n   0.600000 1  ErrorFrame\nEnd TriggerBlock\n"
     ));
     assert_eq!(text.matches("End TriggerBlock").count(), 1);
+}
+
+#[test]
+fn the_asc_writer_dates_its_header_at_the_epoch_and_writes_times_from_it() {
+    // 2024-01-01T00:00:00Z was a Monday; a line at the epoch plus 1.25 s is 1.25 s into the
+    // measurement.
+    let epoch = crate::time::Epoch::from_secs(1_704_067_200);
+    let mut file = Vec::new();
+    {
+        let mut w = AscWriter::new(&mut file, epoch).unwrap();
+        w.write_all(b"(1704067201.250000) harv0 123#01\n").unwrap();
+        w.finish().unwrap();
+    }
+    let text = String::from_utf8(file).unwrap();
+    assert!(
+        text.starts_with("date Mon Jan 01 12:00:00.000 am 2024\n"),
+        "{text}"
+    );
+    assert!(
+        text.contains("\n   1.250000 1  123             Rx   d 1 01\n"),
+        "{text}"
+    );
 }
 
 use std::io::Write;
@@ -366,7 +388,7 @@ proptest! {
         }
         let mut asc = Vec::new();
         {
-            let mut w = AscWriter::new(&mut asc, UNIX_EPOCH).unwrap();
+            let mut w = AscWriter::new(&mut asc, crate::time::Epoch::UNIX).unwrap();
             w.write_all(candump.as_bytes()).unwrap();
             w.finish().unwrap();
         }

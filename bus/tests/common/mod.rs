@@ -13,7 +13,13 @@ use std::time::Duration;
 /// `listener` that acknowledges every frame. Must run inside an actor system.
 #[allow(dead_code)] // not every test file builds a bus
 pub async fn hub_with_ticker(frame: &str, period_us: u64) -> Addr<Hub> {
-    let hub = Hub::new(HubConfig::default(), None).unwrap().start();
+    hub_with_ticker_at(HubConfig::default(), frame, period_us).await
+}
+
+/// The same bus, built from `config` (its epoch, say).
+#[allow(dead_code)] // not every test file builds a bus
+pub async fn hub_with_ticker_at(config: HubConfig, frame: &str, period_us: u64) -> Addr<Hub> {
+    let hub = Hub::new(config, None).unwrap().start();
     let ticker = NodeActor::new("ticker", Box::new(Periodic::every_us(frame, period_us, 0))).start();
     for (name, node) in [("ticker", Some(ticker.recipient())), ("listener", None)] {
         hub.send(Attach {

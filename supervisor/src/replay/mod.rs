@@ -65,6 +65,12 @@ pub struct Args {
     /// Record the resulting bus: Vector ASC when the name ends in .asc, else a candump log.
     #[arg(long, value_name = "FILE")]
     record: Option<PathBuf>,
+    /// Where bus time zero lies in the recorded trace's timestamps: RFC 3339
+    /// (2024-01-01T00:00:00Z) or seconds since 1970. Default: the wall clock at the start in
+    /// real time, 2024-01-01T00:00:00Z with --fast. The trace replayed plays from its first
+    /// record whatever its times.
+    #[arg(long, value_name = "TIME", value_parser = crate::record::parse_start_time)]
+    start_time: Option<bus::time::Epoch>,
     /// Bridge the bus to this SocketCAN interface. Real time only. Only the trace's frames go
     /// out on it, unless --with-emulated is given.
     #[arg(long, value_name = "IFACE")]
@@ -238,7 +244,9 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
     }
     let mut schedule = Schedule::new(survey, skip, passes, source(&args.file));
     let counts = schedule.counts();
-    let (trace, recording) = crate::record::create_opt(args.record.as_ref())?;
+    let epoch = crate::record::epoch(args.start_time, !args.fast);
+    h.epoch = Some(epoch);
+    let (trace, recording) = crate::record::create_opt(args.record.as_ref(), epoch)?;
     eprintln!(
         "harvemu: replaying {} ({} records, {} to send per pass) onto {} from {}, {}",
         args.file.display(),

@@ -56,6 +56,11 @@ pub struct Args {
     /// CAP_IPC_LOCK; without them a warning says so and the run goes on. Real time only.
     #[arg(long)]
     realtime: bool,
+    /// Where bus time zero lies in the trace's timestamps and the socketcand frames: RFC 3339
+    /// (2024-01-01T00:00:00Z) or seconds since 1970. Default: the wall clock at the start in
+    /// real time, 2024-01-01T00:00:00Z with --fast (so a seed gives the same trace).
+    #[arg(long, value_name = "TIME", value_parser = crate::record::parse_start_time)]
+    start_time: Option<bus::time::Epoch>,
 }
 
 /// Parses `120s`, `10m`, `1h`, `500ms` or a plain number of seconds.
@@ -110,7 +115,9 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
     if args.fast && args.duration.is_none() {
         return Err(BadInput("--fast needs --for: virtual time would otherwise run for ever".into()).into());
     }
-    let (trace, recording) = crate::record::create_opt(args.record.as_ref())?;
+    let epoch = crate::record::epoch(args.start_time, !args.fast);
+    h.epoch = Some(epoch);
+    let (trace, recording) = crate::record::create_opt(args.record.as_ref(), epoch)?;
     let end = args.duration.map(BusTime::from_duration);
     eprintln!(
         "harvemu: {} ({} nodes) from {}, seed {}, {}",

@@ -32,6 +32,11 @@ pub struct Args {
     /// Write the trace here: Vector ASC when the name ends in .asc, else a candump log.
     #[arg(long, value_name = "FILE")]
     record: Option<PathBuf>,
+    /// Where bus time zero lies in the trace's timestamps: RFC 3339 (2024-01-01T00:00:00Z) or
+    /// seconds since 1970. Default: 2024-01-01T00:00:00Z (virtual time: a seed gives the same
+    /// trace).
+    #[arg(long, value_name = "TIME", value_parser = crate::record::parse_start_time)]
+    start_time: Option<bus::time::Epoch>,
 }
 
 /// Runs `harvemu soak`: expectations failed unless every expectation passed and memory stayed
@@ -43,8 +48,10 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
         None => None,
     };
     let before = memory::vm_rss_kib();
-    let loaded = scenario::load_with(&args.scenario, args.seed, duration).map_err(harvester::bad)?;
-    let (trace, recording) = crate::record::create_opt(args.record.as_ref())?;
+    let mut loaded = scenario::load_with(&args.scenario, args.seed, duration).map_err(harvester::bad)?;
+    let epoch = crate::record::epoch(args.start_time, false);
+    loaded.harvester.epoch = Some(epoch);
+    let (trace, recording) = crate::record::create_opt(args.record.as_ref(), epoch)?;
     let s = &loaded.scenario;
     let mut rss = memory::Samples {
         duration_s: s.duration_s,
