@@ -189,3 +189,152 @@ fn python_can_dates_the_converted_files_at_the_epoch() {
     assert!(got.contains(" 2030\n"), "{got}");
     assert!(got.contains("blf 2030-06-15\n"), "{got}");
 }
+
+/// `harvemu` without the `--record` that [`harvemu`] adds, for commands that are expected to
+/// succeed and record elsewhere.
+fn harvemu_plain(args: &[&str]) -> Output {
+    let out = Command::new(env!("CARGO_BIN_EXE_harvemu"))
+        .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    out
+}
+
+#[test]
+fn scenario_and_soak_take_a_start_time() {
+    let d = dir();
+    // 2030-06-15T12:00:00Z, counted as in the test above.
+    let june_2030 = NEW_YEAR_2024 + (366 + 5 * 365 + 1 + 151 + 14) * 86_400 + 12 * 3_600;
+    let shift = (june_2030 - NEW_YEAR_2024) * 1_000_000;
+    let runs: [(&str, &[&str]); 2] = [
+        (
+            "scenario",
+            &["scenario", "configs/scenarios/crash.ron", "--seed", "5"],
+        ),
+        ("soak", &["soak", "--hours", "0.002", "--seed", "5"]),
+    ];
+    for (name, args) in runs {
+        let (fixed, moved) = (
+            d.join(format!("{name}-fixed.log")),
+            d.join(format!("{name}-moved.log")),
+        );
+        let (f, m) = (fixed.to_str().unwrap(), moved.to_str().unwrap());
+        harvemu_plain(&[args, &["--record", f]].concat());
+        harvemu_plain(&[args, &["--record", m, "--start-time", "2030-06-15T12:00:00Z"]].concat());
+        let (fixed, moved) = (
+            std::fs::read_to_string(&fixed).unwrap(),
+            std::fs::read_to_string(&moved).unwrap(),
+        );
+        let first = first_stamp_us(&fixed);
+        assert!(
+            (NEW_YEAR_2024 * 1_000_000..(NEW_YEAR_2024 + 2) * 1_000_000).contains(&first),
+            "{name}: first stamp {first} µs"
+        );
+        assert_eq!(first_stamp_us(&moved), first + shift, "{name}");
+        assert_eq!(moved.lines().count(), fixed.lines().count(), "{name}");
+    }
+}
+
+/// can-utils' `log2asc` reads a candump log and writes an ASC file. With times that started at
+/// zero it wrote its date header again and again; with dates it writes one, at the first frame,
+/// and times relative to it.
+#[test]
+fn can_utils_log2asc_writes_one_date_and_the_log_s_times() {
+    let d = dir();
+    let log = d.join("log2asc.log");
+    harvemu(&["run", "--fast", "--for", "2s", "--seed", "7"], &log);
+    let out = Command::new("log2asc")
+        .env("TZ", "UTC")
+        .arg("-I")
+        .arg(&log)
+        .arg("harv0")
+        .output()
+        .expect("log2asc from can-utils is needed (scripts/test installs it)");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let asc = String::from_utf8(out.stdout).unwrap();
+    let dates: Vec<&str> = asc.lines().filter(|l| l.starts_with("date ")).collect();
+    assert_eq!(dates, ["date Mon Jan  1 00:00:00 2024"], "{}", &asc[..200]);
+    // Frame lines: "   0.008888 1  400F5C0x        Rx   d 4 30 00 AC 0D".
+    let asc_times: Vec<u64> = asc
+        .lines()
+        .filter(|l| l.contains(" Rx "))
+        .map(|l| {
+            let (s, us) = l.split_whitespace().next().unwrap().split_once('.').unwrap();
+            s.parse::<u64>().unwrap() * 1_000_000 + us.parse::<u64>().unwrap()
+        })
+        .collect();
+    let text = std::fs::read_to_string(&log).unwrap();
+    let first = first_stamp_us(&text);
+    let log_times: Vec<u64> = text.lines().map(|l| first_stamp_us(l) - first).collect();
+    assert_eq!(
+        asc_times, log_times,
+        "log2asc's times are the log's, from its first frame"
+    );
+}
+
+/// Prints the first frame's timestamp as python-can's socketcand interface gives it, and the
+/// wall clock then.
+const SOCKETCAND_STAMP: &str = r#"
+import sys, time, can
+host, port = sys.argv[1].rsplit(":", 1)
+bus = can.Bus(interface="socketcand", channel="harv0", host=host, port=int(port))
+m = bus.recv(5)
+print(m.timestamp if m else "none", time.time())
+bus.shutdown()
+"#;
+
+/// The first socketcand frame's stamp and the wall clock then, in seconds, read by python-can
+/// from `harvemu run --socketcand` with `extra` arguments.
+fn socketcand_stamp(extra: &[&str]) -> (f64, f64) {
+    use std::io::BufRead;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_harvemu"))
+        .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
+        .args(["run", "--for", "10s", "--socketcand", "127.0.0.1:0"])
+        .args(extra)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut lines = std::io::BufReader::new(child.stderr.take().unwrap()).lines();
+    let addr = lines
+        .by_ref()
+        .map_while(Result::ok)
+        .find_map(|l| {
+            l.strip_prefix("harvemu: socketcand gateway on ")
+                .and_then(|rest| rest.split(',').next())
+                .map(str::to_string)
+        })
+        .expect("the gateway's address on stderr");
+    std::thread::spawn(move || lines.for_each(drop));
+    let python = std::env::var_os("HARVEMU_PYTHON").map_or_else(|| "python3".into(), PathBuf::from);
+    let out = Command::new(python)
+        .args(["-c", SOCKETCAND_STAMP, &addr])
+        .output()
+        .unwrap();
+    let _ = child.kill();
+    let _ = child.wait();
+    assert!(
+        out.status.success(),
+        "python-can is needed (HARVEMU_PYTHON): {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8(out.stdout).unwrap();
+    let mut words = text.split_whitespace().map(|w| w.parse::<f64>().expect(&text));
+    (words.next().unwrap(), words.next().unwrap())
+}
+
+#[test]
+fn socketcand_frames_carry_the_wall_clock_or_the_start_time() {
+    let (stamp, now) = socketcand_stamp(&[]);
+    assert!(
+        stamp <= now && now - stamp < 5.0,
+        "stamp {stamp} s, wall clock {now} s"
+    );
+    let (stamp, _) = socketcand_stamp(&["--start-time", "2030-06-15T12:00:00Z"]);
+    let june_2030 = (NEW_YEAR_2024 + (366 + 5 * 365 + 1 + 151 + 14) * 86_400 + 12 * 3_600) as f64;
+    assert!(
+        (june_2030..june_2030 + 5.0).contains(&stamp),
+        "stamp {stamp} s, start {june_2030} s"
+    );
+}
