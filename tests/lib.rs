@@ -4,8 +4,8 @@
 
 use actix::prelude::*;
 use bus::Frame;
-use bus::hub::{GetSnapshot, RunUntil, Snapshot, runtime};
 use bus::time::BusTime;
+use bus_runtime::hub::{GetSnapshot, RunUntil, Snapshot, runtime};
 use std::cell::RefCell;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -97,9 +97,9 @@ pub fn run_virtual<T: 'static>(
 /// controls, submit frames); returns the trace, decoded through the catalogue, as (time, message)
 /// for `node`.
 pub fn traffic_of(
-    node: bus::ident::Address,
+    node: protocol::ident::Address,
     script: impl AsyncFnOnce(&Running),
-) -> Vec<(BusTime, bus::catalogue::Decoded)> {
+) -> Vec<(BusTime, protocol::catalogue::Decoded)> {
     let trace = Shared::default();
     let t = trace.clone();
     System::with_tokio_rt(|| runtime(true).expect("runtime")).block_on(async move {
@@ -111,7 +111,12 @@ pub fn traffic_of(
     let text = String::from_utf8(trace.0.take()).expect("utf-8 trace");
     parse_trace(&text)
         .iter()
-        .filter_map(|l| bus::catalogue::decode(&l.frame).ok().flatten().map(|d| (l.at, d)))
+        .filter_map(|l| {
+            protocol::catalogue::decode(&l.frame)
+                .ok()
+                .flatten()
+                .map(|d| (l.at, d))
+        })
         .filter(|(_, d)| d.node == node)
         .collect()
 }

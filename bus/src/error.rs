@@ -17,12 +17,6 @@ pub enum Error {
         /// 11 for a base frame, 29 for an extended frame.
         bits: u8,
     },
-    /// The harvester identifier's priority field is 5 bits wide.
-    #[error("priority {0} is out of range 0..=31")]
-    BadPriority(u8),
-    /// The harvester protocol uses only extended identifiers.
-    #[error("the harvester protocol uses 29-bit identifiers; 0x{0:03X} is a base identifier")]
-    NotExtended(u16),
     /// Text in the `ID#DATA` notation could not be read.
     #[error("{0}")]
     Syntax(String),
@@ -31,14 +25,6 @@ pub enum Error {
     TraceLine {
         /// 1-based line number.
         line: usize,
-        /// What is wrong.
-        reason: String,
-    },
-    /// A payload does not match the catalogue's layout for its message.
-    #[error("message {message}: {reason}")]
-    Payload {
-        /// Catalogue name of the message.
-        message: &'static str,
         /// What is wrong.
         reason: String,
     },

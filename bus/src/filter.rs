@@ -468,7 +468,6 @@ pub fn canidt_bytes(id: Id, remote: bool) -> [u8; 4] {
 mod tests {
     use super::*;
     use crate::frame::{extended_id, standard_id};
-    use crate::ident::{Address, AppId, FrameType, Priority};
     use proptest::prelude::*;
 
     fn ext(raw: u32) -> Id {
@@ -487,16 +486,20 @@ mod tests {
         Sja1000Filter { mode, acr, amr }
     }
 
-    /// Every identifier the harvester can produce: priority 0..31, frame type 0..1, and each of
-    /// the 21 addresses as source and as destination.
+    /// Every identifier the harvester can produce: priority 0..31 (bits 28..24), frame type 0..1
+    /// (bits 23..16), and each of its 21 node addresses as destination (bits 15..8) and source
+    /// (bits 7..0). The layout is written out here, apart from the protocol crate's codec.
     fn harvester_ids() -> Vec<u32> {
+        const ADDRESSES: [u32; 21] = [
+            0xF5, 0xD0, 0xD1, 0xD2, 0xD3, 0xD4, 0xD5, 0xA0, 0xB0, 0xB1, 0xB2, 0xB3, 0xB4, 0xB5, 0xB6, 0xB7,
+            0xC0, 0xC1, 0xC2, 0xC3, 0xE0,
+        ];
         let mut ids = Vec::new();
         for p in 0..32 {
-            for t in 0..2u8 {
-                for dst in Address::all() {
-                    for src in Address::all() {
-                        let id = AppId::new(Priority::new(p).unwrap(), FrameType::from(t), dst, src);
-                        ids.push(id.raw());
+            for t in 0..2 {
+                for dst in ADDRESSES {
+                    for src in ADDRESSES {
+                        ids.push(p << 24 | t << 16 | dst << 8 | src);
                     }
                 }
             }

@@ -6,11 +6,11 @@
 //! frame, the rest the payload. In catalogue mode byte 1 picks the message and byte 2 the node.
 #![no_main]
 
-use bus::catalogue::{self, MESSAGES};
-use bus::ident::{Address, AppId};
 use bus::{Error, Frame, Id};
 use harvemu_fuzz::{covered_bits, word};
 use libfuzzer_sys::fuzz_target;
+use protocol::catalogue::{self, MESSAGES};
+use protocol::ident::{Address, AppId};
 
 fuzz_target!(|input: &[u8]| {
     let Some((&flags, rest)) = input.split_first() else {

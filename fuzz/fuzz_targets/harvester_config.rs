@@ -3,9 +3,9 @@
 //! distinct script per entry and start-up times that can be computed.
 #![no_main]
 
-use bus::ident::Address;
 use harvemu_fuzz::{HARVESTER_PATH, script};
 use libfuzzer_sys::fuzz_target;
+use protocol::ident::Address;
 use std::collections::BTreeSet;
 use std::path::Path;
 use supervisor::harvester::Harvester;

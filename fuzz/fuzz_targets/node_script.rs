@@ -58,7 +58,7 @@ fn run(script: NodeScript) {
         };
         node.handle_timeout(now);
         while let Some(frame) = node.poll_transmit() {
-            let decoded = bus::catalogue::decode(&frame)
+            let decoded = protocol::catalogue::decode(&frame)
                 .unwrap_or_else(|e| panic!("{frame:?} does not decode: {e}"))
                 .unwrap_or_else(|| panic!("{frame:?} is not a catalogue message"));
             assert_eq!(decoded.node.0, address);

@@ -5,11 +5,11 @@
 //! writes it, reads back to the same frame, whose `< frame >` messages are well formed.
 #![no_main]
 
-use bus::gateway::protocol::{
-    Action, Command, MAX_MESSAGE, Session, Splitter, bcm_frame_message, frame_message, parse,
-};
 use bus::time::BusTime;
 use bus::{Frame, Id};
+use bus_runtime::gateway::protocol::{
+    Action, Command, MAX_MESSAGE, Session, Splitter, bcm_frame_message, frame_message, parse,
+};
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|input: &[u8]| {

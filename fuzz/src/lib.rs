@@ -90,7 +90,7 @@ pub fn reference_id(text: &str) -> Option<(u32, bool)> {
 }
 
 /// The payload bits a message's layout covers: Data0 and every field.
-pub fn covered_bits(message: &bus::catalogue::MessageDef) -> u64 {
+pub fn covered_bits(message: &protocol::catalogue::MessageDef) -> u64 {
     let mut mask = 0xFFu64;
     for f in message.fields {
         for bit in f.start_bit..f.start_bit + f.bits {

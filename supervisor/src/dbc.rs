@@ -3,10 +3,10 @@
 //! written completely, is left as it was (exit code 3).
 
 use crate::harvester::{self, Harvester};
-use bus::catalogue::dbc::{self, Network};
-use bus::catalogue::{MESSAGES, Trigger};
-use bus::ident::Address;
 use nodes::script::When;
+use protocol::catalogue::dbc::{self, Network};
+use protocol::catalogue::{MESSAGES, Trigger};
+use protocol::ident::Address;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 

@@ -6,14 +6,14 @@ use actix::prelude::*;
 use bus::bits::BitRate;
 use bus::engine::{BusConfig, ControllerConfig, Filter, NodeId};
 use bus::filter::{CAN_EFF_FLAG, SocketCanFilter, SocketCanFilterSet};
-use bus::hub::{Attach, GetCrashed, Hub, HubConfig, Replace, RunUntil};
-use bus::ident::Address;
-use bus::node::{Crash, NodeActor};
 use bus::time::BusTime;
+use bus_runtime::hub::{Attach, GetCrashed, Hub, HubConfig, Replace, RunUntil};
+use bus_runtime::node::{Crash, NodeActor};
 use nodes::monitor::{DisplayHandle, Monitor, MonitorConfig};
 use nodes::plant::{Plant, PlantConfig, PlantHandle};
 use nodes::script::{NodeScript, ScriptedNode, SharedEnv};
 use nodes::{Error, Problem};
+use protocol::ident::Address;
 use serde::Deserialize;
 use std::cell::RefCell;
 use std::io::Write;
@@ -383,6 +383,7 @@ pub async fn begin(h: &Harvester, trace: Option<Box<dyn Write>>) -> anyhow::Resu
         bus: BusConfig {
             bitrate,
             seed: c.seed,
+            latency_class: protocol::ident::latency_class,
         },
         ..HubConfig::default()
     };
@@ -508,7 +509,7 @@ impl Running {
                 .iter()
                 .rev()
                 .find(|e| e.node == m.name && e.what.starts_with("crashed: "));
-            let injected = format!("crashed: {}", bus::node::INJECTED_CRASH);
+            let injected = format!("crashed: {}", bus_runtime::node::INJECTED_CRASH);
             if last_crash.is_some_and(|e| e.what != injected) {
                 down.push(m.name.clone());
             }

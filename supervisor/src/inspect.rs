@@ -2,10 +2,10 @@
 
 use crate::BadInput;
 use bus::bits::{self, BitRate};
-use bus::catalogue::{self, Decoded};
 use bus::filter::{AtmelFilter, Sja1000Filter, acr_bytes_for, canidt_bytes};
-use bus::ident::AppId;
 use bus::{Frame, candump};
+use protocol::catalogue::{self, Decoded};
+use protocol::ident::AppId;
 use serde_json::{Value, json};
 
 /// Arguments of `harvemu inspect`.
@@ -47,7 +47,7 @@ pub fn report(frame: &Frame, rate: BitRate) -> Value {
     let encoded = bits::encode(frame);
     let total = encoded.total_bits();
     let app = AppId::from_id(frame.id()).ok();
-    let name = |a: bus::ident::Address| a.name();
+    let name = |a: protocol::ident::Address| a.name();
     let (message, message_error) = match catalogue::decode(frame) {
         Ok(Some(d)) => (decoded(&d), Value::Null),
         Ok(None) => (Value::Null, Value::Null),

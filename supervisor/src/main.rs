@@ -158,9 +158,9 @@ fn main() -> ExitCode {
 /// `harvemu protocol`: the catalogue on standard output.
 fn protocol(markdown: bool) -> anyhow::Result<()> {
     let text = if markdown {
-        format!("{}\n", bus::catalogue::doc::markdown())
+        format!("{}\n", protocol::catalogue::doc::markdown())
     } else {
-        bus::catalogue::MESSAGES
+        protocol::catalogue::MESSAGES
             .iter()
             .map(|m| format!("{:02X} {:<24} {}\n", m.number, m.name, m.doc))
             .collect()

@@ -8,7 +8,7 @@
 //! no `CAP_IPC_LOCK` or a small `RLIMIT_MEMLOCK`): the run goes on at normal priority, and each
 //! refusal is one warning line that says what to grant. Call it before the runtime is built.
 
-use bus::hub::Snapshot;
+use bus_runtime::hub::Snapshot;
 
 /// The `SCHED_FIFO` priority asked for: above every normal process, below the kernel's threaded
 /// interrupt handlers (50), so the CAN controller's interrupts still come first.

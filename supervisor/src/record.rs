@@ -97,7 +97,7 @@ pub struct Trace {
 /// real-time (`paced`) run, as `candump -l` stamps frames, else [`Epoch::FIXED`], so that a
 /// virtual-time run's trace is the same bytes for the same seed.
 pub fn epoch(start_time: Option<Epoch>, paced: bool) -> Epoch {
-    start_time.unwrap_or_else(|| bus::hub::default_epoch(paced))
+    start_time.unwrap_or_else(|| bus_runtime::hub::default_epoch(paced))
 }
 
 /// Reads `--start-time`: RFC 3339 (`2024-01-01T00:00:00Z`) or seconds since 1970.

@@ -8,9 +8,10 @@
 
 use actix::prelude::*;
 use bus::Frame;
-use bus::hub::{Replace, runtime};
-use bus::node::{NodeActor, NodeLogic};
+use bus::node::NodeLogic;
 use bus::time::BusTime;
+use bus_runtime::hub::{Replace, runtime};
+use bus_runtime::node::NodeActor;
 use std::path::Path;
 use supervisor::exit::{self, Ended};
 use supervisor::harvester::{self, Harvester};

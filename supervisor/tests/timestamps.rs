@@ -280,7 +280,7 @@ const SOCKETCAND_STAMP: &str = r#"
 import sys, time, can
 host, port = sys.argv[1].rsplit(":", 1)
 bus = can.Bus(interface="socketcand", channel="harv0", host=host, port=int(port))
-m = bus.recv(5)
+m = bus.recv(30)
 print(m.timestamp if m else "none", time.time())
 bus.shutdown()
 "#;
@@ -291,7 +291,8 @@ fn socketcand_stamp(extra: &[&str]) -> (f64, f64) {
     use std::io::BufRead;
     let mut child = Command::new(env!("CARGO_BIN_EXE_harvemu"))
         .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
-        .args(["run", "--for", "10s", "--socketcand", "127.0.0.1:0"])
+        // Long enough for a loaded machine; the test stops it when python-can is done.
+        .args(["run", "--for", "120s", "--socketcand", "127.0.0.1:0"])
         .args(extra)
         .stderr(std::process::Stdio::piped())
         .spawn()
@@ -328,7 +329,7 @@ fn socketcand_stamp(extra: &[&str]) -> (f64, f64) {
 fn socketcand_frames_carry_the_wall_clock_or_the_start_time() {
     let (stamp, now) = socketcand_stamp(&[]);
     assert!(
-        stamp <= now && now - stamp < 5.0,
+        stamp <= now && now - stamp < 30.0,
         "stamp {stamp} s, wall clock {now} s"
     );
     let (stamp, _) = socketcand_stamp(&["--start-time", "2030-06-15T12:00:00Z"]);

@@ -1,11 +1,11 @@
 //! Monitor commands reaching the row alignment module and the speed controller, sent through the
 //! monitor's controller as an external monitor would.
 
-use bus::catalogue::{self, by_name};
-use bus::hub::Submit;
-use bus::ident::Address;
 use bus::time::BusTime;
+use bus_runtime::hub::Submit;
 use harvemu_e2e::{run_to, traffic_of};
+use protocol::catalogue::{self, by_name};
+use protocol::ident::Address;
 
 fn command(name: &str, node: Address, values: &'static [(&'static str, f64)]) -> bus::Frame {
     by_name(name)

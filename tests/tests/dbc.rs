@@ -2,12 +2,12 @@
 //! as the catalogue defines it, the cycle times are the node scripts', and a recorded trace decoded
 //! through the parsed DBC gives the catalogue decoder's values, frame by frame.
 
-use bus::catalogue::{self, Direction, MESSAGES, MessageDef, dbc};
-use bus::ident::Address;
 use bus::time::BusTime;
 use can_dbc::{AttributeValue, ByteOrder, Dbc, Message, MessageId, MultiplexIndicator, Signal, ValueType};
 use harvemu_e2e::{Line, default_harvester, run_virtual};
 use nodes::script::When;
+use protocol::catalogue::{self, Direction, MESSAGES, MessageDef, dbc};
+use protocol::ident::Address;
 use std::collections::{BTreeMap, BTreeSet};
 
 /// The DBC of the default harvester, as text and as can-dbc reads it.

@@ -1,10 +1,10 @@
 //! Connection-oriented flow sensor traffic when the monitor stops acknowledging, and when it
 //! comes back.
 
-use bus::hub::Control;
-use bus::ident::Address;
 use bus::time::BusTime;
+use bus_runtime::hub::Control;
 use harvemu_e2e::{run_to, traffic_of};
+use protocol::ident::Address;
 
 #[test]
 fn sensors_give_up_without_acknowledgements_and_resume() {

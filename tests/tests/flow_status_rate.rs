@@ -1,10 +1,10 @@
 //! The flow sensors' `flow.status` on a healthy bus: at its heartbeat rate, with no group ever
 //! reported as missing its acknowledgement.
 
-use bus::catalogue::{self, Trigger};
-use bus::ident::Address;
 use bus::time::BusTime;
 use harvemu_e2e::{default_harvester, run_virtual};
+use protocol::catalogue::{self, Trigger};
+use protocol::ident::Address;
 
 const SECONDS: u64 = 30;
 /// Calibration is over well before this (the nodes power on at 0.5 s and stream within 1.5 s);

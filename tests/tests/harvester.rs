@@ -1,10 +1,10 @@
 //! The default harvester, end to end in virtual time: every node kind's traffic decoded back
 //! through the catalogue, periods, payloads against the plant, start-up, load.
 
-use bus::catalogue::{self, MESSAGES, Trigger};
-use bus::ident::Address;
 use bus::time::BusTime;
 use harvemu_e2e::{Line, default_harvester, run_virtual};
+use protocol::catalogue::{self, MESSAGES, Trigger};
+use protocol::ident::Address;
 use std::collections::BTreeMap;
 
 const SECONDS: u64 = 30;

@@ -2,8 +2,8 @@
 //! the display, cruise control across a density step, the boundary for an external monitor.
 
 use actix::prelude::*;
-use bus::hub::{RunUntil, runtime};
 use bus::time::BusTime;
+use bus_runtime::hub::{RunUntil, runtime};
 use harvemu_e2e::default_harvester;
 use nodes::monitor::Display;
 use nodes::plant::Plant;

@@ -3,12 +3,12 @@
 //! computed here bit by bit; and the running harvester uses them.
 
 use bus::Frame;
-use bus::catalogue::{Direction, MESSAGES};
 use bus::filter::{AcceptanceFilter, Sja1000Mode};
-use bus::ident::{Address, NodeKind};
 use bus::time::BusTime;
 use harvemu_e2e::{default_harvester, run_virtual};
 use nodes::script::{FilterDef, NodeScript, SocketCanDef};
+use protocol::catalogue::{Direction, MESSAGES};
+use protocol::ident::{Address, NodeKind};
 use supervisor::harvester::Harvester;
 
 /// The identifier of the monitor's frames to `node` (docs/PROTOCOL.md: priority of the node's
@@ -234,7 +234,7 @@ fn sensors_running(h: Harvester) -> [bool; 6] {
     let (lines, _) = run_virtual(h, BusTime::from_secs(5), |_| {}, |_, _| ());
     let decoded: Vec<_> = lines
         .iter()
-        .filter_map(|l| bus::catalogue::decode(&l.frame).ok().flatten())
+        .filter_map(|l| protocol::catalogue::decode(&l.frame).ok().flatten())
         .collect();
     std::array::from_fn(|n| {
         let d = Address::flow_sensor(n as u8);

@@ -3,12 +3,12 @@
 //! the real node; without the replay the monitor never hears from it.
 
 use actix::prelude::*;
-use bus::hub::{RunUntil, runtime};
-use bus::ident::Address;
 use bus::time::BusTime;
 use bus::tracefile::{self, ErrorFrames};
+use bus_runtime::hub::{RunUntil, runtime};
 use harvemu_e2e::{Line, Shared, default_harvester, parse_trace};
 use nodes::monitor::Display;
+use protocol::ident::Address;
 use supervisor::harvester::{self, Harvester};
 use supervisor::replay::schedule::{Passes, Schedule};
 use supervisor::replay::{self, Played};

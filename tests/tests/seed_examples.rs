@@ -1,10 +1,10 @@
 //! The worked examples of the source paper, end to end through the public API: every catalogue
 //! message of every node is encoded, put through the receivers' acceptance filters, and decoded.
 
-use bus::catalogue::{self, Direction, MESSAGES};
 use bus::filter::{AcceptanceFilter, AtmelFilter, Sja1000Filter};
-use bus::ident::Address;
 use bus::{Frame, Id};
+use protocol::catalogue::{self, Direction, MESSAGES};
+use protocol::ident::Address;
 
 fn every_catalogue_frame() -> Vec<Frame> {
     let mut frames = Vec::new();

@@ -2,15 +2,15 @@
 //! harvester: what the screen shows is checked against the plant, the monitor's display model
 //! and the recorded trace, each formatted here.
 
-use bus::catalogue;
 use bus::time::BusTime;
 use harvemu_e2e::{Line, default_harvester, run_virtual};
+use protocol::catalogue;
 use ratatui::Terminal;
 use ratatui::backend::TestBackend;
 use supervisor::tui::{Clock, RateMeter, Sources, View, draw};
 
 /// Renders the running harvester as the live display would, into a 200x60 buffer.
-fn screen(running: &supervisor::harvester::Running, snap: &bus::hub::Snapshot) -> Vec<String> {
+fn screen(running: &supervisor::harvester::Running, snap: &bus_runtime::hub::Snapshot) -> Vec<String> {
     let mut rates = RateMeter::default();
     rates.update(snap);
     let display = running.display.as_ref().map(|d| d.borrow());

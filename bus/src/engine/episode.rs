@@ -467,15 +467,11 @@ impl Bus {
                     let on_bus = self.controllers.iter().map(|c| c.on_bus()).collect();
                     *completed = Some((frame, on_bus));
                     let bits = ((end - sof) / bit) as u32 + wire::INTERMISSION_BITS as u32;
-                    let priority = if frame.is_extended() {
-                        (frame.raw_id() >> 24) as usize
-                    } else {
-                        32
-                    };
+                    let class = (self.latency_class)(&frame);
                     self.stats.frame(
                         crate::filter::kernel_can_id(&frame),
                         frame.data(),
-                        priority,
+                        class,
                         end,
                         latency,
                     );

@@ -66,12 +66,24 @@ const INTERMISSION_BITS: u64 = wire::INTERMISSION_BITS as u64;
 const SUSPEND_BITS: u64 = wire::SUSPEND_BITS as u64;
 
 /// How a bus is built.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug)]
 pub struct BusConfig {
     /// Nominal bit rate; must have a whole-nanosecond bit time.
     pub bitrate: BitRate,
     /// Seed of the injection generator.
     pub seed: u64,
+    /// The class a frame's queueing latency is counted in ([`stats::BusStats::latency`]):
+    /// a protocol's notion of priority, which the generic engine does not know.
+    pub latency_class: LatencyClass,
+}
+
+/// Sorts a frame into a latency class, below [`stats::LATENCY_CLASSES`]; a larger number
+/// counts in the last class.
+pub type LatencyClass = fn(&Frame) -> usize;
+
+/// The default [`LatencyClass`]: every frame in class 0.
+pub fn one_latency_class(_: &Frame) -> usize {
+    0
 }
 
 impl Default for BusConfig {
@@ -79,6 +91,7 @@ impl Default for BusConfig {
         BusConfig {
             bitrate: BitRate::K250,
             seed: 0,
+            latency_class: one_latency_class,
         }
     }
 }
@@ -297,6 +310,7 @@ pub enum NextEvent {
 /// One CAN bus.
 #[derive(Debug)]
 pub struct Bus {
+    latency_class: LatencyClass,
     bitrate: BitRate,
     bit_ns: u64,
     /// When the last committed activity on the bus ended.
@@ -335,6 +349,7 @@ impl Bus {
             committed: BusTime::ZERO,
             controllers: Vec::new(),
             injector: Injector::new(config.seed),
+            latency_class: config.latency_class,
             stats: Stats::new(bit_ns),
             events: Vec::new(),
             next_token: 1,
@@ -746,13 +761,9 @@ impl Bus {
         self.stats.advance_to(end);
         self.stats.busy(sof, idle, total_bits);
         let latency = end - self.controllers[w].tx[0].submitted;
-        let priority = if frame.is_extended() {
-            (frame.raw_id() >> 24) as usize
-        } else {
-            32
-        };
+        let class = (self.latency_class)(&frame);
         self.stats
-            .frame(kernel_can_id(&frame), frame.data(), priority, end, latency);
+            .frame(kernel_can_id(&frame), frame.data(), class, end, latency);
         self.events.push(Event::Frame {
             start: sof,
             end,

@@ -14,6 +14,8 @@ const BUCKETS: usize = 1000;
 const HISTORY_POINTS: usize = 4096;
 /// Most identifiers tracked one by one; the rest are counted together.
 const MAX_IDS: usize = 4096;
+/// How many latency classes are counted (a protocol maps its priorities onto them).
+pub const LATENCY_CLASSES: usize = 33;
 
 /// Period statistics of one identifier.
 #[derive(Clone, Copy, Debug, Default, Serialize, PartialEq)]
@@ -299,7 +301,8 @@ pub struct Stats {
     pub per_id: rustc_hash::FxHashMap<u32, IdStats>,
     /// Frames of identifiers beyond the tracked maximum.
     pub untracked_frames: u64,
-    /// Queueing latency (submit to end of frame) per priority (0–31; 32 = base frames).
+    /// Queueing latency (submit to end of frame) per class, as the bus's
+    /// [`crate::engine::LatencyClass`] sorts frames.
     pub latency: Vec<Latency>,
     /// Busy ns per 10 ms bucket over the last 10 s (ring).
     #[serde(skip)]
@@ -327,7 +330,7 @@ impl Stats {
             overruns: 0,
             per_id: Default::default(),
             untracked_frames: 0,
-            latency: vec![Latency::default(); 33],
+            latency: vec![Latency::default(); LATENCY_CLASSES],
             buckets: vec![0; BUCKETS],
             bucket_index: 0,
             load_history: History::default(),
@@ -378,12 +381,12 @@ impl Stats {
         &mut self,
         kernel_id: u32,
         payload: &[u8],
-        priority: usize,
+        class: usize,
         end: BusTime,
         latency_ns: u64,
     ) {
         self.frames += 1;
-        self.latency[priority.min(32)].record(latency_ns);
+        self.latency[class.min(LATENCY_CLASSES - 1)].record(latency_ns);
         let tracked = self.per_id.len();
         match self.per_id.get_mut(&kernel_id) {
             Some(s) => s.record(end, payload),

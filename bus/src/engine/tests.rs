@@ -525,7 +525,7 @@ fn random_injection_is_deterministic_under_a_seed() {
 fn rejects_inexact_bit_rates() {
     let err = Bus::new(BusConfig {
         bitrate: crate::bits::BitRate::new(30_000).unwrap(),
-        seed: 0,
+        ..BusConfig::default()
     })
     .unwrap_err();
     assert!(err.to_string().contains("30000"));

@@ -3,7 +3,7 @@
 
 use super::MonitorConfig;
 use crate::plant::Plant;
-use bus::catalogue::by_name;
+use protocol::catalogue::by_name;
 
 /// The range of field `field` of message `message` in the catalogue, narrowed to what plant
 /// input `input` (written from it by the receiving node) accepts.

@@ -2,8 +2,8 @@
 //! assembly and acknowledgement (docs/PROTOCOL.md, "the six-frame exchange").
 
 use bus::Frame;
-use bus::catalogue::{Decoded, by_name};
-use bus::ident::Address;
+use protocol::catalogue::{Decoded, by_name};
+use protocol::ident::Address;
 
 /// Group codes of the two markers.
 pub const FLOW_GROUP: u8 = 0x0D;

@@ -21,13 +21,13 @@ pub mod display;
 pub mod flow;
 
 use bus::Frame;
-use bus::catalogue::{self, Decoded, Direction, by_name};
-use bus::ident::{Address, NodeKind};
 use bus::node::NodeLogic;
 use bus::time::BusTime;
 use cruise::{Cruise, CruiseConfig};
 pub use display::{Alarm, Display, FrameTally, RowYield};
 use flow::{Calibration, FlowSession, Group};
+use protocol::catalogue::{self, Decoded, Direction, by_name};
+use protocol::ident::{Address, NodeKind};
 use serde::{Deserialize, Serialize};
 use std::cell::RefCell;
 use std::collections::{BTreeMap, VecDeque};

@@ -4,10 +4,10 @@
 use super::model::*;
 use crate::{Error, Problem};
 use bus::Frame;
-use bus::catalogue::{self, Direction, MessageDef};
 use bus::filter::AcceptanceFilter;
-use bus::ident::Address;
 use bus::text::{LIST_CHARS, cut, quote};
+use protocol::catalogue::{self, Direction, MessageDef};
+use protocol::ident::Address;
 use std::collections::BTreeSet;
 use std::path::Path;
 

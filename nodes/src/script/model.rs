@@ -1,7 +1,7 @@
 //! The script format (deserialized with serde from RON; unknown fields are errors).
 
 use bus::filter::Sja1000Mode;
-use bus::ident::NodeKind;
+use protocol::ident::NodeKind;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 

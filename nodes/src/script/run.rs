@@ -2,10 +2,10 @@
 
 use super::model::*;
 use bus::Frame;
-use bus::catalogue::{self, Decoded, Direction};
-use bus::ident::Address;
 use bus::node::NodeLogic;
 use bus::time::BusTime;
+use protocol::catalogue::{self, Decoded, Direction};
+use protocol::ident::Address;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use std::cell::RefCell;

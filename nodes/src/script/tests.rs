@@ -1,9 +1,9 @@
 use super::*;
 use bus::Frame;
 use bus::candump::parse_frame;
-use bus::catalogue;
 use bus::node::NodeLogic;
 use bus::time::BusTime;
+use protocol::catalogue;
 use std::cell::RefCell;
 use std::collections::BTreeMap;
 use std::rc::Rc;

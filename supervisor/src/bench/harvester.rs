@@ -3,8 +3,8 @@
 use super::Totals;
 use crate::harvester::{self, Harvester};
 use actix::prelude::*;
-use bus::hub::runtime;
 use bus::time::BusTime;
+use bus_runtime::hub::runtime;
 
 /// Bus time each harvester runs before the next one's turn.
 const SLICE: BusTime = BusTime::from_millis(1000);

@@ -102,7 +102,7 @@ pub struct Totals {
 }
 
 /// What the hubs of one thread did; the load is the first one's.
-async fn totals(hubs: &[actix::Addr<bus::hub::Hub>]) -> Result<Totals, String> {
+async fn totals(hubs: &[actix::Addr<bus_runtime::hub::Hub>]) -> Result<Totals, String> {
     let mut totals = Totals {
         frames: 0,
         deliveries: 0,
@@ -110,7 +110,10 @@ async fn totals(hubs: &[actix::Addr<bus::hub::Hub>]) -> Result<Totals, String> {
         load: 0.0,
     };
     for (i, hub) in hubs.iter().enumerate() {
-        let snap = hub.send(bus::hub::GetSnapshot).await.map_err(|e| e.to_string())?;
+        let snap = hub
+            .send(bus_runtime::hub::GetSnapshot)
+            .await
+            .map_err(|e| e.to_string())?;
         totals.frames += snap.stats.frames;
         totals.deliveries += snap.stats.deliveries;
         totals.wakes += snap.wakes;

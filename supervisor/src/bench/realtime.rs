@@ -10,8 +10,8 @@
 use super::Measurement;
 use crate::harvester::{self, Harvester};
 use actix::prelude::*;
-use bus::hub::{GetSnapshot, Observed, Subscribe, runtime};
 use bus::time::BusTime;
+use bus_runtime::hub::{GetSnapshot, Observed, Subscribe, runtime};
 use serde::Serialize;
 use std::cell::RefCell;
 use std::collections::BTreeMap;

@@ -3,12 +3,13 @@
 use actix::prelude::*;
 use bus::engine::{ControllerConfig, Filter, NodeId};
 use bus::filter::{CAN_EFF_FLAG, SocketCanFilter, SocketCanFilterSet};
-use bus::hub::{Attach, Hub, HubConfig, RunUntil, runtime};
-use bus::ident::{Address, AppId, FrameType, Priority};
-use bus::node::{ControllerEvent, NodeActor, NodeLogic};
+use bus::node::{ControllerEvent, NodeLogic};
 use bus::time::BusTime;
 use bus::{Frame, engine::BusConfig};
+use bus_runtime::hub::{Attach, Hub, HubConfig, RunUntil, runtime};
+use bus_runtime::node::NodeActor;
 use futures_util::future::join_all;
+use protocol::ident::{Address, AppId, FrameType, Priority};
 use std::time::Duration;
 
 use super::Totals;
@@ -53,10 +54,11 @@ impl NodeLogic for Saturator {
 }
 
 /// Builds one saturated bus and returns its hub.
-async fn saturated_bus(seed: u64) -> Result<Addr<Hub>, bus::Error> {
+async fn saturated_bus(seed: u64) -> anyhow::Result<Addr<Hub>> {
     let config = HubConfig {
         bus: BusConfig {
             seed,
+            latency_class: protocol::ident::latency_class,
             ..BusConfig::default()
         },
         ..HubConfig::default()

@@ -23,10 +23,10 @@ use crate::run::parse_duration;
 use crate::stop::Stop;
 use actix::prelude::*;
 use bus::engine::{ControllerConfig, Filter, NodeId};
-use bus::hub::{Attach, GetSnapshot, RunUntil, SubmitAt, runtime};
-use bus::ident::Address;
 use bus::time::BusTime;
 use bus::tracefile::{self, ErrorFrames, Record};
+use bus_runtime::hub::{Attach, GetSnapshot, RunUntil, SubmitAt, runtime};
+use protocol::ident::Address;
 use schedule::{Passes, Schedule, Source, Survey};
 use std::collections::BTreeSet;
 use std::io::BufReader;
@@ -229,7 +229,7 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
         );
     }
     if let Some(name) = &args.iface {
-        bus::backend::socketcan::check(name).map_err(|e| BadInput(e.to_string()))?;
+        bus_runtime::backend::socketcan::check(name).map_err(|e| BadInput(e.to_string()))?;
         for_interface(&mut h, args.with_emulated);
     }
     let skip = if args.skip_emulated {
@@ -270,7 +270,7 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
         let mut running = harvester::begin(&h, trace).await?;
         let _bridge = match &iface {
             Some(name) => Some(
-                bus::backend::socketcan::bridge(running.hub.clone(), name)
+                bus_runtime::backend::socketcan::bridge(running.hub.clone(), name)
                     .await
                     .map_err(|e| BadInput(e.to_string()))?,
             ),

@@ -25,9 +25,9 @@
 
 use crate::BadInput;
 use bus::Frame;
-use bus::ident::{Address, AppId};
 use bus::time::BusTime;
 use bus::tracefile::{Entry, Record};
+use protocol::ident::{Address, AppId};
 use std::collections::BTreeSet;
 use std::convert::Infallible;
 

@@ -11,8 +11,8 @@ use crate::exit::Ended;
 use crate::harvester::{self, Harvester};
 use crate::stop::Stop;
 use actix::prelude::*;
-use bus::hub::{GetSnapshot, RunUntil, Snapshot, runtime};
 use bus::time::BusTime;
+use bus_runtime::hub::{GetSnapshot, RunUntil, Snapshot, runtime};
 use console::Console;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -110,7 +110,7 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
     }
     let iface = args.iface.clone();
     if let Some(name) = &iface {
-        bus::backend::socketcan::check(name).map_err(|e| BadInput(e.to_string()))?;
+        bus_runtime::backend::socketcan::check(name).map_err(|e| BadInput(e.to_string()))?;
     }
     if args.fast && args.duration.is_none() {
         return Err(BadInput("--fast needs --for: virtual time would otherwise run for ever".into()).into());
@@ -151,7 +151,7 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
         let mut reported = 0;
         let bridge = match &iface {
             Some(name) => {
-                let b = bus::backend::socketcan::bridge(running.hub.clone(), name)
+                let b = bus_runtime::backend::socketcan::bridge(running.hub.clone(), name)
                     .await
                     .map_err(|e| BadInput(e.to_string()))?;
                 eprintln!("harvemu: bridged to CAN interface {name}");
@@ -161,7 +161,7 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
         };
         let _gateway = match socketcand {
             Some(addr) => {
-                let gw = bus::gateway::Gateway::start(running.hub.clone(), addr, Default::default()).await?;
+                let gw = bus_runtime::gateway::Gateway::start(running.hub.clone(), addr, Default::default()).await?;
                 eprintln!("harvemu: socketcand gateway on {}, bus harv0", gw.addr);
                 Some(gw)
             }

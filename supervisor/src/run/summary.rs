@@ -7,8 +7,8 @@
 //! - [`Summary::wrap`]: every field, on as many lines of at most a given width as it takes.
 
 use crate::harvester::Running;
-use bus::hub::Snapshot;
 use bus::time::BusTime;
+use bus_runtime::hub::Snapshot;
 
 /// What the summary says, as numbers.
 #[derive(Clone, Debug, PartialEq)]

@@ -9,7 +9,7 @@
 //! the engine, for the check that every completed frame is in the trace.
 
 use bus::engine::{ControllerCounters, NodeId};
-use bus::hub::{Handover, Snapshot};
+use bus_runtime::hub::{Handover, Snapshot};
 use nodes::monitor::FrameTally;
 use serde::Serialize;
 

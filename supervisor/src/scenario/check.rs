@@ -5,8 +5,8 @@ use super::states::{Seen, Timeline};
 use super::{Expect, Scenario};
 use crate::harvester::Running;
 use bus::fault::ErrorState;
-use bus::hub::Snapshot;
 use bus::time::BusTime;
+use bus_runtime::hub::Snapshot;
 use serde::Serialize;
 
 /// The outcome of one expectation.

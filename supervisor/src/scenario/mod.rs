@@ -21,10 +21,11 @@ use crate::harvester::{self, Harvester, Running};
 use actix::prelude::*;
 use bus::candump::parse_frame;
 use bus::engine::{BitPosition, ControllerConfig, Effect, Filter, Rule, Schedule};
-use bus::hub::{Attach, Control, GetErrorCounters, GetSnapshot, Replace, Submit, runtime};
-use bus::node::{Apply, NodeActor, NodeLogic};
+use bus::node::NodeLogic;
 use bus::text::{LIST_CHARS, cut, quote};
 use bus::time::BusTime;
+use bus_runtime::hub::{Attach, Control, GetErrorCounters, GetSnapshot, Replace, Submit, runtime};
+use bus_runtime::node::{Apply, NodeActor};
 use nodes::plant::Plant;
 use nodes::script::ScriptedNode;
 use nodes::{Error, Problem};
@@ -569,14 +570,14 @@ pub struct Outcome {
     /// Timeline actions carried out, by [`Action::name`].
     pub applied: std::collections::BTreeMap<&'static str, u64>,
     /// The hub at the end.
-    pub snapshot: Option<bus::hub::Snapshot>,
+    pub snapshot: Option<bus_runtime::hub::Snapshot>,
 }
 
 /// What the run leaves besides verdicts.
 struct End {
     books: books::Books,
     applied: std::collections::BTreeMap<&'static str, u64>,
-    snapshot: bus::hub::Snapshot,
+    snapshot: bus_runtime::hub::Snapshot,
 }
 
 impl Outcome {
@@ -704,7 +705,7 @@ pub fn run(
         }
         // Pausing the hub at the present flushes the trace.
         let now = running.hub.send(GetSnapshot).await?.now;
-        running.hub.send(bus::hub::RunUntil(now)).await??;
+        running.hub.send(bus_runtime::hub::RunUntil(now)).await??;
         let snap = running.hub.send(GetSnapshot).await?;
         let monitor = running
             .node("F5")

@@ -10,8 +10,8 @@
 //! bus already stops at every 10 ms for supervision, so a run gives the same verdicts whether
 //! anyone looks at its series or not.
 
-use bus::hub::Snapshot;
 use bus::time::BusTime;
+use bus_runtime::hub::Snapshot;
 
 /// Sampling period.
 pub const SAMPLE_NS: u64 = 1_000_000_000;

@@ -8,8 +8,8 @@
 use super::{Clock, RateMeter, Sources, View, draw, quits};
 use crate::BadInput;
 use crate::harvester::Running;
-use bus::hub::GetSnapshot;
 use bus::time::BusTime;
+use bus_runtime::hub::GetSnapshot;
 use ratatui::DefaultTerminal;
 use ratatui::crossterm::event::{self, Event};
 use std::io::IsTerminal;

@@ -7,7 +7,7 @@
 //! the alternate screen in raw mode, restores the terminal on every way out (errors and panics
 //! included), redraws a few times per second of wall time and quits on `q`, Esc or Ctrl-C.
 //!
-//! [`Snapshot`]: bus::hub::Snapshot
+//! [`Snapshot`]: bus_runtime::hub::Snapshot
 //! [`Display`]: nodes::monitor::Display
 
 mod draw;

@@ -7,8 +7,8 @@
 //! window is bus time, so a fast run and a real-time one show the same rates.
 
 use bus::engine::stats::IdStats;
-use bus::hub::Snapshot;
 use bus::time::BusTime;
+use bus_runtime::hub::Snapshot;
 use std::collections::{HashMap, VecDeque};
 
 /// The span of bus time rates are measured over, at least.

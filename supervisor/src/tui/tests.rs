@@ -3,14 +3,14 @@
 use super::view::decimals;
 use super::*;
 use bus::Frame;
-use bus::catalogue::by_name;
 use bus::engine::{Bus, BusConfig, ControllerConfig, ControllerCounters, NodeId};
 use bus::fault::ErrorState;
-use bus::hub::{NodeSnapshot, Snapshot};
-use bus::ident::Address;
 use bus::time::BusTime;
+use bus_runtime::hub::{NodeSnapshot, Snapshot};
 use nodes::monitor::{Alarm, Display};
 use nodes::plant::{Plant, PlantConfig};
+use protocol::catalogue::by_name;
+use protocol::ident::Address;
 use ratatui::Terminal;
 use ratatui::backend::TestBackend;
 use ratatui::buffer::Buffer;

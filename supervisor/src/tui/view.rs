@@ -8,14 +8,14 @@
 use super::RateMeter;
 use crate::harvester::SupervisorEvent;
 use bus::Frame;
-use bus::catalogue::{self, Value};
 use bus::fault::ErrorState;
 use bus::filter::{CAN_EFF_FLAG, CAN_EFF_MASK, CAN_RTR_FLAG, CAN_SFF_MASK};
-use bus::hub::Snapshot;
-use bus::ident::{Address, AppId};
 use bus::time::BusTime;
+use bus_runtime::hub::Snapshot;
 use nodes::monitor::Display;
 use nodes::plant::{Plant, ROWS};
+use protocol::catalogue::{self, Value};
+use protocol::ident::{Address, AppId};
 
 /// How the emulation's clock runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -5,12 +5,14 @@ use super::backoff::{AcceptBackoff, REPORT_INTERVAL};
 use super::bcm::Bcm;
 use super::beacon;
 use super::protocol::{self, Action, Command, Malformed, Mode, Session, Splitter};
-use crate::engine::{ControllerConfig, Filter, NodeId};
+use crate::Error;
 use crate::hub::{Attach, Control, GetEpoch, Hub, Observed, Submit, Subscribe};
-use crate::node::{Report, Wake};
-use crate::time::{BusTime, Epoch};
-use crate::{Error, Frame};
+use crate::node::Wake;
 use actix::prelude::*;
+use bus::Frame;
+use bus::engine::{ControllerConfig, Filter, NodeId};
+use bus::node::Report;
+use bus::time::{BusTime, Epoch};
 use std::cell::RefCell;
 use std::collections::VecDeque;
 use std::net::SocketAddr;
@@ -178,12 +180,11 @@ impl Gateway {
     pub async fn start(hub: Addr<Hub>, bind: SocketAddr, config: GatewayConfig) -> Result<Gateway, Error> {
         let listener = TcpListener::bind(bind)
             .await
-            .map_err(|e| Error::Syntax(format!("cannot listen on {bind}: {e}")))?;
-        let addr = listener.local_addr().map_err(|e| Error::Syntax(e.to_string()))?;
-        let epoch = hub
-            .send(GetEpoch)
-            .await
-            .map_err(|e| Error::Syntax(e.to_string()))?;
+            .map_err(|source| Error::Listen { addr: bind, source })?;
+        let addr = listener
+            .local_addr()
+            .map_err(|source| Error::Listen { addr: bind, source })?;
+        let epoch = hub.send(GetEpoch).await?;
         let shared = Rc::new(RefCell::new(Shared {
             clients: Vec::new(),
             in_flight: VecDeque::new(),
@@ -209,13 +210,10 @@ impl Gateway {
                 node: Some(timers.recipient()),
                 reaction: std::time::Duration::ZERO,
             })
-            .await
-            .map_err(|e| Error::Syntax(e.to_string()))?;
+            .await?;
         shared.borrow_mut().node = Some(node);
         let (tx, rx) = mpsc::channel(4096);
-        hub.send(Subscribe(tx))
-            .await
-            .map_err(|e| Error::Syntax(e.to_string()))?;
+        hub.send(Subscribe(tx)).await?;
         actix::spawn(distribute(rx, node, shared.clone()));
         actix::spawn(accept(listener, hub, node, config.clone(), shared.clone()));
         match config.beacon_port.map(|port| beacon::target(addr, port)) {

@@ -18,8 +18,8 @@
 //! answers nothing to it, as socketcand answers nothing to a bad `send`.
 
 use super::scan::{Conv, element_length, scan};
-use crate::time::BusTime;
-use crate::{ExtendedId, Frame, Id, StandardId};
+use bus::time::BusTime;
+use bus::{ExtendedId, Frame, Id, StandardId};
 use core::fmt::Write;
 
 /// Longest message accepted, brackets included.
@@ -339,7 +339,7 @@ fn id_text(s: &mut String, id: Id) {
 }
 
 /// `< frame ID SECS.USECS DATA >` for a frame that ended at `at` (bus time already stamped with
-/// the hub's [`crate::time::Epoch`], as socketcand gives the kernel's wall-clock time), as
+/// the hub's [`bus::time::Epoch`], as socketcand gives the kernel's wall-clock time), as
 /// socketcand writes it in raw mode: DATA contiguous upper-case hex.
 pub fn frame_message(at: BusTime, frame: &Frame) -> String {
     let mut s = String::with_capacity(48);
@@ -370,7 +370,7 @@ pub fn bcm_frame_message(at: BusTime, frame: &Frame) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::candump::parse_frame;
+    use bus::candump::parse_frame;
 
     fn frame(text: &str) -> Frame {
         parse_frame(text).unwrap()

@@ -17,8 +17,8 @@
 //!   `unsubscribe` ends it. Subscribing again to an identifier replaces its subscription.
 //! - Each table holds at most [`MAX_OPS`] entries: more are refused.
 
-use crate::time::BusTime;
-use crate::{Frame, Id};
+use bus::time::BusTime;
+use bus::{Frame, Id};
 
 /// The shortest cyclic interval, nanoseconds.
 pub const MIN_INTERVAL: u64 = 1_000_000;
@@ -212,7 +212,7 @@ impl Bcm {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::candump::parse_frame;
+    use bus::candump::parse_frame;
 
     fn ms(n: u64) -> BusTime {
         BusTime::from_millis(n)
@@ -322,7 +322,7 @@ mod tests {
     fn tables_are_bounded() {
         let mut b = Bcm::default();
         for i in 0..MAX_OPS as u16 {
-            let frame = Frame::new_data(crate::frame::standard_id(i).unwrap(), &[]).unwrap();
+            let frame = Frame::new_data(bus::standard_id(i).unwrap(), &[]).unwrap();
             assert!(b.add(0, frame));
             assert!(b.subscribe(frame.id(), 0, None));
         }

@@ -8,11 +8,12 @@
 //! the emulated bus. The socket does not receive its own frames, so nothing loops. Error frames
 //! the interface reports are logged and counted.
 
-use crate::engine::{ControllerConfig, Filter};
+use crate::Error;
 use crate::hub::{Attach, Hub, Submit, Subscribe};
-use crate::{Error, Frame, Id};
 use actix::Addr;
-use embedded_can::Frame as _;
+use bus::engine::{ControllerConfig, Filter};
+use bus::{Frame, Id};
+use socketcan::embedded_can::Frame as _;
 use socketcan::{CanFrame, SocketOptions};
 use std::cell::RefCell;
 use std::rc::Rc;
@@ -50,7 +51,11 @@ impl Bridge {
 /// Explains why an interface cannot be opened, in the user's terms.
 fn open_error(iface: &str, e: std::io::Error) -> Error {
     let hint = open_hint(iface, e.raw_os_error());
-    Error::Syntax(format!("cannot open CAN interface {iface}: {e}{hint}"))
+    Error::Interface {
+        iface: iface.to_string(),
+        hint,
+        source: e,
+    }
 }
 
 /// What to do about errno `code` when opening `iface`. A virtual interface (`vcan*`) is made
@@ -118,12 +123,9 @@ pub async fn bridge(hub: Addr<Hub>, iface: &str) -> Result<Bridge, Error> {
             node: None,
             reaction: std::time::Duration::ZERO,
         })
-        .await
-        .map_err(|e| Error::Syntax(e.to_string()))?;
+        .await?;
     let (tx, mut rx) = mpsc::channel(4096);
-    hub.send(Subscribe(tx))
-        .await
-        .map_err(|e| Error::Syntax(e.to_string()))?;
+    hub.send(Subscribe(tx)).await?;
     let stats = Rc::new(RefCell::new(BridgeStats::default()));
 
     let (out, st) = (socket.clone(), stats.clone());
@@ -196,7 +198,7 @@ pub async fn bridge(hub: Addr<Hub>, iface: &str) -> Result<Bridge, Error> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::candump::parse_frame;
+    use bus::candump::parse_frame;
 
     #[test]
     fn frames_convert_both_ways() {
@@ -235,12 +237,14 @@ mod tests {
         let e = socketcan::tokio::CanSocket::open("harvemu-none");
         let msg = match e {
             Ok(_) => panic!("an interface named harvemu-none exists: nothing to check"),
-            Err(e) => open_error("harvemu-none", e).to_string(),
+            Err(e) => {
+                let e = open_error("harvemu-none", e);
+                let source = std::error::Error::source(&e).map(|s| s.to_string());
+                assert!(source.is_some(), "{e}: the io::Error is its source");
+                e.to_string()
+            }
         };
-        assert!(
-            msg.starts_with("cannot open CAN interface harvemu-none: "),
-            "{msg}"
-        );
+        assert!(msg.starts_with("cannot open CAN interface harvemu-none"), "{msg}");
         assert!(
             msg.contains("no CAN support")
                 || msg.contains("no such interface")

@@ -3,9 +3,9 @@
 mod common;
 
 use actix::prelude::*;
-use bus::gateway::{Gateway, GatewayConfig};
-use bus::hub::{Hub, HubConfig, RunUntil, runtime};
 use bus::time::BusTime;
+use bus_runtime::gateway::{Gateway, GatewayConfig};
+use bus_runtime::hub::{Hub, HubConfig, RunUntil, runtime};
 use std::time::Duration;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::TcpStream;
@@ -226,13 +226,23 @@ fn a_client_that_never_reads_cannot_stall_the_bus() {
         let (hub, gw) = bus_with_ticker(600).await;
         let _silent = handshake_with(gw.addr, Some(4096)).await;
         let mut live = handshake(gw.addr).await;
-        let before = hub.send(bus::hub::GetSnapshot).await.unwrap().stats.frames;
+        let before = hub
+            .send(bus_runtime::hub::GetSnapshot)
+            .await
+            .unwrap()
+            .stats
+            .frames;
         let mut got = 0;
         let start = std::time::Instant::now();
         while start.elapsed() < Duration::from_secs(3) {
             got += live.read(100).await.len();
         }
-        let after = hub.send(bus::hub::GetSnapshot).await.unwrap().stats.frames;
+        let after = hub
+            .send(bus_runtime::hub::GetSnapshot)
+            .await
+            .unwrap()
+            .stats
+            .frames;
         // The bus kept going and the live client kept receiving...
         assert!(after - before > 1000, "{before} -> {after}");
         assert!(got > 1000, "{got}");

@@ -14,8 +14,9 @@ pub mod dbc;
 pub mod doc;
 mod messages;
 
+use crate::Error;
 use crate::ident::{Address, AppId, FrameType, NodeKind, Priority};
-use crate::{Error, Frame};
+use bus::Frame;
 
 pub use messages::MESSAGES;
 
@@ -368,7 +369,10 @@ impl MessageDef {
             };
             field.insert(&mut data, raw);
         }
-        Frame::new_data(self.app_id(node).emit(), &data[..usize::from(self.dlc)])
+        Ok(Frame::new_data(
+            self.app_id(node).emit(),
+            &data[..usize::from(self.dlc)],
+        )?)
     }
 
     fn error(&self, reason: String) -> Error {

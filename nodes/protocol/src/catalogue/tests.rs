@@ -1,6 +1,6 @@
 use super::*;
-use crate::bits::{BitRate, worst_case_bits};
-use crate::candump::parse_frame;
+use bus::bits::{BitRate, worst_case_bits};
+use bus::candump::parse_frame;
 use proptest::prelude::*;
 
 /// The six frames of a flow group worked through in the harvester's source documents, as printed there.
@@ -258,7 +258,7 @@ fn nominal_bus_load_is_under_half() {
 
 #[test]
 fn protocol_doc_names_every_message() {
-    let doc = include_str!("../../../docs/PROTOCOL.md");
+    let doc = include_str!("../../../../docs/PROTOCOL.md");
     let generated = super::doc::markdown();
     assert!(
         doc.contains(&generated),

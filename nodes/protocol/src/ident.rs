@@ -11,7 +11,7 @@
 //! round trip as [`FrameType::Unknown`].
 
 use crate::Error;
-use crate::frame::extended_id;
+use bus::extended_id;
 use embedded_can::{ExtendedId, Id};
 use serde::{Deserialize, Serialize};
 
@@ -314,6 +314,16 @@ impl core::fmt::Display for AppId {
             self.source,
             self.destination
         )
+    }
+}
+
+/// The engine's latency class of a frame ([`bus::engine::LatencyClass`]): the identifier's
+/// priority field (0–31) for the protocol's extended frames, 32 for base frames, which the
+/// protocol does not use.
+pub fn latency_class(frame: &bus::Frame) -> usize {
+    match AppId::from_id(frame.id()) {
+        Ok(id) => usize::from(id.priority.value()),
+        Err(_) => 32,
     }
 }
 

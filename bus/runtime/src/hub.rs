@@ -16,7 +16,7 @@
 //! [`HubConfig::overrun_threshold`] behind that schedule, bus time slips: it goes on from where
 //! it stopped, the overrun is counted ([`Snapshot::overruns`]) and logged (at most once a
 //! second), and frames from outside ([`Submit`]) are stamped on the slipped clock
-//! ([`crate::pacing`]). Unpaced (virtual time): nothing but the nodes holds the bus back, and bus time runs as
+//! ([`bus::pacing`]). Unpaced (virtual time): nothing but the nodes holds the bus back, and bus time runs as
 //! fast as they answer; the runtime's clock is not consulted at all, so a run costs no timers and
 //! is deterministic. Runtimes made by [`runtime`] tell hubs made on their thread which to be.
 //!
@@ -28,15 +28,15 @@
 //! A hung node (fault injection) is never woken, so its FIFO fills and overruns as a real one
 //! would.
 
-use crate::engine::{
-    Bus, BusConfig, ControllerConfig, ControllerCounters, Event, NodeId, Rule, RuleId, Stats,
-};
-use crate::fault::ErrorState;
-use crate::node::{Answer, ControllerEvent, Reply, Report, Wake};
-use crate::pacing::{Overruns, Pace, Pacer};
-use crate::time::{BusTime, Epoch};
-use crate::{Error, Frame, trace};
+use crate::Error;
+use crate::node::{Answer, Reply, Wake};
 use actix::prelude::*;
+use bus::engine::{Bus, BusConfig, ControllerConfig, ControllerCounters, Event, NodeId, Rule, RuleId, Stats};
+use bus::fault::ErrorState;
+use bus::node::{ControllerEvent, Report};
+use bus::pacing::{Overruns, Pace, Pacer};
+use bus::time::{BusTime, Epoch};
+use bus::{Frame, trace};
 use std::io::Write;
 use std::time::Duration;
 use tokio::sync::oneshot;
@@ -55,7 +55,7 @@ pub struct HubConfig {
     /// the nodes answer (virtual time). Defaults to what [`runtime`] made on this thread.
     pub paced: bool,
     /// When paced: how far bus time may fall behind its schedule before it slips instead of
-    /// catching up ([`crate::pacing`]; [`crate::pacing::OVERRUN_THRESHOLD`] by default).
+    /// catching up ([`bus::pacing`]; [`bus::pacing::OVERRUN_THRESHOLD`] by default).
     pub overrun_threshold: Duration,
     /// Where bus time zero lies on the wall clock in the trace's timestamps and the gateway's
     /// frames ([`Epoch`]): by default the wall clock when the config is made if paced, else
@@ -71,7 +71,7 @@ impl Default for HubConfig {
             iface: "harv0".to_string(),
             slack: Duration::ZERO,
             paced,
-            overrun_threshold: crate::pacing::OVERRUN_THRESHOLD,
+            overrun_threshold: bus::pacing::OVERRUN_THRESHOLD,
             epoch: default_epoch(paced),
         }
     }
@@ -96,7 +96,7 @@ struct Slot {
     /// The logic said its frames can wait for its next deadline ([`Report::frames_can_wait`]).
     frames_can_wait: bool,
     /// Frames taken from the FIFO at the reaction time, for the next wake.
-    buffered: Vec<crate::engine::Received>,
+    buffered: Vec<bus::engine::Received>,
     /// What became of the frames taken from the FIFO (plain counters: no cost per frame).
     handover: Handover,
     hung: bool,
@@ -238,7 +238,7 @@ impl Hub {
     }
 
     /// True when the runtime's clock allows committing at `t`. A paced hub that finds `t`
-    /// overdue by more than the overrun threshold lets bus time slip ([`crate::pacing`]).
+    /// overdue by more than the overrun threshold lets bus time slip ([`bus::pacing`]).
     fn reached(&mut self, t: BusTime) -> bool {
         if !self.paced {
             return true;
@@ -616,7 +616,7 @@ impl Handler<RunUntil> for Hub {
         self.stop_at = Some(self.stop_at.map_or(msg.0, |s| s.min(msg.0)));
         self.paused = false;
         self.pump(ctx);
-        Box::pin(async move { rx.await.map_err(|_| Error::Syntax("the hub stopped".to_string())) })
+        Box::pin(async move { rx.await.map_err(|_| Error::HubStopped) })
     }
 }
 
@@ -643,8 +643,12 @@ impl Handler<Control> for Hub {
     fn handle(&mut self, msg: Control, ctx: &mut Context<Self>) -> Self::Result {
         let now = self.now.max(self.bus.committed());
         let result = match msg {
-            Control::SetAck(n, on) => self.bus.set_ack(n, on).map(|_| None),
-            Control::SetConnected(n, on) => self.bus.set_connected(n, on, now).map(|_| None),
+            Control::SetAck(n, on) => self.bus.set_ack(n, on).map(|_| None).map_err(Error::from),
+            Control::SetConnected(n, on) => self
+                .bus
+                .set_connected(n, on, now)
+                .map(|_| None)
+                .map_err(Error::from),
             Control::SetHung(n, on) => match self.slots.get_mut(n.index()) {
                 Some(slot) => {
                     slot.hung = on;
@@ -653,10 +657,10 @@ impl Handler<Control> for Hub {
                     }
                     Ok(None)
                 }
-                None => Err(Error::Syntax(format!("no node {}", n.0))),
+                None => Err(Error::NoNode(n.0)),
             },
             Control::Reset(n) => {
-                let r = self.bus.reset_node(n, now).map(|_| None);
+                let r = self.bus.reset_node(n, now).map(|_| None).map_err(Error::from);
                 self.dispatch();
                 r
             }
@@ -690,7 +694,7 @@ impl Handler<Replace> for Hub {
         let slot = self
             .slots
             .get_mut(msg.node.index())
-            .ok_or_else(|| Error::Syntax(format!("no node {}", msg.node.0)))?;
+            .ok_or(Error::NoNode(msg.node.0))?;
         slot.node = Some(msg.actor);
         slot.crashed = None;
         slot.hung = false;

@@ -12,7 +12,7 @@
 //! (out of file descriptors) the gateway backs off and logs at a bounded rate, and the clients
 //! already connected are served on. A server bound to a loopback address announces itself with
 //! socketcand's discovery beacon, to that address only. Frames carry the bus time at their end
-//! stamped with the hub's [`crate::time::Epoch`] (seconds since 1970, as the trace writes them).
+//! stamped with the hub's [`bus::time::Epoch`] (seconds since 1970, as the trace writes them).
 
 mod backoff;
 mod bcm;

@@ -4,9 +4,10 @@ use actix::prelude::*;
 use bus::Frame;
 use bus::candump::parse_frame;
 use bus::engine::ControllerConfig;
-use bus::hub::{Attach, Hub, HubConfig};
-use bus::node::{NodeActor, NodeLogic};
+use bus::node::NodeLogic;
 use bus::time::BusTime;
+use bus_runtime::hub::{Attach, Hub, HubConfig};
+use bus_runtime::node::NodeActor;
 use std::time::Duration;
 
 /// A hub with a node `ticker` that sends `frame` every `period_us` from time 0, and a silent
