@@ -104,7 +104,7 @@ fn decode(frame: &Frame) {
         Ok(Some(d)) => d,
         Ok(None) => return,
         Err(e) => {
-            assert!(matches!(e, Error::Payload { .. }), "{e}");
+            assert!(matches!(e, protocol::Error::Payload { .. }), "{e}");
             return;
         }
     };
