@@ -184,7 +184,8 @@ fn declarations(file: &str, text: &str) -> Result<(BTreeMap<String, String>, Vec
         if !declared.params.contains_key(&p.name) && reported.insert(&p.name) {
             problems.push(Problem {
                 file: file.to_string(),
-                position: Some(position_of(text, p.start)),
+                // At the `${`, inside the quote of a whole-value placeholder.
+                position: Some(position_of(text, p.start + usize::from(p.whole))),
                 node: None,
                 field: None,
                 message: format!(
@@ -423,7 +424,10 @@ fn locate(mut p: Problem, expanded: &str, pieces: &[(usize, Origin)], template: 
     let Some((line, col)) = p.position else {
         return p;
     };
-    let offset = offset_of(expanded, line, col);
+    // RON may place an error on the blank before the offending value: the value tells where
+    // the text came from.
+    let at = offset_of(expanded, line, col);
+    let offset = at + expanded[at..].len() - expanded[at..].trim_start().len();
     let Some((start, origin)) = pieces.iter().rev().find(|(s, _)| *s <= offset) else {
         return p;
     };
