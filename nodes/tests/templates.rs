@@ -90,7 +90,11 @@ fn a_whole_value_may_be_a_map_of_expressions() {
     let s = load(&instance, &PlantSignals).unwrap();
     assert_eq!(
         s.messages[0].frames[0].fields.get("engine_rpm"),
-        Some(&Expr::Scaled(Box::new(Expr::Signal("engine.rpm".into())), 2.0, 0.0))
+        Some(&Expr::Scaled(
+            Box::new(Expr::Signal("engine.rpm".into())),
+            2.0,
+            0.0
+        ))
     );
 }
 
@@ -125,7 +129,9 @@ fn unused_and_undeclared_parameters_are_template_problems() {
     let line = template.lines().nth(12).unwrap();
     assert_eq!(line.find("${sig}"), Some(43));
     let expected = [
-        format!("{t}:13:44: placeholder 'sig' is not a declared parameter (params: address, name, phase, signal, spare)"),
+        format!(
+            "{t}:13:44: placeholder 'sig' is not a declared parameter (params: address, name, phase, signal, spare)"
+        ),
         format!("{t}: params.signal: unused parameter: the script never uses it"),
         format!("{t}: params.spare: unused parameter: the script never uses it"),
     ];
@@ -224,7 +230,8 @@ fn syntax_errors_are_placed_in_the_template_or_at_the_parameter() {
         let col = line.find(token).unwrap() + 1;
         assert_eq!(p[0].position, Some((9, col)), "{p:?}");
         assert_eq!(
-            p[0].message.ends_with(&format!("(expanding {})", file(&instance))),
+            p[0].message
+                .ends_with(&format!("(expanding {})", file(&instance))),
             expanding,
             "{p:?}"
         );
@@ -283,9 +290,23 @@ fn the_size_limit_holds_for_the_template_and_for_the_expansion() {
         )]
     );
     // A small template whose name appears twice, given a value of 600 000 characters.
-    std::fs::write(dir.join("t.ron"), TEMPLATE.replace(r#"boot_delay_ms: 85,"#, r#"boot_delay_ms: 85, vars: {"${name}": 1.0},"#)).unwrap();
-    let long = format!(r#""address": 0xB1, "name": "{}", "signal": "engine", "phase": 12"#, "N".repeat(600_000));
-    std::fs::write(&instance, format!("Instance(template: \"t.ron\", params: {{{long}}})")).unwrap();
+    std::fs::write(
+        dir.join("t.ron"),
+        TEMPLATE.replace(
+            r#"boot_delay_ms: 85,"#,
+            r#"boot_delay_ms: 85, vars: {"${name}": 1.0},"#,
+        ),
+    )
+    .unwrap();
+    let long = format!(
+        r#""address": 0xB1, "name": "{}", "signal": "engine", "phase": 12"#,
+        "N".repeat(600_000)
+    );
+    std::fs::write(
+        &instance,
+        format!("Instance(template: \"t.ron\", params: {{{long}}})"),
+    )
+    .unwrap();
     let said: Vec<String> = problems(&instance).iter().map(ToString::to_string).collect();
     assert_eq!(
         said,

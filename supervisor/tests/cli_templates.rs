@@ -33,10 +33,7 @@ fn shipped_instances_and_templates_validate() {
 
 /// D2's instance file with `edit` applied, written with a copy of the templates into `dir`.
 fn d2(dir: &Path, edit: impl Fn(String) -> String) -> String {
-    common::copy_dir(
-        &root().join("configs/nodes/templates"),
-        &dir.join("templates"),
-    );
+    common::copy_dir(&root().join("configs/nodes/templates"), &dir.join("templates"));
     let text = std::fs::read_to_string(root().join("configs/nodes/d2.ron")).unwrap();
     let path = dir.join("d2.ron");
     std::fs::write(&path, edit(text)).unwrap();
@@ -56,8 +53,12 @@ fn an_unknown_and_a_missing_parameter_give_exit_2() {
         assert_eq!(out.status.code(), Some(2), "{args:?}");
         let err = stderr(&out);
         for needle in [
-            format!("{file}: params.rows: unknown parameter: {template} takes address, boot_delay_ms, canidt, name, phase_ms, row"),
-            format!("{file}: params: missing parameter 'row' (the plant's prefix for the row's signals (\"row1\"))"),
+            format!(
+                "{file}: params.rows: unknown parameter: {template} takes address, boot_delay_ms, canidt, name, phase_ms, row"
+            ),
+            format!(
+                "{file}: params: missing parameter 'row' (the plant's prefix for the row's signals (\"row1\"))"
+            ),
         ] {
             assert!(err.contains(&needle), "{args:?}: missing {needle} in:\n{err}");
         }
@@ -66,8 +67,14 @@ fn an_unknown_and_a_missing_parameter_give_exit_2() {
     let config = dir.join("harvester.ron");
     let text = std::fs::read_to_string(root().join("configs/harvester.ron"))
         .unwrap()
-        .replace("\"nodes/", &format!("\"{}/nodes/", root().join("configs").display()))
-        .replace(&format!("{}/nodes/d2.ron", root().join("configs").display()), &file);
+        .replace(
+            "\"nodes/",
+            &format!("\"{}/nodes/", root().join("configs").display()),
+        )
+        .replace(
+            &format!("{}/nodes/d2.ron", root().join("configs").display()),
+            &file,
+        );
     std::fs::write(&config, text).unwrap();
     let log = dir.join("never.log");
     let out = harvemu(&[

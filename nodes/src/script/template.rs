@@ -88,10 +88,7 @@ pub fn top_name(text: &str) -> Option<&str> {
 pub fn expand(path: &Path, text: &str) -> Result<NodeScript, Error> {
     let file = path.display().to_string();
     let instance: Instance = parse_ron(&file, text)?;
-    let tpl_path = path
-        .parent()
-        .unwrap_or(Path::new(""))
-        .join(&instance.template);
+    let tpl_path = path.parent().unwrap_or(Path::new("")).join(&instance.template);
     let tpl_file = tpl_path.display().to_string();
     let at_instance = |field: &str, message: String| Error::Invalid(vec![Problem::at(&file, field, message)]);
     let tpl_text = read_text(&tpl_path).map_err(|e| at_instance("template", e.to_string()))?;
@@ -153,8 +150,12 @@ pub fn expand(path: &Path, text: &str) -> Result<NodeScript, Error> {
     if !problems.is_empty() {
         return Err(Error::Invalid(problems));
     }
-    let (expanded, pieces) = substitute(&tpl_text, &found, &instance.params)
-        .ok_or_else(|| at_instance("template", format!("{tpl_file} expands to more than {MAX_FILE} bytes")))?;
+    let (expanded, pieces) = substitute(&tpl_text, &found, &instance.params).ok_or_else(|| {
+        at_instance(
+            "template",
+            format!("{tpl_file} expands to more than {MAX_FILE} bytes"),
+        )
+    })?;
     match parse_ron::<Expanded>(&tpl_file, &expanded) {
         Ok(e) => Ok(e.script),
         Err(Error::Invalid(problems)) => Err(Error::Invalid(
@@ -420,7 +421,13 @@ fn substitute(
 }
 
 /// A syntax problem in the expansion, moved to where its text came from.
-fn locate(mut p: Problem, expanded: &str, pieces: &[(usize, Origin)], template: &str, instance: &str) -> Problem {
+fn locate(
+    mut p: Problem,
+    expanded: &str,
+    pieces: &[(usize, Origin)],
+    template: &str,
+    instance: &str,
+) -> Problem {
     let Some((line, col)) = p.position else {
         return p;
     };
