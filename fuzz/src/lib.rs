@@ -29,6 +29,10 @@ pub fn scripts() -> &'static BTreeMap<PathBuf, NodeScript> {
         let mut map = BTreeMap::new();
         for entry in std::fs::read_dir(&dir).expect("configs/nodes is readable") {
             let path = entry.expect("a directory entry").path();
+            // templates/ holds what the instances expand from, not scripts of their own.
+            if path.is_dir() {
+                continue;
+            }
             let script = nodes::script::load(&path, &PlantSignals).expect("the real scripts are valid");
             let name = path.file_name().expect("a file name");
             map.insert(Path::new("configs/nodes").join(name), script);

@@ -1,4 +1,5 @@
-//! Reading the hand-written RON files harvemu takes: harvester configs, node scripts, scenarios.
+//! Reading the hand-written RON files harvemu takes: harvester configs, node scripts and their
+//! templates, scenarios. [`read_text`] is the one function that reads them.
 //!
 //! Contract: [`read_text`] reads at most [`MAX_FILE`] + 1 bytes of a file, so a file over the
 //! limit is refused as soon as that much has been read: `/dev/zero`, a FIFO that never ends or a

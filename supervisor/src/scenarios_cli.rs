@@ -188,7 +188,8 @@ fn run_one(l: &Loaded, record: Option<&PathBuf>) -> anyhow::Result<scenario::Out
 /// Arguments of `harvemu validate`.
 #[derive(clap::Args)]
 pub struct ValidateArgs {
-    /// Harvester configs, node scripts or scenarios (RON); the kind is read from the file.
+    /// Harvester configs, node scripts, templates or scenarios (RON); the kind is read from the
+    /// file.
     #[arg(required = true, value_name = "FILE")]
     files: Vec<PathBuf>,
 }
@@ -199,17 +200,15 @@ pub fn validate(args: &ValidateArgs) -> anyhow::Result<()> {
     for f in &args.files {
         let text = nodes::file::read_text(f).map_err(|e| BadInput(e.to_string()))?;
         // The struct name at the top of the file says what it is.
-        let body: String = text
-            .lines()
-            .filter(|l| !l.trim_start().starts_with("//"))
-            .collect::<Vec<_>>()
-            .join("\n");
-        let result = if body.trim_start().starts_with("Scenario") {
-            scenario::load(f, None).map(|_| "scenario")
-        } else if body.trim_start().starts_with("NodeScript") {
-            nodes::script::load(f, &nodes::environment::PlantSignals).map(|_| "node script")
-        } else {
-            Harvester::load(f).map(|_| "harvester config")
+        let result = match nodes::script::top_name(&text) {
+            Some("Scenario") => scenario::load(f, None).map(|_| "scenario"),
+            Some("NodeScript") => {
+                nodes::script::load(f, &nodes::environment::PlantSignals).map(|_| "node script")
+            }
+            Some("Instance") => nodes::script::load(f, &nodes::environment::PlantSignals)
+                .map(|_| "node script from a template"),
+            Some("Template") => nodes::script::check_template(f).map(|_| "node script template"),
+            _ => Harvester::load(f).map(|_| "harvester config"),
         };
         match result {
             Ok(kind) => crate::output::stdout(&format!("{}: ok ({kind})\n", f.display()))?,

@@ -35,14 +35,11 @@ fn cycle_times_come_from_the_config_given() {
     let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs");
     std::fs::create_dir_all(dir.join("nodes")).unwrap();
     std::fs::copy(src.join("harvester.ron"), dir.join("harvester.ron")).unwrap();
-    for e in std::fs::read_dir(src.join("nodes")).unwrap() {
-        let e = e.unwrap();
-        std::fs::copy(e.path(), dir.join("nodes").join(e.file_name())).unwrap();
-    }
+    common::copy_dir(&src.join("nodes"), &dir.join("nodes"));
     let b0 = dir.join("nodes/b0.ron");
     let script = std::fs::read_to_string(&b0).unwrap();
-    assert!(script.contains("period_ms: 100"));
-    std::fs::write(&b0, script.replace("period_ms: 100", "period_ms: 40")).unwrap();
+    assert!(script.contains(r#""period_ms": 100"#));
+    std::fs::write(&b0, script.replace(r#""period_ms": 100"#, r#""period_ms": 40"#)).unwrap();
     let out = harvemu(&["dbc", "--config", dir.join("harvester.ron").to_str().unwrap()]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let text = String::from_utf8(out.stdout).unwrap();

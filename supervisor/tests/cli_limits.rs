@@ -129,11 +129,11 @@ fn a_file_of_the_limit_is_read_one_byte_more_is_refused() {
             "Scenario(\n",
             &format!("Scenario(\n    config: \"{}/harvester.ron\",\n", root.display()),
         );
-    let script = std::fs::read_to_string(root.join("nodes/d3.ron")).unwrap();
+    let script = std::fs::read_to_string(root.join("nodes/a0.ron")).unwrap();
     for (name, text, kind) in [
         ("harvester.ron", harvester, "harvester config"),
         ("scenario.ron", scenario, "scenario"),
-        ("d3.ron", script, "node script"),
+        ("a0.ron", script, "node script"),
     ] {
         let file = dir.join(name);
         let path = file.to_str().unwrap();
@@ -201,7 +201,7 @@ fn long_names_in_configs_scripts_and_scenarios_are_quoted_short() {
             &format!("Scenario(\n    config: \"{}/harvester.ron\",\n", root.display()),
         )
         .replace("Crash(\"D3\")", &format!("Crash(\"{long}\")"));
-    let script = std::fs::read_to_string(root.join("nodes/d3.ron")).unwrap();
+    let script = std::fs::read_to_string(root.join("nodes/a0.ron")).unwrap();
     let unknown_field = script.replacen("NodeScript(", &format!("NodeScript(\n    {long}: 1,"), 1);
     let cut = "N".repeat(40);
     for (name, text, words) in [

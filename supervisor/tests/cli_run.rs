@@ -13,10 +13,7 @@ fn configs_copy(tag: &str) -> PathBuf {
     std::fs::create_dir_all(dir.join("nodes")).unwrap();
     let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs");
     std::fs::copy(src.join("harvester.ron"), dir.join("harvester.ron")).unwrap();
-    for e in std::fs::read_dir(src.join("nodes")).unwrap() {
-        let e = e.unwrap();
-        std::fs::copy(e.path(), dir.join("nodes").join(e.file_name())).unwrap();
-    }
+    common::copy_dir(&src.join("nodes"), &dir.join("nodes"));
     dir
 }
 
@@ -55,14 +52,14 @@ fn every_problem_of_a_bad_config_is_listed_and_nothing_runs() {
     let text = std::fs::read_to_string(&b1)
         .unwrap()
         .replace("engine.rpm", "engine.rmp")
-        .replace("period_ms: 100", "period_ms: 0");
+        .replace(r#""period_ms": 100"#, r#""period_ms": 0"#);
     std::fs::write(&b1, text).unwrap();
     let c2 = dir.join("nodes/c2.ron");
     std::fs::write(
         &c2,
         std::fs::read_to_string(&c2)
             .unwrap()
-            .replace("address: 0xC2", "address: 0xC9"),
+            .replace(r#""address": 0xC2"#, r#""address": 0xC9"#),
     )
     .unwrap();
     let log = dir.join("never.log");

@@ -178,11 +178,12 @@ fn control_characters_in_the_name_or_description_give_exit_2_naming_the_field() 
 fn validate_accepts_every_shipped_file() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs");
     let mut files = vec![root.join("harvester.ron")];
-    for d in ["nodes", "scenarios", "soak"] {
+    for d in ["nodes", "nodes/templates", "scenarios", "soak"] {
         files.extend(
             std::fs::read_dir(root.join(d))
                 .unwrap()
-                .map(|e| e.unwrap().path()),
+                .map(|e| e.unwrap().path())
+                .filter(|p| p.is_file()),
         );
     }
     let args: Vec<String> = files.iter().map(|f| f.display().to_string()).collect();

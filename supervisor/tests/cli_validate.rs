@@ -17,7 +17,7 @@ fn b1(expr: &str, name: &str) -> String {
         r#""engine_rpm": Signal("engine.rpm")"#,
         &format!(r#""engine_rpm": {expr}"#),
     );
-    let text = text.replace(r#"name: "B1""#, &format!("name: {name:?}"));
+    let text = text.replace(r#""name": "B1""#, &format!(r#""name": {name:?}"#));
     assert!(text.contains(expr));
     text
 }
@@ -25,6 +25,7 @@ fn b1(expr: &str, name: &str) -> String {
 #[test]
 fn a_bad_script_gives_exit_2_naming_file_node_and_field() {
     let dir = common::scratch("cli-validate", "script");
+    common::copy_dir(&nodes_dir().join("templates"), &dir.join("templates"));
     let file = dir.join("b1.ron");
     std::fs::write(
         &file,
@@ -57,14 +58,15 @@ fn a_bad_script_gives_exit_2_naming_file_node_and_field() {
 #[test]
 fn a_bad_harvester_config_gives_exit_2_for_validate_and_run() {
     let dir = common::scratch("cli-validate", "config");
+    common::copy_dir(&nodes_dir().join("templates"), &dir.join("templates"));
     std::fs::write(dir.join("b2.ron"), {
         let text = std::fs::read_to_string(nodes_dir().join("b2.ron")).unwrap();
-        text.replace(r#"name: "B2""#, r#"name: "B1""#)
+        text.replace(r#""name": "B2""#, r#""name": "B1""#)
     })
     .unwrap();
     std::fs::write(dir.join("b3.ron"), {
         let text = std::fs::read_to_string(nodes_dir().join("b3.ron")).unwrap();
-        text.replace(r#"name: "B3""#, r#"name: "B\u{0}3""#)
+        text.replace(r#""name": "B3""#, r#""name": "B\u{0}3""#)
     })
     .unwrap();
     let b1 = nodes_dir().join("b1.ron");

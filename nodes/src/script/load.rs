@@ -25,10 +25,22 @@ pub fn parse(file: &str, text: &str) -> Result<NodeScript, Error> {
 }
 
 /// Reads ([`crate::file::read_text`], so at most [`crate::file::MAX_FILE`] bytes), parses and
-/// validates a script file.
+/// validates a script file. A file whose top is `Instance(…)` is expanded from its template
+/// (read with the same function, see [`super::expand`]); problems of the script it makes name
+/// the instance's file.
 pub fn load(path: &Path, signals: &dyn Signals) -> Result<NodeScript, Error> {
     let text = crate::file::read_text(path)?;
-    from_text(&path.display().to_string(), &text, signals)
+    let file = path.display().to_string();
+    if super::top_name(&text) != Some("Instance") {
+        return from_text(&file, &text, signals);
+    }
+    let script = super::expand(path, &text)?;
+    let problems = validate(&file, &script, signals);
+    if problems.is_empty() {
+        Ok(script)
+    } else {
+        Err(Error::Invalid(problems))
+    }
 }
 
 /// Parses and validates a script held in memory; `file` names it in problems. [`load`] is this

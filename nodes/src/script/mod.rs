@@ -9,18 +9,21 @@
 //! (watchdogs), a boot delay, acknowledgement tracking, per-signal fault hooks (stuck, drift,
 //! noise, offset, dropout), and the acceptance filter of its CAN controller in the registers of
 //! its chip (Atmel CANIDT/CANIDM, SJA1000 ACR/AMR, or a SocketCAN filter list). Scaling, byte
-//! order and ranges come from the message catalogue, never from the script. The format is
-//! documented in `docs/BEHAVIOUR.md`.
+//! order and ranges come from the message catalogue, never from the script. A script file may
+//! instead be an instance of a template with parameters ([`expand`]). The format is documented
+//! in `docs/BEHAVIOUR.md`.
 
 mod filter;
 mod load;
 mod model;
 mod run;
+mod template;
 
 pub use filter::FilterProblem;
 pub use load::{Signals, from_text, load, parse, validate};
 pub use model::*;
 pub use run::{Environment, ScriptedNode, SharedEnv};
+pub use template::{check as check_template, expand, top_name};
 
 #[cfg(test)]
 mod tests;

@@ -24,6 +24,20 @@ pub fn scratch(suite: &str, tag: &str) -> PathBuf {
     dir
 }
 
+/// Copies the directory `from` into `to`, subdirectories too (the node scripts' templates).
+pub fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).expect("create a directory");
+    for e in std::fs::read_dir(from).expect("read a directory") {
+        let e = e.expect("a directory entry");
+        let target = to.join(e.file_name());
+        if e.file_type().expect("a file type").is_dir() {
+            copy_dir(&e.path(), &target);
+        } else {
+            std::fs::copy(e.path(), target).expect("copy a file");
+        }
+    }
+}
+
 /// The repository root, where `harvemu` runs in these tests.
 pub fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
