@@ -17,6 +17,13 @@ pub enum Error {
         /// 11 for a base frame, 29 for an extended frame.
         bits: u8,
     },
+    /// A bit rate whose bit time is not a whole number of nanoseconds, which the engine cannot
+    /// keep exactly.
+    #[error("bit rate {0} bit/s has no whole-nanosecond bit time: 1000000000 is not divisible by it")]
+    InexactBitRate(u32),
+    /// A request names a node the bus does not have.
+    #[error("no node {0}")]
+    NoNode(u16),
     /// Text in the `ID#DATA` notation could not be read.
     #[error("{0}")]
     Syntax(String),

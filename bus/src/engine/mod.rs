@@ -334,12 +334,10 @@ pub struct Bus {
 impl Bus {
     /// An empty bus. Fails for a bit rate whose bit time is not a whole number of nanoseconds.
     pub fn new(config: BusConfig) -> Result<Bus, Error> {
-        let bit_ns = config.bitrate.exact_bit_time_ns().ok_or_else(|| {
-            Error::Syntax(format!(
-                "bit rate {} bit/s has no whole-nanosecond bit time: 1000000000 is not divisible by it",
-                config.bitrate.bits_per_second()
-            ))
-        })?;
+        let bit_ns = config
+            .bitrate
+            .exact_bit_time_ns()
+            .ok_or(Error::InexactBitRate(config.bitrate.bits_per_second()))?;
         Ok(Bus {
             bitrate: config.bitrate,
             bit_ns,
@@ -412,7 +410,7 @@ impl Bus {
     fn get_mut(&mut self, node: NodeId) -> Result<&mut Controller, Error> {
         self.controllers
             .get_mut(node.index())
-            .ok_or_else(|| Error::Syntax(format!("no node {}", node.0)))
+            .ok_or(Error::NoNode(node.0))
     }
 
     /// Queues a frame that `node` hands to its controller at `at`. Returns a token that the
