@@ -6,6 +6,7 @@
 //! exit code.
 
 pub mod bench;
+pub mod configs;
 pub mod dbc;
 pub mod exit;
 pub mod harvester;

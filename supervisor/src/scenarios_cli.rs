@@ -1,6 +1,7 @@
 //! `harvemu scenario FILE...` and `harvemu validate FILE...`.
 
 use crate::BadInput;
+use crate::configs::{self, Source};
 use crate::exit::Ended;
 use crate::harvester::{self, Harvester};
 use crate::output::Output;
@@ -15,8 +16,9 @@ use std::path::PathBuf;
 /// Arguments of `harvemu scenario`.
 #[derive(clap::Args)]
 pub struct ScenarioArgs {
-    /// Scenario files (RON).
-    #[arg(required = true, value_name = "FILE")]
+    /// Scenario files (RON), or names of built-in scenarios (`bus_off` for
+    /// configs/scenarios/bus_off.ron; `harvemu config list` names them).
+    #[arg(required = true, value_name = "SCENARIO")]
     files: Vec<PathBuf>,
     /// Seed for every scenario (default: the scenario's, else its config's).
     #[arg(long, value_name = "N")]
@@ -48,7 +50,7 @@ pub fn run(args: &ScenarioArgs) -> anyhow::Result<Ended> {
     let mut problems = Vec::new();
     let epoch = crate::record::epoch(args.start_time, false);
     for f in &args.files {
-        match scenario::load(f, args.seed) {
+        match scenario::load(&configs::by_name(f, "scenarios"), args.seed) {
             Ok(mut l) => {
                 l.harvester.epoch = Some(epoch);
                 loaded.push(l)
@@ -91,7 +93,7 @@ pub fn run(args: &ScenarioArgs) -> anyhow::Result<Ended> {
     let mut out = String::new();
     let mut all_passed = true;
     for (l, o) in loaded.iter().zip(&outcomes) {
-        let file = l.path.display();
+        let file = &l.source;
         let _ = writeln!(
             out,
             "{} ({file}, seed {}, {:.1} s wall)",
@@ -132,7 +134,7 @@ pub fn run(args: &ScenarioArgs) -> anyhow::Result<Ended> {
     let runs: Vec<(String, &scenario::Scenario, &scenario::Outcome)> = loaded
         .iter()
         .zip(&outcomes)
-        .map(|(l, o)| (l.path.display().to_string(), &l.scenario, o))
+        .map(|(l, o)| (l.source.to_string(), &l.scenario, o))
         .collect();
     let mut node_down = false;
     for o in &outcomes {
@@ -197,7 +199,7 @@ pub struct ValidateArgs {
 pub fn validate(args: &ValidateArgs) -> anyhow::Result<()> {
     let mut problems = Vec::new();
     for f in &args.files {
-        let text = nodes::file::read_text(f).map_err(|e| BadInput(e.to_string()))?;
+        let (source, text) = Source::file(f).read().map_err(|e| BadInput(e.to_string()))?;
         // The struct name at the top of the file says what it is.
         let body: String = text
             .lines()
@@ -207,15 +209,16 @@ pub fn validate(args: &ValidateArgs) -> anyhow::Result<()> {
         let result = if body.trim_start().starts_with("Scenario") {
             scenario::load(f, None).map(|_| "scenario")
         } else if body.trim_start().starts_with("NodeScript") {
-            nodes::script::load(f, &nodes::environment::PlantSignals).map(|_| "node script")
+            let signals = nodes::environment::PlantSignals;
+            nodes::script::from_text(&source.to_string(), &text, &signals).map(|_| "node script")
         } else {
-            Harvester::load(f).map(|_| "harvester config")
+            Harvester::open(&source).map(|_| "harvester config")
         };
         match result {
-            Ok(kind) => crate::output::stdout(&format!("{}: ok ({kind})\n", f.display()))?,
+            Ok(kind) => crate::output::stdout(&format!("{source}: ok ({kind})\n"))?,
             Err(Error::Invalid(p)) => problems.extend(p),
             Err(e) => problems.push(nodes::Problem {
-                file: f.display().to_string(),
+                file: source.to_string(),
                 position: None,
                 node: None,
                 field: None,
