@@ -26,7 +26,7 @@ Exit codes:
   0    success
   1    an expectation of a scenario or soak failed
   2    bad input or usage
-  3    an output (trace, report, JUnit XML, DBC) could not be created or written
+  3    an output (trace, report, JUnit XML, DBC, exported config) could not be created or written
   4    a node crashed more often than its restart policy allows
   70   harvemu itself failed (a bug: please report it)
   130  stopped by SIGINT (Ctrl-C), 143 by SIGTERM, 129 by SIGHUP (outputs are finished)";
