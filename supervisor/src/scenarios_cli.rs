@@ -93,12 +93,13 @@ pub fn run(args: &ScenarioArgs) -> anyhow::Result<Ended> {
     let mut out = String::new();
     let mut all_passed = true;
     for (l, o) in loaded.iter().zip(&outcomes) {
-        let file = &l.source;
         let _ = writeln!(
             out,
-            "{} ({file}, seed {}, {:.1} s wall)",
-            l.scenario.name, o.seed, o.wall_seconds
+            "{} ({}, seed {}, {:.1} s wall)",
+            l.scenario.name, l.source, o.seed, o.wall_seconds
         );
+        // The path alone, which finds the same file again (a built-in one too).
+        let file = l.source.path.display();
         for e in &o.events {
             let _ = writeln!(out, "  event {} {} {}", e.at, e.node, e.what);
         }
@@ -134,7 +135,7 @@ pub fn run(args: &ScenarioArgs) -> anyhow::Result<Ended> {
     let runs: Vec<(String, &scenario::Scenario, &scenario::Outcome)> = loaded
         .iter()
         .zip(&outcomes)
-        .map(|(l, o)| (l.source.to_string(), &l.scenario, o))
+        .map(|(l, o)| (l.source.path.display().to_string(), &l.scenario, o))
         .collect();
     let mut node_down = false;
     for o in &outcomes {

@@ -248,3 +248,21 @@ fn unknown_names_and_validate_say_where_they_looked() {
         "configs/harvester.ron (built in): ok (harvester config)\nconfigs/scenarios/crash.ron (built in): ok (scenario)\n"
     );
 }
+
+#[test]
+fn a_built_in_scenario_is_reported_by_a_path_that_finds_it_again() {
+    let dir = common::scratch("cli-built-in", "junit");
+    let out = harvemu_in(&dir, &["scenario", "bus_off", "--junit", "j.xml"]);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    assert!(
+        stdout.starts_with("D2 bus off and back (configs/scenarios/bus_off.ron (built in), seed "),
+        "{stdout}"
+    );
+    // JUnit's file (and a failure's command) is the path, which reads the built-in file again.
+    let junit = std::fs::read_to_string(dir.join("j.xml")).unwrap();
+    assert!(
+        junit.contains("<property name=\"file\" value=\"configs/scenarios/bus_off.ron\"/>"),
+        "{junit}"
+    );
+}

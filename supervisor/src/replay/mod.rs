@@ -42,8 +42,8 @@ pub struct Args {
     /// The trace: a candump log or a Vector ASC file (the format is read from the file).
     #[arg(value_name = "TRACE")]
     file: PathBuf,
-    /// Harvester config: the emulated nodes that run alongside the replay. The default is read from the working directory
-    /// when it is there, else built in.
+    /// Harvester config: the emulated nodes that run alongside the replay.
+    /// The default is read from the working directory when it is there, else built in.
     #[arg(long, value_name = "FILE", default_value = "configs/harvester.ron")]
     config: PathBuf,
     /// Leave a node out of the emulation (repeatable; F5 is the monitor).
