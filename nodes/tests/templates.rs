@@ -2,7 +2,7 @@
 //! expansion makes, and every way a template or an instance can be wrong.
 
 use nodes::environment::PlantSignals;
-use nodes::script::{Expr, When, check_template, load, top_name};
+use nodes::script::{Expr, When, check_template, disk, load, top_name};
 use nodes::{Error, Problem};
 use std::path::{Path, PathBuf};
 
@@ -138,13 +138,15 @@ fn unused_and_undeclared_parameters_are_template_problems() {
     let said: Vec<String> = problems(&instance).iter().map(ToString::to_string).collect();
     assert_eq!(said, expected);
     // `harvemu validate` checks a template alone the same way.
-    let Err(Error::Invalid(alone)) = check_template(&dir.join("t.ron")) else {
+    let (file, text) = disk(&dir.join("t.ron")).unwrap();
+    let Err(Error::Invalid(alone)) = check_template(&file, &text) else {
         panic!("the template has problems");
     };
     let alone: Vec<String> = alone.iter().map(ToString::to_string).collect();
     assert_eq!(alone, expected);
     let (dir, _) = setup("good-alone", TEMPLATE, PARAMS);
-    check_template(&dir.join("t.ron")).unwrap();
+    let (file, text) = disk(&dir.join("t.ron")).unwrap();
+    check_template(&file, &text).unwrap();
 }
 
 #[test]

@@ -17,6 +17,7 @@ pub struct Args {
     #[arg(short, long, value_name = "FILE")]
     output: Option<PathBuf>,
     /// Harvester config whose node scripts give the cycle times.
+    /// The default is read from the working directory when it is there, else built in.
     #[arg(long, value_name = "FILE", default_value = "configs/harvester.ron")]
     config: PathBuf,
 }

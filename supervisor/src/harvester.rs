@@ -2,6 +2,7 @@
 //! scripted nodes.
 
 use crate::BadInput;
+use crate::configs::Source;
 use actix::prelude::*;
 use bus::bits::BitRate;
 use bus::engine::{BusConfig, ControllerConfig, Filter, NodeId};
@@ -17,7 +18,7 @@ use protocol::ident::Address;
 use serde::Deserialize;
 use std::cell::RefCell;
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::rc::Rc;
 use std::time::Duration;
 
@@ -52,7 +53,7 @@ pub struct HarvesterConfig {
 #[derive(Clone, Debug)]
 pub struct Harvester {
     /// Where it was read from.
-    pub path: PathBuf,
+    pub source: Source,
     /// The config.
     pub config: HarvesterConfig,
     /// The node scripts, in config order.
@@ -65,12 +66,22 @@ pub struct Harvester {
 
 impl Harvester {
     /// Reads and checks a harvester config and every script it names; every problem is
-    /// reported at once. Each file is read with [`nodes::file::read_text`]: at most
-    /// [`nodes::file::MAX_FILE`] bytes.
+    /// reported at once. `path` is read as [`Source::file`] says: from disk when something is
+    /// there, else the built-in copy.
     pub fn load(path: &Path) -> Result<Harvester, Error> {
-        let text = nodes::file::read_text(path)?;
+        Harvester::open(&Source::file(path))
+    }
+
+    /// [`Harvester::load`] from a source: each file is read with [`Source::read`] (from disk at
+    /// most [`nodes::file::MAX_FILE`] bytes), the node scripts beside the config, in the
+    /// built-in tree when the config is built in.
+    pub fn open(source: &Source) -> Result<Harvester, Error> {
+        let (source, text) = source.read()?;
         let signals = nodes::environment::PlantSignals;
-        Harvester::from_text(path, &text, |script| nodes::script::load(script, &signals))
+        Harvester::parse(&source, &text, |script| {
+            let (found, text) = script.read()?;
+            nodes::script::from_file_text(&found.to_string(), &found.path, &text, &signals, &found.reader())
+        })
     }
 
     /// As [`Harvester::load`] with the config's text already read: `path` is where it came from
@@ -81,7 +92,15 @@ impl Harvester {
         text: &str,
         mut script: impl FnMut(&Path) -> Result<NodeScript, Error>,
     ) -> Result<Harvester, Error> {
-        let file = path.display().to_string();
+        Harvester::parse(&Source::file(path), text, |s| script(&s.path))
+    }
+
+    fn parse(
+        source: &Source,
+        text: &str,
+        mut script: impl FnMut(&Source) -> Result<NodeScript, Error>,
+    ) -> Result<Harvester, Error> {
+        let file = source.to_string();
         let config: HarvesterConfig = nodes::parse_ron(&file, text)?;
         let mut problems = Vec::new();
         if BitRate::for_bus(config.bitrate).is_none() {
@@ -129,11 +148,10 @@ impl Harvester {
                 .into_iter()
                 .map(|(field, m)| Problem::at(&file, format!("plant.{field}"), m)),
         );
-        let dir = path.parent().unwrap_or(Path::new("."));
         let mut scripts = Vec::new();
         let mut places = Vec::new();
         for (i, rel) in config.nodes.iter().enumerate() {
-            match script(&dir.join(rel)) {
+            match script(&source.beside(rel)) {
                 Ok(s) => {
                     scripts.push(s);
                     places.push(format!("nodes[{i}] ({rel})"));
@@ -149,7 +167,7 @@ impl Harvester {
         problems.extend(clashes(&file, &scripts, &places));
         if problems.is_empty() {
             Ok(Harvester {
-                path: path.to_path_buf(),
+                source: source.clone(),
                 config,
                 scripts,
                 epoch: None,
@@ -169,7 +187,7 @@ impl Harvester {
             } else if let Some(i) = self.scripts.iter().position(|s| &s.name == n) {
                 self.scripts.remove(i);
             } else {
-                let file = self.path.display().to_string();
+                let file = self.source.to_string();
                 problems.push(Problem::at(
                     &file,
                     "nodes",
@@ -234,19 +252,9 @@ fn clashes(file: &str, scripts: &[NodeScript], places: &[String]) -> Vec<Problem
     problems
 }
 
-/// Turns a config error into bad input for the command line. A default config (`configs/...`,
-/// relative to the working directory) that is not there gets told how to point at one: an
-/// installed harvemu run outside the repository does not find its defaults.
+/// Turns a config error into bad input for the command line.
 pub fn bad(e: Error) -> anyhow::Error {
-    let hint = match &e {
-        Error::Io { path, source }
-            if source.kind() == std::io::ErrorKind::NotFound && path.starts_with("configs/") =>
-        {
-            DEFAULT_CONFIG_HINT
-        }
-        _ => "",
-    };
-    BadInput(format!("{e}{hint}")).into()
+    BadInput(e.to_string()).into()
 }
 
 /// The controller of a node: a field node's as its script declares it; the monitor's keeps every
@@ -268,12 +276,6 @@ fn controller(name: &str, spec: &Spec) -> anyhow::Result<ControllerConfig> {
     };
     Ok(ControllerConfig::named(name).with_filter(filter))
 }
-
-/// Appended to "configs/...: No such file or directory".
-pub const DEFAULT_CONFIG_HINT: &str = "; the default configs are read from configs/ in the \
-     current directory: run harvemu in the harvemu repository, or give a config's path \
-     (`harvemu run PATH/harvester.ron`, `--config FILE` for replay, dbc and bench, \
-     `harvemu soak PATH/soak_24h.ron`)";
 
 /// How crashed nodes are restarted (the `restart` section of the harvester config).
 #[derive(Clone, Debug, Deserialize, serde::Serialize)]

@@ -6,6 +6,7 @@
 //! exit code.
 
 pub mod bench;
+pub mod configs;
 pub mod dbc;
 pub mod exit;
 pub mod harvester;
@@ -34,8 +35,8 @@ impl std::fmt::Display for BadInput {
 
 impl std::error::Error for BadInput {}
 
-/// An output (trace, report, JUnit XML, DBC) that could not be created or written completely:
-/// reported on one line naming the file, exit code 3.
+/// An output (trace, report, JUnit XML, DBC, exported config) that could not be created or
+/// written completely: reported on one line naming the file, exit code 3.
 #[derive(Debug)]
 pub struct OutputFailed(pub String);
 

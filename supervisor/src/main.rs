@@ -7,7 +7,7 @@
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 use supervisor::exit::{self, Ended};
-use supervisor::{bench, dbc, inspect, replay, run, scenarios_cli, soak, stop};
+use supervisor::{bench, configs, dbc, inspect, replay, run, scenarios_cli, soak, stop};
 
 #[derive(Parser)]
 #[command(
@@ -26,7 +26,7 @@ Exit codes:
   0    success
   1    an expectation of a scenario or soak failed
   2    bad input or usage
-  3    an output (trace, report, JUnit XML, DBC) could not be created or written
+  3    an output (trace, report, JUnit XML, DBC, exported config) could not be created or written
   4    a node crashed more often than its restart policy allows
   70   harvemu itself failed (a bug: please report it)
   130  stopped by SIGINT (Ctrl-C), 143 by SIGTERM, 129 by SIGHUP (outputs are finished)";
@@ -44,6 +44,7 @@ Examples:
 
 const SCENARIO_EXAMPLES: &str = "\
 Examples:
+  harvemu scenario bus_off                           a built-in scenario, by its name
   harvemu scenario configs/scenarios/*.ron --junit report.xml
   harvemu scenario configs/scenarios/bus_off.ron --seed 7 --report bus_off.html";
 
@@ -66,6 +67,12 @@ Examples:
 const DBC_EXAMPLES: &str = "\
 Examples:
   harvemu dbc -o harvester.dbc";
+
+const CONFIG_EXAMPLES: &str = "\
+Examples:
+  harvemu config export configs        the built-in configs, to edit: ./configs/ then wins
+  harvemu config export my-configs     then: harvemu run my-configs/harvester.ron
+  harvemu config list";
 
 const PROTOCOL_EXAMPLES: &str = "\
 Examples:
@@ -98,6 +105,10 @@ enum Command {
     /// Write a DBC of the whole harvester (catalogue messages, cycle times from the node scripts).
     #[command(after_help = DBC_EXAMPLES)]
     Dbc(dbc::Args),
+    /// The built-in configs (harvester, node scripts, scenarios, soak): write them out to edit,
+    /// or list them.
+    #[command(subcommand, after_help = CONFIG_EXAMPLES)]
+    Config(configs::cli::Command),
     /// Print the message catalogue (`--markdown`: the generated part of docs/PROTOCOL.md).
     #[command(after_help = PROTOCOL_EXAMPLES)]
     Protocol {
@@ -147,6 +158,7 @@ fn main() -> ExitCode {
         Command::Inspect(args) => inspect::run(&args).map(|()| done),
         Command::Bench(args) => bench::run(&args).map(|()| done),
         Command::Dbc(args) => dbc::run(&args).map(|()| done),
+        Command::Config(command) => configs::cli::run(&command).map(|()| done),
         Command::Protocol { markdown } => protocol(markdown).map(|()| done),
     };
     if let Err(e) = &result {

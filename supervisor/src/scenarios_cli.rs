@@ -1,6 +1,7 @@
 //! `harvemu scenario FILE...` and `harvemu validate FILE...`.
 
 use crate::BadInput;
+use crate::configs::{self, Source};
 use crate::exit::Ended;
 use crate::harvester::{self, Harvester};
 use crate::output::Output;
@@ -15,8 +16,9 @@ use std::path::PathBuf;
 /// Arguments of `harvemu scenario`.
 #[derive(clap::Args)]
 pub struct ScenarioArgs {
-    /// Scenario files (RON).
-    #[arg(required = true, value_name = "FILE")]
+    /// Scenario files (RON), or names of built-in scenarios (`bus_off` for
+    /// configs/scenarios/bus_off.ron; `harvemu config list` names them).
+    #[arg(required = true, value_name = "SCENARIO")]
     files: Vec<PathBuf>,
     /// Seed for every scenario (default: the scenario's, else its config's).
     #[arg(long, value_name = "N")]
@@ -48,7 +50,7 @@ pub fn run(args: &ScenarioArgs) -> anyhow::Result<Ended> {
     let mut problems = Vec::new();
     let epoch = crate::record::epoch(args.start_time, false);
     for f in &args.files {
-        match scenario::load(f, args.seed) {
+        match scenario::load(&configs::by_name(f, "scenarios"), args.seed) {
             Ok(mut l) => {
                 l.harvester.epoch = Some(epoch);
                 loaded.push(l)
@@ -91,12 +93,13 @@ pub fn run(args: &ScenarioArgs) -> anyhow::Result<Ended> {
     let mut out = String::new();
     let mut all_passed = true;
     for (l, o) in loaded.iter().zip(&outcomes) {
-        let file = l.path.display();
         let _ = writeln!(
             out,
-            "{} ({file}, seed {}, {:.1} s wall)",
-            l.scenario.name, o.seed, o.wall_seconds
+            "{} ({}, seed {}, {:.1} s wall)",
+            l.scenario.name, l.source, o.seed, o.wall_seconds
         );
+        // The path alone, which finds the same file again (a built-in one too).
+        let file = l.source.path.display();
         for e in &o.events {
             let _ = writeln!(out, "  event {} {} {}", e.at, e.node, e.what);
         }
@@ -132,7 +135,7 @@ pub fn run(args: &ScenarioArgs) -> anyhow::Result<Ended> {
     let runs: Vec<(String, &scenario::Scenario, &scenario::Outcome)> = loaded
         .iter()
         .zip(&outcomes)
-        .map(|(l, o)| (l.path.display().to_string(), &l.scenario, o))
+        .map(|(l, o)| (l.source.path.display().to_string(), &l.scenario, o))
         .collect();
     let mut node_down = false;
     for o in &outcomes {
@@ -198,23 +201,25 @@ pub struct ValidateArgs {
 pub fn validate(args: &ValidateArgs) -> anyhow::Result<()> {
     let mut problems = Vec::new();
     for f in &args.files {
-        let text = nodes::file::read_text(f).map_err(|e| BadInput(e.to_string()))?;
+        let (source, text) = Source::file(f).read().map_err(|e| BadInput(e.to_string()))?;
         // The struct name at the top of the file says what it is.
+        let signals = nodes::environment::PlantSignals;
+        let name = source.to_string();
         let result = match nodes::script::top_name(&text) {
             Some("Scenario") => scenario::load(f, None).map(|_| "scenario"),
-            Some("NodeScript") => {
-                nodes::script::load(f, &nodes::environment::PlantSignals).map(|_| "node script")
+            Some("NodeScript") => nodes::script::from_text(&name, &text, &signals).map(|_| "node script"),
+            Some("Instance") => {
+                nodes::script::from_file_text(&name, &source.path, &text, &signals, &source.reader())
+                    .map(|_| "node script from a template")
             }
-            Some("Instance") => nodes::script::load(f, &nodes::environment::PlantSignals)
-                .map(|_| "node script from a template"),
-            Some("Template") => nodes::script::check_template(f).map(|_| "node script template"),
-            _ => Harvester::load(f).map(|_| "harvester config"),
+            Some("Template") => nodes::script::check_template(&name, &text).map(|_| "node script template"),
+            _ => Harvester::open(&source).map(|_| "harvester config"),
         };
         match result {
-            Ok(kind) => crate::output::stdout(&format!("{}: ok ({kind})\n", f.display()))?,
+            Ok(kind) => crate::output::stdout(&format!("{source}: ok ({kind})\n"))?,
             Err(Error::Invalid(p)) => problems.extend(p),
             Err(e) => problems.push(nodes::Problem {
-                file: f.display().to_string(),
+                file: source.to_string(),
                 position: None,
                 node: None,
                 field: None,

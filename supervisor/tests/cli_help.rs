@@ -6,13 +6,15 @@ mod common;
 
 use common::harvemu;
 
-const SUBCOMMANDS: [&str; 9] = [
-    "run", "replay", "scenario", "soak", "validate", "inspect", "bench", "dbc", "protocol",
+const SUBCOMMANDS: [&str; 10] = [
+    "run", "replay", "scenario", "soak", "validate", "inspect", "bench", "dbc", "config", "protocol",
 ];
 
 /// Every placeholder a help may use: files are `<FILE>`, durations `<DURATION>`, counts `<N>`.
-const PLACEHOLDERS: [&str; 13] = [
+const PLACEHOLDERS: [&str; 15] = [
     "<FILE>",
+    "<DIR>",
+    "<COMMAND>",
     "<TIME>",
     "<DURATION>",
     "<N>",

@@ -29,13 +29,24 @@ pub fn parse(file: &str, text: &str) -> Result<NodeScript, Error> {
 /// (read with the same function, see [`super::expand`]); problems of the script it makes name
 /// the instance's file.
 pub fn load(path: &Path, signals: &dyn Signals) -> Result<NodeScript, Error> {
-    let text = crate::file::read_text(path)?;
-    let file = path.display().to_string();
-    if super::top_name(&text) != Some("Instance") {
-        return from_text(&file, &text, signals);
+    let (file, text) = super::disk(path)?;
+    from_file_text(&file, path, &text, signals, &super::disk)
+}
+
+/// [`load`] with the file already read: `text` is the content of `path`, named `file` in
+/// problems, and `read` reads the template of an instance.
+pub fn from_file_text(
+    file: &str,
+    path: &Path,
+    text: &str,
+    signals: &dyn Signals,
+    read: super::Reader,
+) -> Result<NodeScript, Error> {
+    if super::top_name(text) != Some("Instance") {
+        return from_text(file, text, signals);
     }
-    let script = super::expand(path, &text)?;
-    let problems = validate(&file, &script, signals);
+    let script = super::expand(file, path, text, read)?;
+    let problems = validate(file, &script, signals);
     if problems.is_empty() {
         Ok(script)
     } else {

@@ -20,10 +20,10 @@ mod run;
 mod template;
 
 pub use filter::FilterProblem;
-pub use load::{Signals, from_text, load, parse, validate};
+pub use load::{Signals, from_file_text, from_text, load, parse, validate};
 pub use model::*;
 pub use run::{Environment, ScriptedNode, SharedEnv};
-pub use template::{check as check_template, expand, top_name};
+pub use template::{Reader, check as check_template, disk, expand, top_name};
 
 #[cfg(test)]
 mod tests;

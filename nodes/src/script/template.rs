@@ -13,8 +13,9 @@
 //! template's path is relative to the instance's directory.
 //!
 //! Contract:
-//! - The template is read with [`crate::file::read_text`] (at most [`crate::file::MAX_FILE`]
-//!   bytes), the only file read here; the expanded text is refused past the same limit.
+//! - The template is read by the caller's [`Reader`] ([`disk`]: [`crate::file::read_text`], at
+//!   most [`crate::file::MAX_FILE`] bytes), the only file read here; the expanded text is refused
+//!   past the same limit.
 //! - One level only: the file an instance names must be a `Template`; an instance (the instance
 //!   itself included) or a plain script is refused. Values are inserted as they are and never
 //!   scanned again, so expansion is one pass and always ends.
@@ -83,15 +84,24 @@ pub fn top_name(text: &str) -> Option<&str> {
     (end > i).then(|| &text[i..end])
 }
 
-/// The script an instance file describes, `text` being the instance's content read from `path`;
-/// it is parsed, not validated (see [`super::validate`]).
-pub fn expand(path: &Path, text: &str) -> Result<NodeScript, Error> {
-    let file = path.display().to_string();
-    let instance: Instance = parse_ron(&file, text)?;
+/// Reads the file at a path: the name problems give it, and its text. [`disk`] reads the disk; a
+/// caller with files of its own (configs built into a binary) passes another.
+pub type Reader<'a> = &'a dyn Fn(&Path) -> Result<(String, String), Error>;
+
+/// The [`Reader`] of files on disk: [`read_text`], so at most [`MAX_FILE`] bytes, named by their
+/// path.
+pub fn disk(path: &Path) -> Result<(String, String), Error> {
+    Ok((path.display().to_string(), read_text(path)?))
+}
+
+/// The script an instance file describes, `text` being the instance's content read from `path`
+/// and named `file` in problems; `read` reads its template. The script is parsed, not validated
+/// (see [`super::validate`]).
+pub fn expand(file: &str, path: &Path, text: &str, read: Reader) -> Result<NodeScript, Error> {
+    let instance: Instance = parse_ron(file, text)?;
     let tpl_path = path.parent().unwrap_or(Path::new("")).join(&instance.template);
-    let tpl_file = tpl_path.display().to_string();
-    let at_instance = |field: &str, message: String| Error::Invalid(vec![Problem::at(&file, field, message)]);
-    let tpl_text = read_text(&tpl_path).map_err(|e| at_instance("template", e.to_string()))?;
+    let at_instance = |field: &str, message: String| Error::Invalid(vec![Problem::at(file, field, message)]);
+    let (tpl_file, tpl_text) = read(&tpl_path).map_err(|e| at_instance("template", e.to_string()))?;
     match top_name(&tpl_text) {
         Some("Template") => {}
         Some("Instance") => {
@@ -117,7 +127,7 @@ pub fn expand(path: &Path, text: &str) -> Result<NodeScript, Error> {
     for name in instance.params.keys() {
         if !declared.contains_key(name) {
             problems.push(Problem::at(
-                &file,
+                file,
                 format!("params.{}", cut(name, 40)),
                 format!("unknown parameter: {tpl_file} takes {known}"),
             ));
@@ -126,7 +136,7 @@ pub fn expand(path: &Path, text: &str) -> Result<NodeScript, Error> {
     for (name, what) in &declared {
         if !instance.params.contains_key(name) {
             problems.push(Problem::at(
-                &file,
+                file,
                 "params",
                 format!("missing parameter {} ({})", quote(name), cut(what, LIST_CHARS)),
             ));
@@ -137,7 +147,7 @@ pub fn expand(path: &Path, text: &str) -> Result<NodeScript, Error> {
             && inline(v.get_ron().trim()).is_none()
         {
             problems.push(Problem::at(
-                &file,
+                file,
                 format!("params.{}", p.name),
                 format!(
                     "{} is used inside a string of {tpl_file}, so its value must be a string or a number",
@@ -161,17 +171,17 @@ pub fn expand(path: &Path, text: &str) -> Result<NodeScript, Error> {
         Err(Error::Invalid(problems)) => Err(Error::Invalid(
             problems
                 .into_iter()
-                .map(|p| locate(p, &expanded, &pieces, &tpl_text, &file))
+                .map(|p| locate(p, &expanded, &pieces, &tpl_text, file))
                 .collect(),
         )),
         Err(e) => Err(e),
     }
 }
 
-/// Reads a template file and checks it on its own: its declarations against its placeholders.
-pub fn check(path: &Path) -> Result<(), Error> {
-    let text = read_text(path)?;
-    declarations(&path.display().to_string(), &text).map(|_| ())
+/// Checks a template file on its own, `text` being its content and `file` its name in problems:
+/// its declarations against its placeholders.
+pub fn check(file: &str, text: &str) -> Result<(), Error> {
+    declarations(file, text).map(|_| ())
 }
 
 /// A template's declared parameters and its placeholders, or every problem between them.

@@ -39,6 +39,7 @@ pub struct Args {
     #[arg(long, value_name = "N", default_value_t = 2)]
     threads: usize,
     /// Harvester config of the harvester scenarios.
+    /// The default is read from the working directory when it is there, else built in.
     #[arg(long, value_name = "FILE", default_value = "configs/harvester.ron")]
     config: PathBuf,
     /// Virtual seconds of the one-harvester scenario.

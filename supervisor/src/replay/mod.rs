@@ -43,6 +43,7 @@ pub struct Args {
     #[arg(value_name = "TRACE")]
     file: PathBuf,
     /// Harvester config: the emulated nodes that run alongside the replay.
+    /// The default is read from the working directory when it is there, else built in.
     #[arg(long, value_name = "FILE", default_value = "configs/harvester.ron")]
     config: PathBuf,
     /// Leave a node out of the emulation (repeatable; F5 is the monitor).
@@ -253,7 +254,7 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
         counts.read,
         counts.per_pass,
         h.config.name,
-        h.path.display(),
+        h.source,
         if args.fast {
             "virtual time"
         } else {

@@ -20,7 +20,8 @@ use std::time::Duration;
 /// Arguments of `harvemu run`.
 #[derive(clap::Args)]
 pub struct Args {
-    /// Harvester config.
+    /// Harvester config. The default is read from the working directory when it is there, else
+    /// built in.
     #[arg(value_name = "CONFIG", default_value = "configs/harvester.ron")]
     config: PathBuf,
     /// Run in virtual time, as fast as the machine allows (needs --for).
@@ -123,7 +124,7 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
         "harvemu: {} ({} nodes) from {}, seed {}, {}",
         h.config.name,
         h.scripts.len() + usize::from(h.config.monitor.enabled),
-        h.path.display(),
+        h.source,
         h.config.seed,
         if args.fast {
             "virtual time"

@@ -17,6 +17,7 @@ pub use random::{RandomFault, RandomFaults};
 pub use series::Series;
 
 use crate::BadInput;
+use crate::configs::Source;
 use crate::harvester::{self, Harvester, Running};
 use actix::prelude::*;
 use bus::candump::parse_frame;
@@ -30,12 +31,12 @@ use nodes::plant::Plant;
 use nodes::script::ScriptedNode;
 use nodes::{Error, Problem};
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// A scenario read and checked, with the harvester it runs on.
 pub struct Loaded {
     /// Its file.
-    pub path: PathBuf,
+    pub source: Source,
     /// The scenario.
     pub scenario: Scenario,
     /// The harvester, with the scenario's seed applied.
@@ -43,7 +44,8 @@ pub struct Loaded {
 }
 
 /// Reads and checks a scenario and its harvester; every problem is listed. Files are read with
-/// [`nodes::file::read_text`]: at most [`nodes::file::MAX_FILE`] bytes each.
+/// [`Source::read`]: from disk at most [`nodes::file::MAX_FILE`] bytes each, else the built-in
+/// copy; the harvester config of a built-in scenario is the built-in one.
 pub fn load(path: &Path, seed: Option<u64>) -> Result<Loaded, Error> {
     load_with(path, seed, None)
 }
@@ -51,8 +53,8 @@ pub fn load(path: &Path, seed: Option<u64>) -> Result<Loaded, Error> {
 /// [`load`], with the run's length replaced by `duration_s` when given (before the random
 /// faults are drawn, so that they cover the new length).
 pub fn load_with(path: &Path, seed: Option<u64>, duration_s: Option<f64>) -> Result<Loaded, Error> {
-    let text = nodes::file::read_text(path)?;
-    parse(path, &text, seed, duration_s, Harvester::load)
+    let (source, text) = Source::file(path).read()?;
+    parse(&source, &text, seed, duration_s, Harvester::open)
 }
 
 /// As [`load`] with the scenario's text already read: `path` is where it came from (problems
@@ -64,23 +66,22 @@ pub fn from_text(
     seed: Option<u64>,
     harvester: impl FnOnce(&Path) -> Result<Harvester, Error>,
 ) -> Result<Loaded, Error> {
-    parse(path, text, seed, None, harvester)
+    parse(&Source::file(path), text, seed, None, |s| harvester(&s.path))
 }
 
 fn parse(
-    path: &Path,
+    source: &Source,
     text: &str,
     seed: Option<u64>,
     duration_s: Option<f64>,
-    harvester: impl FnOnce(&Path) -> Result<Harvester, Error>,
+    harvester: impl FnOnce(&Source) -> Result<Harvester, Error>,
 ) -> Result<Loaded, Error> {
-    let file = path.display().to_string();
+    let file = source.to_string();
     let mut scenario: Scenario = nodes::parse_ron(&file, text)?;
     if let Some(d) = duration_s {
         scenario.duration_s = d;
     }
-    let config = path.parent().unwrap_or(Path::new(".")).join(&scenario.config);
-    let mut harvester = harvester(&config)?;
+    let mut harvester = harvester(&source.beside(&scenario.config))?;
     let problems = validate(&file, &scenario, &harvester);
     if !problems.is_empty() {
         return Err(Error::Invalid(problems));
@@ -98,7 +99,7 @@ fn parse(
         harvester.config.monitor.cruise.start_s = Some(s);
     }
     Ok(Loaded {
-        path: path.to_path_buf(),
+        source: source.clone(),
         scenario,
         harvester,
     })

@@ -10,6 +10,7 @@
 pub mod memory;
 
 use crate::BadInput;
+use crate::configs;
 use crate::exit::Ended;
 use crate::harvester;
 use crate::scenario::{self, random};
@@ -20,8 +21,10 @@ use std::path::PathBuf;
 /// Arguments of `harvemu soak`.
 #[derive(clap::Args)]
 pub struct Args {
-    /// The soak scenario (RON, usually with a `random_faults` section).
-    #[arg(default_value = "configs/soak/soak_24h.ron")]
+    /// The soak scenario (RON, usually with a `random_faults` section), or the name of a built-in
+    /// one (`soak_24h` for configs/soak/soak_24h.ron). The default is read from the working
+    /// directory when it is there, else built in.
+    #[arg(value_name = "SCENARIO", default_value = "configs/soak/soak_24h.ron")]
     scenario: PathBuf,
     /// Virtual hours to run (default: the scenario's duration); the faults are drawn for this length.
     #[arg(long, value_name = "HOURS")]
@@ -48,7 +51,8 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
         None => None,
     };
     let before = memory::vm_rss_kib();
-    let mut loaded = scenario::load_with(&args.scenario, args.seed, duration).map_err(harvester::bad)?;
+    let mut loaded = scenario::load_with(&configs::by_name(&args.scenario, "soak"), args.seed, duration)
+        .map_err(harvester::bad)?;
     let epoch = crate::record::epoch(args.start_time, false);
     loaded.harvester.epoch = Some(epoch);
     let (trace, recording) = crate::record::create_opt(args.record.as_ref(), epoch)?;
@@ -107,7 +111,7 @@ fn report(l: &scenario::Loaded, o: &scenario::Outcome, rss: &memory::Samples, ho
     let mut out = format!(
         "{} ({}), seed {}, {:.2} h virtual\n",
         s.name,
-        l.path.display(),
+        l.source,
         o.seed,
         s.duration_s / 3600.0
     );
@@ -163,7 +167,7 @@ fn report(l: &scenario::Loaded, o: &scenario::Outcome, rss: &memory::Samples, ho
     if !o.passed() {
         out += &format!(
             "failed: reproduce with: harvemu soak {} --seed {}{}\n",
-            l.path.display(),
+            l.source.path.display(),
             o.seed,
             hours.map(|h| format!(" --hours {h}")).unwrap_or_default()
         );
