@@ -154,6 +154,53 @@ fn fault_hooks_change_what_the_node_reads() {
     assert_eq!(rpm(&drive(&mut n, BusTime::from_millis(3100), &[])[0].1), 2000.0);
 }
 
+/// A scenario reaches a script's fault hooks through the node interface alone, with no
+/// knowledge of the logic behind it: each kind arrives as the same kind.
+#[test]
+fn injected_sensor_faults_reach_the_fault_hooks() {
+    use bus::node::{NodeFault, SensorFault};
+    let (mut n, _) = node(B1, &[("engine.rpm", 2000.0)]);
+    let rpm = |sent: &[(BusTime, Frame)]| {
+        catalogue::decode(&sent.last().unwrap().1)
+            .unwrap()
+            .unwrap()
+            .get("engine_rpm")
+            .unwrap()
+            .physical
+    };
+    let sensor = |reads| NodeFault::Sensor {
+        signal: "engine.rpm".into(),
+        reads,
+    };
+    let logic: &mut dyn NodeLogic = &mut n;
+    logic
+        .inject(&sensor(SensorFault::Offset(150.0)), BusTime::ZERO)
+        .unwrap();
+    assert_eq!(rpm(&drive(&mut n, BusTime::from_millis(520), &[])), 2150.0);
+    let logic: &mut dyn NodeLogic = &mut n;
+    logic
+        .inject(&sensor(SensorFault::Stuck(1234.0)), BusTime::from_millis(520))
+        .unwrap();
+    assert_eq!(rpm(&drive(&mut n, BusTime::from_millis(620), &[])), 1234.0);
+    let logic: &mut dyn NodeLogic = &mut n;
+    logic
+        .inject(&sensor(SensorFault::Drift(10.0)), BusTime::from_millis(615))
+        .unwrap();
+    // 2 s after the fault began: +20 rpm.
+    assert_eq!(rpm(&drive(&mut n, BusTime::from_millis(2615), &[])), 2020.0);
+    let logic: &mut dyn NodeLogic = &mut n;
+    logic
+        .inject(&sensor(SensorFault::Dropout), BusTime::from_millis(2615))
+        .unwrap();
+    assert!(drive(&mut n, BusTime::from_millis(3000), &[]).is_empty());
+    let logic: &mut dyn NodeLogic = &mut n;
+    let repaired = NodeFault::SensorRepaired {
+        signal: "engine.rpm".into(),
+    };
+    logic.inject(&repaired, BusTime::from_millis(3000)).unwrap();
+    assert_eq!(rpm(&drive(&mut n, BusTime::from_millis(3100), &[])), 2000.0);
+}
+
 const E0: &str = r#"
 NodeScript(
     address: 0xE0, name: "E0", kind: SpeedControl,

@@ -22,11 +22,10 @@ use actix::prelude::*;
 use bus::candump::parse_frame;
 use bus::engine::{BitPosition, ControllerConfig, Effect, Filter, Rule, Schedule};
 use bus::hub::{Attach, Control, GetErrorCounters, GetSnapshot, Replace, Submit, runtime};
-use bus::node::{Apply, NodeActor, NodeLogic};
+use bus::node::{Apply, NodeActor, NodeFault, NodeLogic};
 use bus::text::{LIST_CHARS, cut, quote};
 use bus::time::BusTime;
 use nodes::plant::Plant;
-use nodes::script::ScriptedNode;
 use nodes::{Error, Problem};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -950,14 +949,25 @@ async fn sensor(
         .actor(node)
         .ok_or_else(|| BadInput(format!("no node {node}")))?;
     let now = running.now();
+    let fault = match fault {
+        Some(f) => NodeFault::Sensor {
+            signal,
+            reads: f.into(),
+        },
+        None => NodeFault::SensorRepaired { signal },
+    };
+    let (answer, taken) = std::sync::mpsc::channel();
+    let described = format!("{fault:?}");
     actor
         .send(Apply(Box::new(move |logic| {
-            if let Some(n) = logic.as_any_mut().and_then(|a| a.downcast_mut::<ScriptedNode>()) {
-                n.set_fault(&signal, fault, now);
-            }
+            let _ = answer.send(logic.inject(&fault, now));
         })))
         .await?;
-    Ok(())
+    match taken.try_recv() {
+        Ok(Ok(())) => Ok(()),
+        Ok(Err(refused)) => Err(BadInput(format!("node {node} refused {described}: {refused}")).into()),
+        Err(e) => Err(anyhow::anyhow!("node {node} did not answer {described}: {e}")),
+    }
 }
 
 #[cfg(test)]
