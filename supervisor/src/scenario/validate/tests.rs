@@ -1,6 +1,9 @@
 //! Validation: every problem of a scenario is found, named by its field, and nothing else is.
 
-use super::*;
+use crate::harvester::Harvester;
+use crate::scenario::{Action, ErrorKind, SeenBy, from_text};
+use nodes::Error;
+use std::path::Path;
 
 fn harvester(_: &Path) -> Result<Harvester, Error> {
     Harvester::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs/harvester.ron"))
