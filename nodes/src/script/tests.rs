@@ -168,36 +168,25 @@ fn injected_sensor_faults_reach_the_fault_hooks() {
             .unwrap()
             .physical
     };
-    let sensor = |reads| NodeFault::Sensor {
-        signal: "engine.rpm".into(),
-        reads,
+    let inject = |n: &mut ScriptedNode, reads: Option<SensorFault>, ms: u64| {
+        let signal = "engine.rpm".to_string();
+        let fault = match reads {
+            Some(reads) => NodeFault::Sensor { signal, reads },
+            None => NodeFault::SensorRepaired { signal },
+        };
+        let logic: &mut dyn NodeLogic = n;
+        logic.inject(&fault, BusTime::from_millis(ms)).unwrap();
     };
-    let logic: &mut dyn NodeLogic = &mut n;
-    logic
-        .inject(&sensor(SensorFault::Offset(150.0)), BusTime::ZERO)
-        .unwrap();
+    inject(&mut n, Some(SensorFault::Offset(150.0)), 0);
     assert_eq!(rpm(&drive(&mut n, BusTime::from_millis(520), &[])), 2150.0);
-    let logic: &mut dyn NodeLogic = &mut n;
-    logic
-        .inject(&sensor(SensorFault::Stuck(1234.0)), BusTime::from_millis(520))
-        .unwrap();
+    inject(&mut n, Some(SensorFault::Stuck(1234.0)), 520);
     assert_eq!(rpm(&drive(&mut n, BusTime::from_millis(620), &[])), 1234.0);
-    let logic: &mut dyn NodeLogic = &mut n;
-    logic
-        .inject(&sensor(SensorFault::Drift(10.0)), BusTime::from_millis(615))
-        .unwrap();
+    inject(&mut n, Some(SensorFault::Drift(10.0)), 615);
     // 2 s after the fault began: +20 rpm.
     assert_eq!(rpm(&drive(&mut n, BusTime::from_millis(2615), &[])), 2020.0);
-    let logic: &mut dyn NodeLogic = &mut n;
-    logic
-        .inject(&sensor(SensorFault::Dropout), BusTime::from_millis(2615))
-        .unwrap();
+    inject(&mut n, Some(SensorFault::Dropout), 2615);
     assert!(drive(&mut n, BusTime::from_millis(3000), &[]).is_empty());
-    let logic: &mut dyn NodeLogic = &mut n;
-    let repaired = NodeFault::SensorRepaired {
-        signal: "engine.rpm".into(),
-    };
-    logic.inject(&repaired, BusTime::from_millis(3000)).unwrap();
+    inject(&mut n, None, 3000);
     assert_eq!(rpm(&drive(&mut n, BusTime::from_millis(3100), &[])), 2000.0);
 }
 

@@ -3,8 +3,8 @@
 //! plant inputs, crashes and power cycles.
 //!
 //! Contract: an action takes effect at the bus time the run has reached; one the harvester
-//! cannot carry out ends the run with an error naming it (a sensor fault on a node whose logic
-//! refuses it, a node that is gone).
+//! cannot carry out ends the run with an error. A fault a node's logic refuses is bad input
+//! (exit code 2), named with the scenario's file, the timeline step, the node and the fault.
 
 use super::babbler::Babblers;
 use super::model::{Action, ErrorKind, Hits, SeenBy, Target};

@@ -2,13 +2,13 @@
 //! expectations checked against the monitor's display, the bus statistics and node states, each
 //! with a verdict.
 //!
-//! Contract: [`load`] gives a scenario only when [`validate`] finds no problem in it, and lists
-//! every problem otherwise; [`run`] plays a loaded scenario to an [`Outcome`] with one verdict per
+//! Contract: [`load()`] gives a scenario only when [`validate()`] finds no problem in it, and lists
+//! every problem otherwise; [`run()`] plays a loaded scenario to an [`Outcome`] with one verdict per
 //! expectation, the same for the same seed. A step the running harvester cannot carry out (a
 //! fault the node's logic refuses) ends the run with an error naming the step, node and fault.
 //!
-//! The parts: the file format ([`model`](Scenario)), reading ([`load`]), validation
-//! ([`validate`]), the run loop ([`run`]), the timeline's actions on the running harvester
+//! The parts: the file format (`model`), reading (`load`), validation (`validate`), the run
+//! loop (`run`), the timeline's actions on the running harvester
 //! (`actions`, with the babbling idiot in `babbler`), the verdicts (`check`, over the node
 //! states of `states`), and what the run leaves for the report ([`books`], [`series`],
 //! [`trace_count`], [`junit`]); [`random`] draws random faults as ordinary timeline steps.

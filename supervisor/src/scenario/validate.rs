@@ -1,10 +1,10 @@
 //! Validation of a scenario against its harvester, before anything runs.
 //!
-//! Contract: [`validate`] lists every problem it finds, each named by file and field, and finds
-//! none in a scenario that can run to its end: every node it names exists, every time lies in
-//! the run, every value is one the harvester takes, and every expectation can both pass and fail.
-//! A scenario it passes can still be stopped by what happens while it runs (a node that refuses
-//! a fault), never by a value it could have checked.
+//! Contract: [`validate`] lists every problem it finds, each named by file and field: nodes the
+//! harvester does not have, times outside the run, values the harvester or the plant would
+//! refuse, sensor faults on the monitor (which has none), and expectations whose numbers mean
+//! they could never fail or never pass. It starts nothing; a scenario it passes can still be
+//! stopped while it runs, by a fault a node's logic refuses.
 
 mod expect;
 mod timeline;
