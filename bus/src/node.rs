@@ -50,12 +50,50 @@ pub trait NodeLogic {
     fn frames_can_wait(&self) -> bool {
         false
     }
-    /// The concrete logic, for fault injection that is specific to it (a script's sensor
-    /// faults); `None` for logics that offer none.
-    fn as_any_mut(&mut self) -> Option<&mut dyn std::any::Any> {
-        None
+    /// Takes a fault injected from outside (a scenario's timeline), from `now` on. A logic that
+    /// cannot take this fault refuses it, and says why: by default every fault is refused.
+    fn inject(&mut self, fault: &NodeFault, now: BusTime) -> Result<(), Refused> {
+        let _ = (fault, now);
+        Err(Refused("its logic takes no injected faults".to_string()))
     }
 }
+
+/// A fault injected into a node's logic: see [`NodeLogic::inject`].
+#[derive(Clone, Debug, PartialEq)]
+pub enum NodeFault {
+    /// The node's sensor of a plant signal reads wrong.
+    Sensor {
+        /// The plant signal.
+        signal: String,
+        /// How it reads.
+        reads: SensorFault,
+    },
+    /// The node's sensor of a plant signal reads true again.
+    SensorRepaired {
+        /// The plant signal.
+        signal: String,
+    },
+}
+
+/// How a faulty sensor reads.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum SensorFault {
+    /// This value, whatever the plant does.
+    Stuck(f64),
+    /// The true value plus this.
+    Offset(f64),
+    /// The true value plus this rate per second since the fault began.
+    Drift(f64),
+    /// The true value plus Gaussian noise of this standard deviation.
+    Noise(f64),
+    /// Nothing: the sensor is gone.
+    Dropout,
+}
+
+/// Why a logic refused an injected fault.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct Refused(pub String);
 
 /// A node's answer to a wake.
 #[derive(Debug, Default, PartialEq)]

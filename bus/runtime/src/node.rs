@@ -171,7 +171,8 @@ impl Handler<Crash> for NodeActor {
 /// A change made to a node's logic from outside.
 pub type LogicChange = Box<dyn FnOnce(&mut dyn NodeLogic) + Send>;
 
-/// Runs a function on the node's logic (fault injection specific to a kind of logic).
+/// Runs a function on the node's logic, on the node's actor (a scenario's faults reach the logic
+/// this way, through [`NodeLogic::inject`]).
 #[derive(Message)]
 #[rtype(result = "()")]
 pub struct Apply(pub LogicChange);

@@ -291,6 +291,33 @@ pub enum FaultKind {
     Dropout,
 }
 
+// The node interface's form of a sensor fault, which cannot name this crate's file model.
+impl From<FaultKind> for bus::node::SensorFault {
+    fn from(k: FaultKind) -> Self {
+        use bus::node::SensorFault as S;
+        match k {
+            FaultKind::Stuck(v) => S::Stuck(v),
+            FaultKind::Offset(v) => S::Offset(v),
+            FaultKind::Drift(v) => S::Drift(v),
+            FaultKind::Noise(v) => S::Noise(v),
+            FaultKind::Dropout => S::Dropout,
+        }
+    }
+}
+
+impl From<bus::node::SensorFault> for FaultKind {
+    fn from(k: bus::node::SensorFault) -> Self {
+        use bus::node::SensorFault as S;
+        match k {
+            S::Stuck(v) => FaultKind::Stuck(v),
+            S::Offset(v) => FaultKind::Offset(v),
+            S::Drift(v) => FaultKind::Drift(v),
+            S::Noise(v) => FaultKind::Noise(v),
+            S::Dropout => FaultKind::Dropout,
+        }
+    }
+}
+
 impl FaultKind {
     /// What is wrong with the fault's number, if anything: every one must be finite, and a
     /// noise's standard deviation not negative.

@@ -2,7 +2,7 @@
 
 use super::model::*;
 use bus::Frame;
-use bus::node::NodeLogic;
+use bus::node::{NodeFault, NodeLogic, Refused};
 use bus::time::BusTime;
 use protocol::catalogue::{self, Decoded, Direction};
 use protocol::ident::Address;
@@ -610,8 +610,13 @@ impl NodeLogic for ScriptedNode {
         self.out.pop_front()
     }
 
-    fn as_any_mut(&mut self) -> Option<&mut dyn std::any::Any> {
-        Some(self)
+    /// Sensor faults, as [`ScriptedNode::set_fault`]: a script takes every one.
+    fn inject(&mut self, fault: &NodeFault, now: BusTime) -> Result<(), Refused> {
+        match fault {
+            NodeFault::Sensor { signal, reads } => self.set_fault(signal, Some((*reads).into()), now),
+            NodeFault::SensorRepaired { signal } => self.set_fault(signal, None, now),
+        }
+        Ok(())
     }
 
     fn poll_timeout(&self) -> Option<BusTime> {

@@ -154,6 +154,42 @@ fn fault_hooks_change_what_the_node_reads() {
     assert_eq!(rpm(&drive(&mut n, BusTime::from_millis(3100), &[])[0].1), 2000.0);
 }
 
+/// A scenario reaches a script's fault hooks through the node interface alone, with no
+/// knowledge of the logic behind it: each kind arrives as the same kind.
+#[test]
+fn injected_sensor_faults_reach_the_fault_hooks() {
+    use bus::node::{NodeFault, SensorFault};
+    let (mut n, _) = node(B1, &[("engine.rpm", 2000.0)]);
+    let rpm = |sent: &[(BusTime, Frame)]| {
+        catalogue::decode(&sent.last().unwrap().1)
+            .unwrap()
+            .unwrap()
+            .get("engine_rpm")
+            .unwrap()
+            .physical
+    };
+    let inject = |n: &mut ScriptedNode, reads: Option<SensorFault>, ms: u64| {
+        let signal = "engine.rpm".to_string();
+        let fault = match reads {
+            Some(reads) => NodeFault::Sensor { signal, reads },
+            None => NodeFault::SensorRepaired { signal },
+        };
+        let logic: &mut dyn NodeLogic = n;
+        logic.inject(&fault, BusTime::from_millis(ms)).unwrap();
+    };
+    inject(&mut n, Some(SensorFault::Offset(150.0)), 0);
+    assert_eq!(rpm(&drive(&mut n, BusTime::from_millis(520), &[])), 2150.0);
+    inject(&mut n, Some(SensorFault::Stuck(1234.0)), 520);
+    assert_eq!(rpm(&drive(&mut n, BusTime::from_millis(620), &[])), 1234.0);
+    inject(&mut n, Some(SensorFault::Drift(10.0)), 615);
+    // 2 s after the fault began: +20 rpm.
+    assert_eq!(rpm(&drive(&mut n, BusTime::from_millis(2615), &[])), 2020.0);
+    inject(&mut n, Some(SensorFault::Dropout), 2615);
+    assert!(drive(&mut n, BusTime::from_millis(3000), &[]).is_empty());
+    inject(&mut n, None, 3000);
+    assert_eq!(rpm(&drive(&mut n, BusTime::from_millis(3100), &[])), 2000.0);
+}
+
 const E0: &str = r#"
 NodeScript(
     address: 0xE0, name: "E0", kind: SpeedControl,

@@ -1,6 +1,9 @@
 //! Validation: every problem of a scenario is found, named by its field, and nothing else is.
 
-use super::*;
+use crate::harvester::Harvester;
+use crate::scenario::{Action, ErrorKind, SeenBy, from_text};
+use nodes::Error;
+use std::path::Path;
 
 fn harvester(_: &Path) -> Result<Harvester, Error> {
     Harvester::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs/harvester.ron"))
@@ -211,6 +214,30 @@ fn plant_values_and_sensor_faults_are_checked_before_the_run() {
             "timeline[2].action.value: NaN is not 0..=1, the range of plant input fault.door3_open",
             "timeline[3].action.input: 'engine.rpm' is not a plant input",
             "timeline[5].action.fault: Stuck(inf): not a finite number",
+        ],
+    );
+}
+
+/// A sensor fault names a node with sensors (not the monitor), a plant signal and a usable value;
+/// past this, a node's logic could still refuse it while the run goes on.
+#[test]
+fn sensor_faults_name_a_node_with_sensors_and_a_plant_signal() {
+    let found = problems(
+        10.0,
+        r#"(at_s: 1.0, action: SensorFault(node: "F5", signal: "engine.rpm", fault: Stuck(0.0))),
+           (at_s: 1.0, action: SensorRepaired(node: "X9", signal: "engine.rpm")),
+           (at_s: 1.0, action: SensorFault(node: "B1", signal: "engine.rmp", fault: Offset(1.0))),
+           (at_s: 1.0, action: SensorFault(node: "B1", signal: "engine.rpm", fault: Noise(-1.0))),
+           (at_s: 2.0, action: SensorRepaired(node: "B1", signal: "engine.rpm"))"#,
+        OK,
+    );
+    assert_problems(
+        &found,
+        &[
+            "timeline[0].action.node: the monitor has no sensors",
+            "timeline[1].action.node: unknown node 'X9'",
+            "timeline[2].action.signal: unknown plant signal 'engine.rmp'",
+            "timeline[3].action.fault: Noise(-1): a standard deviation is not negative",
         ],
     );
 }

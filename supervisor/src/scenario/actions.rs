@@ -1,0 +1,223 @@
+//! Timeline actions carried out on the running harvester: bus faults through the hub, sensor
+//! faults through the node interface ([`NodeLogic::inject`](bus::node::NodeLogic::inject)),
+//! plant inputs, crashes and power cycles.
+//!
+//! Contract: an action takes effect at the bus time the run has reached; one the harvester
+//! cannot carry out ends the run with an error. A fault a node's logic refuses is bad input
+//! (exit code 2), named with the scenario's file, the timeline step, the node and the fault.
+
+use super::babbler::Babblers;
+use super::model::{Action, ErrorKind, Hits, SeenBy, Target};
+use crate::BadInput;
+use crate::harvester::Running;
+use bus::candump::parse_frame;
+use bus::engine::{BitPosition, Effect, NodeId, Rule, RuleId, Schedule};
+use bus::node::NodeFault;
+use bus_runtime::hub::{Control, Submit};
+use bus_runtime::node::Apply;
+use std::collections::BTreeMap;
+
+/// What the actions so far left running: error rules until their end, and the babblers.
+pub(super) struct Actions {
+    /// The scenario's file, for errors.
+    file: String,
+    /// Rules by timeline entry, so that its `until_s` removes them.
+    rules: BTreeMap<usize, RuleId>,
+    babblers: Babblers,
+}
+
+impl Actions {
+    /// None yet, for the scenario in `file`.
+    pub(super) fn new(file: String) -> Actions {
+        Actions {
+            file,
+            rules: BTreeMap::new(),
+            babblers: Babblers::default(),
+        }
+    }
+
+    /// Carries out timeline entry `index`.
+    pub(super) async fn act(
+        &mut self,
+        running: &mut Running,
+        index: usize,
+        action: Action,
+    ) -> anyhow::Result<()> {
+        let id = |n: &str| running.node(n).ok_or_else(|| anyhow::anyhow!("no node {n}"));
+        match action {
+            Action::BitErrors {
+                target,
+                hits,
+                kind,
+                seen_by,
+                ..
+            } => {
+                let effect = match kind {
+                    ErrorKind::Bit => Effect::Bit,
+                    ErrorKind::Stuff => Effect::Stuff,
+                    ErrorKind::Crc => Effect::Crc,
+                    ErrorKind::Form => Effect::Form,
+                };
+                let seen_by = match seen_by {
+                    SeenBy::All => bus::engine::SeenBy::All,
+                    SeenBy::Nodes(names) => {
+                        bus::engine::SeenBy::Nodes(names.iter().map(|n| id(n)).collect::<Result<_, _>>()?)
+                    }
+                };
+                let rule = Rule {
+                    target: engine_target(&target, &id)?,
+                    schedule: engine_schedule(hits),
+                    bit: BitPosition::Random,
+                    effect,
+                    seen_by,
+                };
+                self.add_rule(running, index, rule).await?;
+            }
+            Action::Overload {
+                target,
+                hits,
+                by,
+                frames,
+                ..
+            } => {
+                let seen_by = if by.is_empty() {
+                    bus::engine::SeenBy::All
+                } else {
+                    bus::engine::SeenBy::Nodes(by.iter().map(|n| id(n)).collect::<Result<_, _>>()?)
+                };
+                let rule = Rule {
+                    target: engine_target(&target, &id)?,
+                    schedule: engine_schedule(hits),
+                    bit: BitPosition::Random,
+                    effect: Effect::Overload(frames),
+                    seen_by,
+                };
+                self.add_rule(running, index, rule).await?;
+            }
+            Action::AckFailure(n) => drop(running.hub.send(Control::SetAck(id(&n)?, false)).await??),
+            Action::AckRestored(n) => drop(running.hub.send(Control::SetAck(id(&n)?, true)).await??),
+            Action::Disconnect(n) => drop(running.hub.send(Control::SetConnected(id(&n)?, false)).await??),
+            Action::Reconnect(n) => drop(running.hub.send(Control::SetConnected(id(&n)?, true)).await??),
+            Action::Hang(n) => drop(running.hub.send(Control::SetHung(id(&n)?, true)).await??),
+            Action::Resume(n) => drop(running.hub.send(Control::SetHung(id(&n)?, false)).await??),
+            Action::Crash(n) => running.crash(&n).await?,
+            Action::Babble { frame, .. } => self.babblers.start(running, parse_frame(&frame)?).await?,
+            Action::SendFrame { node, frame } => {
+                let frame = parse_frame(&frame)?;
+                running
+                    .hub
+                    .send(Submit {
+                        node: id(&node)?,
+                        frame,
+                    })
+                    .await??;
+            }
+            Action::SensorFault { node, signal, fault } => {
+                let fault = NodeFault::Sensor {
+                    signal,
+                    reads: fault.into(),
+                };
+                let at = format!("{}: timeline[{index}]", self.file);
+                inject(running, &at, &node, fault).await?
+            }
+            Action::SensorRepaired { node, signal } => {
+                let at = format!("{}: timeline[{index}]", self.file);
+                inject(running, &at, &node, NodeFault::SensorRepaired { signal }).await?
+            }
+            Action::Plant { input, value } => {
+                let now = running.now();
+                running
+                    .plant
+                    .borrow_mut()
+                    .set_input_at(now, &input, value)
+                    .map_err(|e| anyhow::anyhow!("{e}"))?;
+            }
+            Action::PowerCycle => running.power_cycle().await?,
+        }
+        Ok(())
+    }
+
+    /// Ends the bit errors or overloads of timeline entry `index`, if they still run.
+    pub(super) async fn end_rule(&mut self, running: &Running, index: usize) -> anyhow::Result<()> {
+        if let Some(id) = self.rules.remove(&index) {
+            running.hub.send(Control::RemoveRule(id)).await??;
+        }
+        Ok(())
+    }
+
+    /// Ends the flood of a babbling idiot, if one runs.
+    pub(super) async fn end_babble(&mut self, running: &Running) -> anyhow::Result<()> {
+        self.babblers.stop(running).await
+    }
+
+    async fn add_rule(&mut self, running: &Running, index: usize, rule: Rule) -> anyhow::Result<()> {
+        if let Some(r) = running.hub.send(Control::AddRule(rule)).await?? {
+            self.rules.insert(index, r);
+        }
+        Ok(())
+    }
+}
+
+/// Hands a fault to a node's logic, from now on; a refusal is an error naming the step (`at`), the
+/// node and the fault.
+async fn inject(running: &Running, at: &str, node: &str, fault: NodeFault) -> anyhow::Result<()> {
+    let actor = running
+        .actor(node)
+        .ok_or_else(|| BadInput(format!("no node {node}")))?;
+    let now = running.now();
+    let (answer, taken) = std::sync::mpsc::channel();
+    let described = describe(&fault);
+    actor
+        .send(Apply(Box::new(move |logic| {
+            // The receiver waits below: it cannot be gone.
+            let _ = answer.send(logic.inject(&fault, now));
+        })))
+        .await?;
+    match taken.try_recv() {
+        Ok(Ok(())) => Ok(()),
+        Ok(Err(refused)) => Err(BadInput(format!("{at}: node {node} refused {described}: {refused}")).into()),
+        Err(e) => Err(anyhow::anyhow!(
+            "{at}: node {node} did not answer {described}: {e}"
+        )),
+    }
+}
+
+/// A fault in words, for errors.
+fn describe(fault: &NodeFault) -> String {
+    match fault {
+        NodeFault::Sensor { signal, reads } => format!("the sensor fault {reads:?} on {signal}"),
+        NodeFault::SensorRepaired { signal } => format!("the repair of the sensor of {signal}"),
+    }
+}
+
+/// The engine's form of the frames a fault targets.
+fn engine_target(
+    target: &Target,
+    id: &dyn Fn(&str) -> anyhow::Result<NodeId>,
+) -> anyhow::Result<bus::engine::Target> {
+    Ok(match target {
+        Target::Any => bus::engine::Target::Any,
+        Target::Node(n) => bus::engine::Target::Node(id(n)?),
+        Target::Id(text) => bus::engine::Target::Id {
+            id: u32::from_str_radix(text, 16)?,
+            mask: 0x1FFF_FFFF,
+        },
+        Target::Priority(p) => bus::engine::Target::Id {
+            id: u32::from(*p) << 24,
+            mask: 0x1F00_0000,
+        },
+    })
+}
+
+/// The engine's form of which targeted frames are hit.
+fn engine_schedule(hits: Hits) -> Schedule {
+    match hits {
+        Hits::Once => Schedule::Once,
+        Hits::EveryNth(n) => Schedule::EveryNth(n),
+        Hits::Always => Schedule::Always,
+        Hits::BitErrorRate(r) => Schedule::BitErrorRate(r),
+    }
+}
+
+#[cfg(test)]
+mod tests;

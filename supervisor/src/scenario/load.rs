@@ -1,0 +1,94 @@
+//! Reading a scenario: its file, its harvester, and what it takes from the command line.
+//!
+//! Contract: a [`Loaded`] scenario passed [`validate`] against its harvester; the seed, the
+//! cruise start and the random faults (drawn as ordinary timeline steps) are applied to it, so
+//! that the run needs nothing else.
+
+use super::model::Scenario;
+use super::random;
+use super::validate::validate;
+use crate::configs::Source;
+use crate::harvester::Harvester;
+use nodes::Error;
+use std::path::Path;
+
+/// A scenario read and checked, with the harvester it runs on.
+pub struct Loaded {
+    /// Its file.
+    pub source: Source,
+    /// The scenario.
+    pub scenario: Scenario,
+    /// The harvester, with the scenario's seed applied.
+    pub harvester: Harvester,
+}
+
+/// Reads and checks a scenario and its harvester; every problem is listed. Files are read with
+/// [`Source::read`]: from disk at most [`nodes::file::MAX_FILE`] bytes each, else the built-in
+/// copy; the harvester config of a built-in scenario is the built-in one.
+pub fn load(path: &Path, seed: Option<u64>) -> Result<Loaded, Error> {
+    load_with(path, seed, None)
+}
+
+/// [`load`], with the run's length replaced by `duration_s` when given (before the random
+/// faults are drawn, so that they cover the new length).
+pub fn load_with(path: &Path, seed: Option<u64>, duration_s: Option<f64>) -> Result<Loaded, Error> {
+    let (source, text) = Source::file(path).read()?;
+    parse(&source, &text, seed, duration_s, Harvester::open)
+}
+
+/// As [`load`] with the scenario's text already read: `path` is where it came from (problems
+/// name it; its config is relative to its directory) and `harvester` loads the harvester config
+/// at a path, as [`Harvester::load`] does.
+pub fn from_text(
+    path: &Path,
+    text: &str,
+    seed: Option<u64>,
+    harvester: impl FnOnce(&Path) -> Result<Harvester, Error>,
+) -> Result<Loaded, Error> {
+    parse(&Source::file(path), text, seed, None, |s| harvester(&s.path))
+}
+
+fn parse(
+    source: &Source,
+    text: &str,
+    seed: Option<u64>,
+    duration_s: Option<f64>,
+    harvester: impl FnOnce(&Source) -> Result<Harvester, Error>,
+) -> Result<Loaded, Error> {
+    let file = source.to_string();
+    let mut scenario: Scenario = nodes::parse_ron(&file, text)?;
+    if let Some(d) = duration_s {
+        scenario.duration_s = d;
+    }
+    let mut harvester = harvester(&source.beside(&scenario.config))?;
+    let problems = validate(&file, &scenario, &harvester);
+    if !problems.is_empty() {
+        return Err(Error::Invalid(problems));
+    }
+    if let Some(s) = seed.or(scenario.seed) {
+        harvester.config.seed = s;
+    }
+    if let Some(r) = &scenario.random_faults {
+        // Ordinary steps from here on: the runner, the report and the checks see no difference.
+        let seed = r.seed.unwrap_or(harvester.config.seed);
+        let steps = random::expand(r, seed, scenario.duration_s, &node_names(&harvester));
+        scenario.timeline.extend(steps);
+    }
+    if let Some(s) = scenario.cruise_start_s {
+        harvester.config.monitor.cruise.start_s = Some(s);
+    }
+    Ok(Loaded {
+        source: source.clone(),
+        scenario,
+        harvester,
+    })
+}
+
+/// The names of a harvester's nodes, the monitor's ("F5") first when it is emulated.
+pub(super) fn node_names(h: &Harvester) -> Vec<String> {
+    let monitor = h.config.monitor.enabled.then(|| "F5".to_string());
+    monitor
+        .into_iter()
+        .chain(h.scripts.iter().map(|s| s.name.clone()))
+        .collect()
+}
