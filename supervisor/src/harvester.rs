@@ -6,7 +6,7 @@ use crate::configs::Source;
 use actix::prelude::*;
 use bus::bits::BitRate;
 use bus::engine::{BusConfig, ControllerConfig, Filter, NodeId};
-use bus::filter::{CAN_EFF_FLAG, SocketCanFilter, SocketCanFilterSet};
+use bus::filter::SocketCanFilterSet;
 use bus::time::BusTime;
 use bus_runtime::hub::{Attach, GetCrashed, Hub, HubConfig, Replace, RunUntil};
 use bus_runtime::node::{Crash, NodeActor};
@@ -261,9 +261,8 @@ pub fn bad(e: Error) -> anyhow::Error {
 /// extended frame addressed to it (a PC-side CAN interface filtering on the destination byte).
 fn controller(name: &str, spec: &Spec) -> anyhow::Result<ControllerConfig> {
     let filter = match spec {
-        Spec::Monitor => Filter::SocketCan(SocketCanFilterSet(vec![SocketCanFilter::new(
-            CAN_EFF_FLAG | (u32::from(Address::MONITOR.0) << 8),
-            CAN_EFF_FLAG | 0xFF00,
+        Spec::Monitor => Filter::SocketCan(SocketCanFilterSet(vec![protocol::ident::to_node_filter(
+            Address::MONITOR,
         )])),
         // Loaded scripts have been validated, so this only fails for a script built in code.
         Spec::Script(script) => script.filter.to_filter().map_err(|problems| {

@@ -12,6 +12,7 @@
 
 use crate::Error;
 use bus::extended_id;
+use bus::filter::{CAN_EFF_FLAG, SocketCanFilter};
 use embedded_can::{ExtendedId, Id};
 use serde::{Deserialize, Serialize};
 
@@ -160,6 +161,14 @@ impl Priority {
     /// The value, 0 to 31.
     pub fn value(self) -> u8 {
         self.0
+    }
+    /// The identifier bits and the mask (29-bit, no flags) that select the frames of this
+    /// priority, whatever their other fields.
+    pub fn id_and_mask(self) -> (u32, u32) {
+        (
+            u32::from(self.0) << field::PRIORITY_SHIFT,
+            0x1F << field::PRIORITY_SHIFT,
+        )
     }
     /// 0 and 1 are reserved by the protocol for later use.
     pub fn is_reserved(self) -> bool {
@@ -317,6 +326,24 @@ impl core::fmt::Display for AppId {
     }
 }
 
+/// A SocketCAN filter that keeps every extended frame addressed to `node` (its destination field,
+/// ID15..8), whatever its priority, frame type and source: what a PC-side interface in a node's
+/// place filters on.
+pub fn to_node_filter(node: Address) -> SocketCanFilter {
+    let destination = 0xFF << field::DEST_SHIFT;
+    SocketCanFilter::new(
+        CAN_EFF_FLAG | (u32::from(node.0) << field::DEST_SHIFT),
+        CAN_EFF_FLAG | destination,
+    )
+}
+
+/// The destination of a frame given as a kernel `can_id` (with [`CAN_EFF_FLAG`] for an extended
+/// identifier, as the engine's per-identifier statistics key it); `None` for a base frame, which
+/// is no harvester identifier.
+pub fn destination_of_can_id(can_id: u32) -> Option<Address> {
+    (can_id & CAN_EFF_FLAG != 0).then(|| Address((can_id >> field::DEST_SHIFT) as u8))
+}
+
 /// The engine's latency class of a frame ([`bus::engine::LatencyClass`]): the identifier's
 /// priority field (0–31) for the protocol's extended frames, 32 for base frames, which the
 /// protocol does not use.
@@ -330,6 +357,24 @@ pub fn latency_class(frame: &bus::Frame) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_node_filter_keeps_exactly_the_frames_addressed_to_the_node() {
+        use bus::filter::AcceptanceFilter;
+        // The protocol's worked identifier 0x0300A0F5 goes from F5 to A0 (destination byte A0).
+        let to_a0 = bus::Frame::new_data(extended_id(0x0300_A0F5).unwrap(), &[1]).unwrap();
+        let from_a0 = bus::Frame::new_data(extended_id(0x0300_F5A0).unwrap(), &[1]).unwrap();
+        let base = bus::Frame::new_data(bus::standard_id(0x0A0).unwrap(), &[1]).unwrap();
+        let a0 = to_node_filter(Address(0xA0));
+        assert!(a0.accepts(&to_a0));
+        assert!(!a0.accepts(&from_a0));
+        assert!(!a0.accepts(&base));
+        assert!(to_node_filter(Address::MONITOR).accepts(&from_a0));
+        assert_eq!(destination_of_can_id(0x8300_A0F5), Some(Address(0xA0)));
+        assert_eq!(destination_of_can_id(0x0000_00A0), None);
+        // Priority 3 (the row-alignment class) is bits 28..24 = 00011.
+        assert_eq!(Priority::ROW_ALIGNMENT.id_and_mask(), (0x0300_0000, 0x1F00_0000));
+    }
 
     #[test]
     fn seed_identifiers() {

@@ -2,7 +2,7 @@
 
 use actix::prelude::*;
 use bus::engine::{ControllerConfig, Filter, NodeId};
-use bus::filter::{CAN_EFF_FLAG, SocketCanFilter, SocketCanFilterSet};
+use bus::filter::SocketCanFilterSet;
 use bus::node::{ControllerEvent, NodeLogic};
 use bus::time::BusTime;
 use bus::{Frame, engine::BusConfig};
@@ -76,10 +76,7 @@ async fn saturated_bus(seed: u64) -> anyhow::Result<Addr<Hub>> {
             owed: 0,
         };
         // Take only frames addressed to this node: ID15..8 = own address.
-        let filter = SocketCanFilterSet(vec![SocketCanFilter::new(
-            CAN_EFF_FLAG | (u32::from(me.0) << 8),
-            CAN_EFF_FLAG | 0xFF00,
-        )]);
+        let filter = SocketCanFilterSet(vec![protocol::ident::to_node_filter(me)]);
         let node = NodeActor::new(me.to_string(), Box::new(logic)).start();
         let controller = ControllerConfig {
             tx_queue_len: DEPTH,

@@ -202,10 +202,10 @@ fn engine_target(
             id: u32::from_str_radix(text, 16)?,
             mask: 0x1FFF_FFFF,
         },
-        Target::Priority(p) => bus::engine::Target::Id {
-            id: u32::from(*p) << 24,
-            mask: 0x1F00_0000,
-        },
+        Target::Priority(p) => {
+            let (id, mask) = protocol::ident::Priority::new(*p)?.id_and_mask();
+            bus::engine::Target::Id { id, mask }
+        }
     })
 }
 

@@ -11,10 +11,9 @@
 use bus::engine::{ControllerCounters, NodeId};
 use bus_runtime::hub::{Handover, Snapshot};
 use nodes::monitor::FrameTally;
+use protocol::ident::Address;
 use serde::Serialize;
 
-/// The monitor's address.
-const MONITOR: u32 = 0xF5;
 /// `CAN_EFF_FLAG` of a kernel can_id.
 const EFF: u32 = 0x8000_0000;
 /// `CAN_ERR_FLAG`.
@@ -23,7 +22,7 @@ const ERR: u32 = 0x2000_0000;
 /// True when a kernel can_id (extended flag included) is a harvester identifier whose
 /// destination byte is the monitor's.
 pub fn to_monitor(can_id: u32) -> bool {
-    can_id & EFF != 0 && (can_id >> 8) & 0xFF == MONITOR
+    protocol::ident::destination_of_can_id(can_id) == Some(Address::MONITOR)
 }
 
 /// The monitor's counters at the end of a run.
