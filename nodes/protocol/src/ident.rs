@@ -341,7 +341,7 @@ pub fn to_node_filter(node: Address) -> SocketCanFilter {
 /// identifier, as the engine's per-identifier statistics key it); `None` for a base frame, which
 /// is no harvester identifier.
 pub fn destination_of_can_id(can_id: u32) -> Option<Address> {
-    (can_id & CAN_EFF_FLAG != 0).then(|| Address((can_id >> field::DEST_SHIFT) as u8))
+    (can_id & CAN_EFF_FLAG != 0).then_some(Address((can_id >> field::DEST_SHIFT) as u8))
 }
 
 /// The engine's latency class of a frame ([`bus::engine::LatencyClass`]): the identifier's
