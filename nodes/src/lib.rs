@@ -3,8 +3,9 @@
 //! by bus time and frames.
 //!
 //! Contract: nothing here reads a clock, does I/O (except [`file::read_text`], which reads
-//! configs, scripts, templates and scenarios up to [`file::MAX_FILE`], and [`script::load`],
-//! [`script::expand`] and [`script::check_template`], which use it) or draws randomness except
+//! configs, scripts, templates and scenarios up to [`file::MAX_FILE`], and [`script::load`] and
+//! [`script::disk`], which use it; [`script::expand`] reads a template only through the reader
+//! its caller passes) or draws randomness except
 //! from generators seeded by the run's seed and the node.
 //! Bad scripts give [`Error`] listing every problem with file, node and field.
 #![warn(missing_docs)]
