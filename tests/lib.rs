@@ -57,7 +57,7 @@ pub fn parse_trace(text: &str) -> Vec<Line> {
             let (_iface, frame) = rest.split_once(' ')?;
             let (secs, micros) = time.split_once('.')?;
             let secs = secs.parse::<u64>().ok()?.checked_sub(VIRTUAL_EPOCH_S)?;
-            let at = BusTime(secs * 1_000_000_000 + micros.parse::<u64>().ok()? * 1000);
+            let at = BusTime::from_nanos(secs * 1_000_000_000 + micros.parse::<u64>().ok()? * 1000);
             // Error frames (CAN_ERR_FLAG in the identifier) are not frames: they fail to parse.
             let frame = bus::candump::parse_frame(frame).ok()?;
             Some(Line { at, frame })

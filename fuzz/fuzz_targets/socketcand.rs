@@ -51,8 +51,8 @@ fn round_trip(frame: &Frame) {
     let again = send_text(frame);
     assert_eq!(parse(&again), Ok(Command::Send(*frame)), "{again:?}");
     for m in [
-        frame_message(BusTime(u64::MAX), frame),
-        bcm_frame_message(BusTime(u64::MAX), frame),
+        frame_message(BusTime::from_nanos(u64::MAX), frame),
+        bcm_frame_message(BusTime::from_nanos(u64::MAX), frame),
     ] {
         assert!(frame_shape(&m, frame), "{m:?}");
         let out = Splitter::default().push(m.as_bytes());

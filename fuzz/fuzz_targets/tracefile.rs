@@ -89,7 +89,7 @@ fn write_back(format: Format, records: &[Record]) {
     assert_eq!(back.len(), records.len(), "{out}");
     for (a, b) in records.iter().zip(&back) {
         assert_eq!(a.entry, b.entry, "{out}");
-        assert_eq!(BusTime(a.at.0 / 1000 * 1000), b.at, "{out}");
+        assert_eq!(BusTime::from_nanos(a.at.0 / 1000 * 1000), b.at, "{out}");
     }
 }
 

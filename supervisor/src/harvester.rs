@@ -538,7 +538,7 @@ impl Running {
                     node: m.name.clone(),
                     what: format!("crashed: {why}"),
                 });
-                let window = BusTime((policy.window_s * 1e9) as u64).as_nanos();
+                let window = BusTime::from_nanos((policy.window_s * 1e9) as u64).as_nanos();
                 m.restarts
                     .retain(|t| now.as_nanos().saturating_sub(t.as_nanos()) < window);
                 if m.restarts.len() as u32 >= policy.max_restarts {

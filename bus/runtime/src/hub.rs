@@ -267,7 +267,7 @@ impl Hub {
     /// future of bus time it stalled at.
     fn present(&mut self) -> BusTime {
         if !self.paced {
-            return BusTime(self.clock());
+            return BusTime::from_nanos(self.clock());
         }
         let frontier = if self.waiting > 0 {
             Some(self.now)

@@ -370,7 +370,7 @@ impl Monitor {
     }
 
     fn drive(&mut self, now: BusTime) {
-        let start = self.config.cruise.start_s.map(|s| BusTime((s * 1e9) as u64));
+        let start = self.config.cruise.start_s.map(|s| BusTime::from_nanos((s * 1e9) as u64));
         if self.cruise.is_none() && start.is_some_and(|s| now >= s) && self.next_control == BusTime::NEVER {
             let speed = self
                 .display

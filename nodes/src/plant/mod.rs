@@ -194,7 +194,7 @@ impl Plant {
 
     /// The last grid time reached.
     pub fn now(&self) -> BusTime {
-        BusTime(self.model.state.steps.saturating_mul(self.step_ns))
+        BusTime::from_nanos(self.model.state.steps.saturating_mul(self.step_ns))
     }
 
     /// Current value of a named output (its override if one is set) or of an input (as last

@@ -476,7 +476,7 @@ fn grid_from(start: BusTime, step: u64, from: BusTime) -> BusTime {
         return start;
     }
     let n = (from.as_nanos() - start.as_nanos()).div_ceil(step);
-    BusTime(start.as_nanos().saturating_add(n.saturating_mul(step)))
+    BusTime::from_nanos(start.as_nanos().saturating_add(n.saturating_mul(step)))
 }
 
 /// A standard normal deviate (Box–Muller) from a seeded generator.

@@ -214,11 +214,11 @@ mod tests {
         // A 100 ms identifier whose wall-clock periods deviate by 0, 2, 0 and 1 ms.
         let walls = [0, 100, 202, 302, 403];
         for (i, w) in walls.iter().enumerate() {
-            s.add(0x100, BusTime(i as u64 * 100 * MS), w * MS);
+            s.add(0x100, BusTime::from_nanos(i as u64 * 100 * MS), w * MS);
         }
         // An event-driven identifier (bus gaps 10, 500, 30 ms) is not periodic: left out.
         for (bus, wall) in [(0, 0), (10, 10), (510, 900), (540, 950)] {
-            s.add(0x200, BusTime(bus * MS), wall * MS);
+            s.add(0x200, BusTime::from_nanos(bus * MS), wall * MS);
         }
         let j = s.jitter();
         assert_eq!(j.periodic_ids, 1);

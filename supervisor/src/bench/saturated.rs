@@ -110,7 +110,7 @@ pub fn run_on_this_thread(buses: usize, first_seed: u64, seconds: f64) -> Result
                     .map_err(|e| e.to_string())?,
             );
         }
-        let until = BusTime((seconds * 1e9) as u64);
+        let until = BusTime::from_nanos((seconds * 1e9) as u64);
         for r in join_all(hubs.iter().map(|h| h.send(RunUntil(until)))).await {
             r.map_err(|e| e.to_string())?.map_err(|e| e.to_string())?;
         }

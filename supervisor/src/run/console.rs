@@ -35,7 +35,7 @@ const REDRAW: &str = "\r\x1b[K";
 pub fn plain_period(end: Option<BusTime>) -> BusTime {
     let every = PLAIN_EVERY.as_nanos();
     let share = end.map_or(0, |e| e.as_nanos().div_ceil(PLAIN_LINES));
-    BusTime(share.div_ceil(every).max(1) * every)
+    BusTime::from_nanos(share.div_ceil(every).max(1) * every)
 }
 
 /// The width of the terminal on stderr (the whole line must stay left of its last column,
@@ -135,7 +135,7 @@ impl<W: Write> Console<W> {
                     let _ = self.out.flush();
                 }
                 if s.at >= *next {
-                    *next = BusTime((s.at.as_nanos() / every.as_nanos() + 1) * every.as_nanos());
+                    *next = BusTime::from_nanos((s.at.as_nanos() / every.as_nanos() + 1) * every.as_nanos());
                 }
             }
         }

@@ -182,7 +182,7 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
         // The live display had its own loop; this one shows the summary instead.
         if !tui {
             loop {
-                let next = BusTime((t.as_nanos() / step.as_nanos() + 1) * step.as_nanos());
+                let next = BusTime::from_nanos((t.as_nanos() / step.as_nanos() + 1) * step.as_nanos());
                 let next = end.map_or(next, |e| next.min(e));
                 tokio::select! {
                     r = running.run_until(next) => { r?; t = running.now(); }

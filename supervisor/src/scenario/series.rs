@@ -80,7 +80,7 @@ pub struct Series {
 }
 
 fn ceil_to_sample(t: BusTime) -> BusTime {
-    BusTime(t.as_nanos().div_ceil(SAMPLE_NS) * SAMPLE_NS)
+    BusTime::from_nanos(t.as_nanos().div_ceil(SAMPLE_NS) * SAMPLE_NS)
 }
 
 impl Series {
@@ -118,7 +118,7 @@ impl Series {
             self.period_ns = self.period_ns() * 2;
         }
         let period = self.period_ns();
-        self.next = Some(BusTime((now.as_nanos() / period + 1) * period));
+        self.next = Some(BusTime::from_nanos((now.as_nanos() / period + 1) * period));
     }
 
     /// Takes the hub's histories from the final snapshot.
@@ -181,7 +181,7 @@ mod tests {
         let mut series = Series::default();
         let mut now = start;
         for &target in targets {
-            let target = BusTime(target).max(now);
+            let target = BusTime::from_nanos(target).max(now);
             loop {
                 let stop = series.next_stop(now, target);
                 if stop > now {
@@ -210,7 +210,7 @@ mod tests {
         // 10 s, which the loop reaches in 1 s steps.
         let mut targets = vec![5 * S, 5 * S, 7 * S + S / 4];
         targets.extend((8..=10).map(|k| k * S));
-        let times = drive(BusTime(S / 2), &targets, 0);
+        let times = drive(BusTime::from_nanos(S / 2), &targets, 0);
         let expected: Vec<u64> = (1..=10).map(|k| k * S).collect();
         assert_eq!(times, expected, "10 s run: 10 samples");
     }
@@ -218,14 +218,14 @@ mod tests {
     #[test]
     fn a_run_that_ends_between_seconds_and_a_start_on_a_second() {
         // Start-up ends exactly at 2 s: that second is sampled too; the end at 4.5 s is not.
-        let times = drive(BusTime(2 * S), &[4 * S + S / 2], 0);
+        let times = drive(BusTime::from_nanos(2 * S), &[4 * S + S / 2], 0);
         assert_eq!(times, vec![2 * S, 3 * S, 4 * S]);
     }
 
     #[test]
     fn a_long_run_halves_its_resolution_and_keeps_its_memory_bounded() {
         let run = 3 * MAX_SAMPLES as u64 + 5;
-        let times = drive(BusTime(0), &[run * S], 0);
+        let times = drive(BusTime::from_nanos(0), &[run * S], 0);
         assert!(times.len() <= MAX_SAMPLES, "{} samples", times.len());
         assert!(times.len() > MAX_SAMPLES / 2, "{} samples", times.len());
         // Still in time order, from the start to near the end, on whole seconds.
@@ -239,7 +239,7 @@ mod tests {
 
     #[test]
     fn a_bus_that_stops_late_still_gives_one_sample_per_second() {
-        let times = drive(BusTime(0), &[3 * S + 1000], 10);
+        let times = drive(BusTime::from_nanos(0), &[3 * S + 1000], 10);
         assert_eq!(times, vec![0, S + 10, 2 * S + 10, 3 * S + 10]);
     }
 }

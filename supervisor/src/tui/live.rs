@@ -84,7 +84,7 @@ pub async fn live(
     let mut stop = crate::stop::Stop::new()?;
     while end.is_none_or(|e| running.now() < e) {
         let t = running.now();
-        let next = BusTime((t.as_nanos() / step + 1) * step);
+        let next = BusTime::from_nanos((t.as_nanos() / step + 1) * step);
         let next = end.map_or(next, |e| next.min(e));
         tokio::select! {
             r = running.run_until(next) => r?,

@@ -609,19 +609,19 @@ mod tests {
     fn frames_are_written_as_socketcand_does() {
         let f = frame("0601F5D0#200D0002FFBFFF00");
         assert_eq!(
-            frame_message(BusTime(1_500_000_000), &f),
+            frame_message(BusTime::from_nanos(1_500_000_000), &f),
             "< frame 0601F5D0 1.500000 200D0002FFBFFF00 >"
         );
         assert_eq!(
-            frame_message(BusTime(0), &frame("123#")),
+            frame_message(BusTime::from_nanos(0), &frame("123#")),
             "< frame 123 0.000000  >"
         );
         assert_eq!(
-            bcm_frame_message(BusTime(23_424_242_000), &frame("123#1A220344")),
+            bcm_frame_message(BusTime::from_nanos(23_424_242_000), &frame("123#1A220344")),
             "< frame 123 23.424242 1A 22 03 44  >"
         );
         assert_eq!(
-            bcm_frame_message(BusTime(0), &frame("00000005#")),
+            bcm_frame_message(BusTime::from_nanos(0), &frame("00000005#")),
             "< frame 00000005 0.000000  >"
         );
     }
