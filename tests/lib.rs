@@ -76,7 +76,7 @@ pub fn run_virtual<T: 'static>(
     let trace = Shared::default();
     let t = trace.clone();
     let result = System::with_tokio_rt(|| runtime(true).expect("runtime")).block_on(async move {
-        let running = harvester::start(&h, Some(Box::new(t)))
+        let running = harvester::start(&h, false, Some(Box::new(t)))
             .await
             .expect("the harvester starts");
         setup(&running);
@@ -103,7 +103,7 @@ pub fn traffic_of(
     let trace = Shared::default();
     let t = trace.clone();
     System::with_tokio_rt(|| runtime(true).expect("runtime")).block_on(async move {
-        let running = harvester::start(&default_harvester(), Some(Box::new(t)))
+        let running = harvester::start(&default_harvester(), false, Some(Box::new(t)))
             .await
             .expect("the harvester starts");
         script(&running).await;

@@ -418,7 +418,9 @@ mod tests {
         ] {
             assert!(BitRate::for_bus(r).is_some(), "{r}");
         }
-        for r in [0, 1, 5_000, 7_000, 9_999, 33_300, 33_333, 70_000, 1_000_001, 2_000_000] {
+        for r in [
+            0, 1, 5_000, 7_000, 9_999, 33_300, 33_333, 70_000, 1_000_001, 2_000_000,
+        ] {
             assert!(BitRate::for_bus(r).is_none(), "{r}");
         }
         assert!(BitRate::new(0).is_none() && BitRate::new(1_000_001).is_none());

@@ -19,7 +19,9 @@ pub enum Error {
     },
     /// A bit rate whose bit time is not a whole number of bus-clock ticks, which the engine
     /// cannot keep exactly.
-    #[error("bit rate {0} bit/s has no exact bit time on the bus clock: it does not divide 3456000000000 (2^16 * 3^3 * 5^9 ticks per second)")]
+    #[error(
+        "bit rate {0} bit/s has no exact bit time on the bus clock: it does not divide 3456000000000 (2^16 * 3^3 * 5^9 ticks per second)"
+    )]
     InexactBitRate(u32),
     /// A request names a node the bus does not have.
     #[error("no node {0}")]

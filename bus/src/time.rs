@@ -77,7 +77,7 @@ impl BusDuration {
     /// The period of `hz` cycles per second, when it is a whole number of ticks (see the
     /// module docs for which are); `None` otherwise and for 0.
     pub const fn period_of(hz: u64) -> Option<BusDuration> {
-        if hz != 0 && TICKS_PER_SEC % hz == 0 {
+        if hz != 0 && TICKS_PER_SEC.is_multiple_of(hz) {
             Some(BusDuration(TICKS_PER_SEC / hz))
         } else {
             None
@@ -150,7 +150,11 @@ impl BusDuration {
     }
     /// How many `unit`s it takes to cover `self`, rounded up (`u64::MAX` for a zero unit).
     pub const fn div_ceil(self, unit: BusDuration) -> u64 {
-        if unit.0 == 0 { u64::MAX } else { self.0.div_ceil(unit.0) }
+        if unit.0 == 0 {
+            u64::MAX
+        } else {
+            self.0.div_ceil(unit.0)
+        }
     }
 }
 
@@ -330,10 +334,9 @@ impl BusTime {
     /// The first multiple of `step` after `self` (strictly later), saturating; `self` for a zero
     /// step. Sampling and drawing grids use it.
     pub const fn next_multiple_of(self, step: BusDuration) -> BusTime {
-        if step.0 == 0 {
-            self
-        } else {
-            BusTime((self.0 / step.0 + 1).saturating_mul(step.0))
+        match self.0.checked_div(step.0) {
+            Some(n) => BusTime((n + 1).saturating_mul(step.0)),
+            None => self,
         }
     }
     /// The first multiple of `step` at or after `self`, saturating; `self` for a zero step.
@@ -421,7 +424,12 @@ impl Stamp {
 impl fmt::Display for Stamp {
     /// `seconds.microseconds`, as candump writes timestamps (truncated to the microsecond).
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}.{:06}", self.0 / 1_000_000_000, self.0 % 1_000_000_000 / 1_000)
+        write!(
+            f,
+            "{}.{:06}",
+            self.0 / 1_000_000_000,
+            self.0 % 1_000_000_000 / 1_000
+        )
     }
 }
 
@@ -530,7 +538,10 @@ mod tests {
         assert_eq!(BusTime::from_millis(u64::MAX), BusTime::NEVER);
         assert_eq!(BusTime::from_micros(u64::MAX), BusTime::NEVER);
         assert_eq!(BusTime::from_nanos(u64::MAX), BusTime::NEVER);
-        assert_eq!(BusTime::from_secs(u64::MAX / 3_456_000_000_000 + 1), BusTime::NEVER);
+        assert_eq!(
+            BusTime::from_secs(u64::MAX / 3_456_000_000_000 + 1),
+            BusTime::NEVER
+        );
         // The clock spans more than the 30 days a run may last.
         assert!(BusTime::from_secs(30 * 86_400) < BusTime::NEVER);
     }
@@ -540,18 +551,30 @@ mod tests {
         let d = BusDuration::from_secs(1);
         assert_eq!(BusTime::NEVER + d, BusTime::NEVER);
         assert_eq!(BusTime::NEVER.checked_add(d), None);
-        assert_eq!(BusTime::NEVER.checked_add(BusDuration::ZERO), Some(BusTime::NEVER));
+        assert_eq!(
+            BusTime::NEVER.checked_add(BusDuration::ZERO),
+            Some(BusTime::NEVER)
+        );
         assert_eq!(BusTime::ZERO - d, BusTime::ZERO);
         assert_eq!(BusTime::ZERO.checked_sub(d), None);
         assert_eq!(BusTime::ZERO - BusTime::from_secs(5), BusDuration::ZERO);
-        assert_eq!(BusTime::from_secs(5) - BusTime::from_secs(3), BusDuration::from_secs(2));
+        assert_eq!(
+            BusTime::from_secs(5) - BusTime::from_secs(3),
+            BusDuration::from_secs(2)
+        );
         assert_eq!(d * u64::MAX, BusDuration::MAX);
         assert_eq!(d.checked_mul(u64::MAX), None);
         assert_eq!(BusDuration::MAX + d, BusDuration::MAX);
         assert_eq!(d - BusDuration::MAX, BusDuration::ZERO);
-        assert_eq!(BusTime::from_secs(2) + BusDuration::from_millis(500), BusTime::from_millis(2500));
+        assert_eq!(
+            BusTime::from_secs(2) + BusDuration::from_millis(500),
+            BusTime::from_millis(2500)
+        );
         assert_eq!(BusTime::NEVER.next_multiple_of(d), BusTime::NEVER);
-        assert_eq!(BusTime::from_millis(1500).next_multiple_of(d), BusTime::from_secs(2));
+        assert_eq!(
+            BusTime::from_millis(1500).next_multiple_of(d),
+            BusTime::from_secs(2)
+        );
         assert_eq!(BusTime::from_secs(2).next_multiple_of(d), BusTime::from_secs(3));
         assert_eq!(BusTime::from_secs(2).ceil_to(d), BusTime::from_secs(2));
         assert_eq!(BusTime::from_millis(2001).ceil_to(d), BusTime::from_secs(3));
@@ -577,8 +600,8 @@ mod tests {
         assert_eq!(cycle * (921_600 * 3600), BusDuration::from_secs(3600));
         // Every clock the next boards use, and every standard CAN bit rate.
         for hz in [
-            6_000_000, 8_000_000, 16_000_000, 24_000_000, 11_059_200, 12_000_000, 14_745_600,
-            22_118_400, 30_000, 10_000, 20_000, 50_000, 125_000, 250_000, 500_000, 800_000, 1_000_000,
+            6_000_000, 8_000_000, 16_000_000, 24_000_000, 11_059_200, 12_000_000, 14_745_600, 22_118_400,
+            30_000, 10_000, 20_000, 50_000, 125_000, 250_000, 500_000, 800_000, 1_000_000,
         ] {
             let p = BusDuration::period_of(hz).unwrap_or_else(|| panic!("{hz} Hz"));
             assert_eq!(p * hz, BusDuration::from_secs(1), "{hz} Hz");
@@ -637,7 +660,10 @@ mod tests {
             e.stamp(BusTime::from_nanos(1_500)).to_string(),
             format!("{new_year_2024}.000001")
         );
-        assert_eq!(e.unstamp(e.stamp(BusTime::from_nanos(7_000))), BusTime::from_nanos(7_000));
+        assert_eq!(
+            e.unstamp(e.stamp(BusTime::from_nanos(7_000))),
+            BusTime::from_nanos(7_000)
+        );
         assert_eq!(Epoch::from_system_time(e.system_time()), e);
     }
 }

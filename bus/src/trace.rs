@@ -225,8 +225,8 @@ pub fn event_line<'a>(
 mod tests {
     use super::*;
     use crate::candump::parse_frame;
-    use crate::time::BusTime;
     use crate::engine::Location;
+    use crate::time::BusTime;
 
     #[test]
     fn frame_lines_look_like_candump() {

@@ -59,7 +59,11 @@ fn frames_at_30_kbits_stay_on_the_bit_grid_over_a_long_run() {
         assert_eq!(u128::from(end.as_nanos()), exact_ns, "nanoseconds of frame {i}");
         idle_bit = end_bit + 3;
         // Mostly back to back (queued before the bus is idle), every seventh after a gap.
-        submit_bit = if i % 7 == 6 { idle_bit + 1 + i % 1000 } else { end_bit };
+        submit_bit = if i % 7 == 6 {
+            idle_bit + 1 + i % 1000
+        } else {
+            end_bit
+        };
     }
     // Minutes of bus time: a bit time rounded to 33 333 ns would have drifted by a third of a
     // nanosecond a bit, milliseconds over these millions of bits.

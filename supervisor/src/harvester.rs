@@ -7,7 +7,7 @@ use actix::prelude::*;
 use bus::bits::BitRate;
 use bus::engine::{BusConfig, ControllerConfig, Filter, NodeId};
 use bus::filter::{CAN_EFF_FLAG, SocketCanFilter, SocketCanFilterSet};
-use bus::time::BusTime;
+use bus::time::{BusDuration, BusTime};
 use bus_runtime::hub::{Attach, GetCrashed, Hub, HubConfig, Replace, RunUntil};
 use bus_runtime::node::{Crash, NodeActor};
 use nodes::monitor::{DisplayHandle, Monitor, MonitorConfig};
@@ -368,9 +368,10 @@ fn build(
 }
 
 /// Builds the harvester on a new hub and runs it through start-up: the monitor from time 0, the
-/// field nodes from the time relay on. Must run inside an actix system.
-pub async fn start(h: &Harvester, trace: Option<Box<dyn Write>>) -> anyhow::Result<Running> {
-    let mut running = begin(h, trace).await?;
+/// field nodes from the time relay on. Must run inside an actix system. `paced`: in real time
+/// (else virtual time, as fast as the nodes answer; see [`HubConfig::paced`]).
+pub async fn start(h: &Harvester, paced: bool, trace: Option<Box<dyn Write>>) -> anyhow::Result<Running> {
+    let mut running = begin(h, paced, trace).await?;
     running.run_until(h.relay()).await?;
     Ok(running)
 }
@@ -378,7 +379,7 @@ pub async fn start(h: &Harvester, trace: Option<Box<dyn Write>>) -> anyhow::Resu
 /// Builds the harvester on a new hub at time 0 with the monitor attached; the field nodes are
 /// attached when [`Running::run_until`] reaches the time relay. Start-up is thus an ordinary
 /// stretch of the run, which a caller can stop at any moment (a huge time relay, a signal).
-pub async fn begin(h: &Harvester, trace: Option<Box<dyn Write>>) -> anyhow::Result<Running> {
+pub async fn begin(h: &Harvester, paced: bool, trace: Option<Box<dyn Write>>) -> anyhow::Result<Running> {
     let c = &h.config;
     let bitrate = BitRate::new(c.bitrate).ok_or_else(|| BadInput(format!("bit rate {}", c.bitrate)))?;
     let mut hub_config = HubConfig {
@@ -387,7 +388,7 @@ pub async fn begin(h: &Harvester, trace: Option<Box<dyn Write>>) -> anyhow::Resu
             seed: c.seed,
             latency_class: protocol::ident::latency_class,
         },
-        ..HubConfig::default()
+        ..HubConfig::new(paced)
     };
     if let Some(epoch) = h.epoch {
         hub_config.epoch = epoch;
@@ -538,9 +539,8 @@ impl Running {
                     node: m.name.clone(),
                     what: format!("crashed: {why}"),
                 });
-                let window = BusTime::from_nanos((policy.window_s * 1e9) as u64).as_nanos();
-                m.restarts
-                    .retain(|t| now.as_nanos().saturating_sub(t.as_nanos()) < window);
+                let window = BusDuration::from_nanos((policy.window_s * 1e9) as u64);
+                m.restarts.retain(|t| now - *t < window);
                 if m.restarts.len() as u32 >= policy.max_restarts {
                     m.down = true;
                     let what = format!(
@@ -554,7 +554,7 @@ impl Running {
                         what,
                     });
                 } else {
-                    m.restart_at = Some(now + policy.backoff_ms.saturating_mul(1_000_000));
+                    m.restart_at = Some(now + BusDuration::from_millis(policy.backoff_ms));
                 }
             }
         }
@@ -619,7 +619,7 @@ impl Running {
             node: "*".into(),
             what: "power cycle".into(),
         });
-        let relay = now + self.harvester.config.time_relay_ms.saturating_mul(1_000_000);
+        let relay = now + BusDuration::from_millis(self.harvester.config.time_relay_ms);
         for i in 0..self.members.len() {
             let power_on = if matches!(self.members[i].spec, Spec::Monitor) {
                 now

@@ -94,7 +94,9 @@ fn periodic_frames_start_exactly_on_their_deadlines() {
     let trace = Shared::default();
     let t = trace.clone();
     in_virtual_time(async move {
-        let hub = Hub::new(HubConfig::default(), Some(Box::new(t))).unwrap().start();
+        let hub = Hub::new(HubConfig::new(false), Some(Box::new(t)))
+            .unwrap()
+            .start();
         attach(
             &hub,
             "a",
@@ -137,7 +139,9 @@ fn reaction_time_delays_the_reply() {
     let trace = Shared::default();
     let t = trace.clone();
     in_virtual_time(async move {
-        let hub = Hub::new(HubConfig::default(), Some(Box::new(t))).unwrap().start();
+        let hub = Hub::new(HubConfig::new(false), Some(Box::new(t)))
+            .unwrap()
+            .start();
         attach(&hub, "a", Box::new(Periodic::new("123#01", 10, 0)), 0).await;
         attach(
             &hub,
@@ -170,7 +174,7 @@ fn reaction_time_delays_the_reply() {
 #[test]
 fn a_hung_node_overruns_and_resumes() {
     let snap = in_virtual_time(async move {
-        let hub = Hub::new(HubConfig::default(), None).unwrap().start();
+        let hub = Hub::new(HubConfig::new(false), None).unwrap().start();
         attach(
             &hub,
             "a",
@@ -232,7 +236,7 @@ fn run_with(seed: u64, rules: Vec<Rule>) -> Vec<u8> {
                 seed,
                 ..BusConfig::default()
             },
-            ..HubConfig::default()
+            ..HubConfig::new(false)
         };
         let hub = Hub::new(config, Some(Box::new(t))).unwrap().start();
         for (i, period) in [(0u8, 10u64), (1, 20), (2, 50), (3, 7)] {
@@ -341,7 +345,7 @@ fn same_seed_same_trace_byte_for_byte() {
 fn real_time_paces_the_bus() {
     let started = std::time::Instant::now();
     let snap = System::with_tokio_rt(|| runtime(false).unwrap()).block_on(async {
-        let hub = Hub::new(HubConfig::default(), None).unwrap().start();
+        let hub = Hub::new(HubConfig::new(true), None).unwrap().start();
         attach(&hub, "a", Box::new(Periodic::new("123#01", 20, 0)), 0).await;
         attach(
             &hub,
@@ -390,7 +394,7 @@ impl NodeLogic for Stall {
 fn a_stall_slips_bus_time_instead_of_bursting() {
     let started = std::time::Instant::now();
     let snap = System::with_tokio_rt(|| runtime(false).unwrap()).block_on(async {
-        let hub = Hub::new(HubConfig::default(), None).unwrap().start();
+        let hub = Hub::new(HubConfig::new(true), None).unwrap().start();
         attach(&hub, "a", Box::new(Periodic::new("123#01", 10, 0)), 0).await;
         let stall = Stall {
             at: BusTime::from_millis(100),
@@ -420,7 +424,9 @@ fn three_nodes_contend_and_win_in_identifier_order() {
     let trace = Shared::default();
     let t = trace.clone();
     in_virtual_time(async move {
-        let hub = Hub::new(HubConfig::default(), Some(Box::new(t))).unwrap().start();
+        let hub = Hub::new(HubConfig::new(false), Some(Box::new(t)))
+            .unwrap()
+            .start();
         // All three deadlines at 1 ms: frame lengths 151, 142 and 74 bits (docs/CAN.md, test vectors).
         attach(
             &hub,

@@ -354,8 +354,10 @@ impl Stats {
                 let second = (0..100)
                     .map(|k| self.buckets[((closing - k) as usize) % BUCKETS])
                     .fold(BusDuration::ZERO, |a, b| a + b);
-                self.load_history
-                    .push(BusTime::at(BUCKET * (closing + 1)), second.as_nanos() as f32 / 1e9);
+                self.load_history.push(
+                    BusTime::at(BUCKET * (closing + 1)),
+                    second.as_nanos() as f32 / 1e9,
+                );
             }
             self.buckets[next] = BusDuration::ZERO;
         }

@@ -104,7 +104,8 @@ fn bus_load_is_the_sum_of_exact_lengths() {
     let mut expected_bits = 0;
     for k in 0..100u64 {
         let i = (k % 5) as usize;
-        b.submit(a, f(texts[i]), BusTime::from_nanos(k * 1_000_000)).unwrap();
+        b.submit(a, f(texts[i]), BusTime::from_nanos(k * 1_000_000))
+            .unwrap();
         expected_bits += lengths[i];
     }
     run(&mut b, 100_000_000);
@@ -142,8 +143,12 @@ fn overrun_when_a_node_stops_draining() {
     let a = b.attach(ControllerConfig::named("a"));
     let rx = b.attach(ControllerConfig::named("rx"));
     for k in 0..10u64 {
-        b.submit(a, f("0601F5D0#0101341EEA2BEF2C"), BusTime::from_nanos(k * 1_000_000))
-            .unwrap();
+        b.submit(
+            a,
+            f("0601F5D0#0101341EEA2BEF2C"),
+            BusTime::from_nanos(k * 1_000_000),
+        )
+        .unwrap();
     }
     let events = run(&mut b, 20_000_000);
     // 13 bytes per extended 8-byte frame: four fit in 64 bytes, the rest overrun.
@@ -160,10 +165,15 @@ fn overrun_when_a_node_stops_draining() {
     assert!(b.controller(rx).unwrap().overrun_flag());
     let (got, overrun) = b.drain_rx(rx, BusTime::NEVER).unwrap();
     assert_eq!((got.len(), overrun), (4, true));
-    assert_eq!(got[0].at, BusTime::from_nanos(137 * BIT), "stamped with the end of frame");
+    assert_eq!(
+        got[0].at,
+        BusTime::from_nanos(137 * BIT),
+        "stamped with the end of frame"
+    );
     // Drained: there is room again, and the flag is clear.
     assert!(!b.controller(rx).unwrap().overrun_flag());
-    b.submit(a, f("0601F5D0#01"), BusTime::from_nanos(30_000_000)).unwrap();
+    b.submit(a, f("0601F5D0#01"), BusTime::from_nanos(30_000_000))
+        .unwrap();
     run(&mut b, 40_000_000);
     assert_eq!(b.controller(rx).unwrap().rx_len(), 1);
 }
@@ -178,7 +188,8 @@ fn bus_off_and_recovery_after_128_times_11_recessive_bits() {
         Schedule::Always,
         BitPosition::At(40),
     ));
-    b.submit(bad, f("0601F5D0#0101341EEA2BEF2C"), BusTime::from_nanos(0)).unwrap();
+    b.submit(bad, f("0601F5D0#0101341EEA2BEF2C"), BusTime::from_nanos(0))
+        .unwrap();
     let events = run(&mut b, 1_000_000_000);
     let errors: Vec<&Event> = events
         .iter()
@@ -267,7 +278,8 @@ fn recovery_counts_recessive_runs_between_frames() {
     ));
     b.submit(bad, f("0601F5D0#01"), BusTime::from_nanos(0)).unwrap();
     for k in 0..200u64 {
-        b.submit(good, f("0601F5D1#01"), BusTime::from_nanos(k * 2_000_000)).unwrap();
+        b.submit(good, f("0601F5D1#01"), BusTime::from_nanos(k * 2_000_000))
+            .unwrap();
     }
     let events = run(&mut b, 400_000_000);
     let off = events.iter().find_map(|e| match e {
@@ -380,7 +392,8 @@ fn disconnected_nodes_neither_send_nor_receive() {
     assert_eq!(frames(&events).iter().map(|f| f.2).collect::<Vec<_>>(), [a]);
     assert_eq!(b.controller(gone).unwrap().rx_len(), 0);
     assert_eq!(b.controller(rx).unwrap().rx_len(), 1);
-    b.set_connected(gone, true, BusTime::from_nanos(10_000_000)).unwrap();
+    b.set_connected(gone, true, BusTime::from_nanos(10_000_000))
+        .unwrap();
     let events = run(&mut b, 20_000_000);
     assert_eq!(
         frames(&events).iter().map(|f| (f.0, f.2)).collect::<Vec<_>>(),
@@ -506,8 +519,12 @@ fn random_injection_is_deterministic_under_a_seed() {
             BitPosition::Random,
         ));
         for k in 0..500u64 {
-            b.submit(a, f("0601F5D0#0101341EEA2BEF2C"), BusTime::from_nanos(k * 1_000_000))
-                .unwrap();
+            b.submit(
+                a,
+                f("0601F5D0#0101341EEA2BEF2C"),
+                BusTime::from_nanos(k * 1_000_000),
+            )
+            .unwrap();
         }
         run(&mut b, 600_000_000)
     };
@@ -549,7 +566,8 @@ fn error_counters_are_kept_over_time() {
     }
     b.injector_mut().remove(rule);
     for k in 0..5u64 {
-        b.submit(a, f("123#01"), BusTime::from_nanos(1_000_000 * (k + 1))).unwrap();
+        b.submit(a, f("123#01"), BusTime::from_nanos(1_000_000 * (k + 1)))
+            .unwrap();
     }
     run(&mut b, 100_000_000);
     let tec: Vec<u16> = b.stats().nodes[0]

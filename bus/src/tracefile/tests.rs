@@ -1,7 +1,7 @@
 use super::*;
 use crate::candump::parse_frame;
-use crate::trace::{err, frame_line};
 use crate::time::BusTime;
+use crate::trace::{err, frame_line};
 use proptest::prelude::*;
 use std::time::{Duration, UNIX_EPOCH};
 
@@ -285,7 +285,12 @@ fn asc_header_and_lines() {
          Begin Triggerblock Thu Feb 22 04:55:03.978 pm 2024\n   0.000000 Start of measurement\n"
     );
     out.clear();
-    asc::frame_line(&mut out, BusTime::from_nanos(1_234_567_000), 1, &frame("0300A0F5#0101"));
+    asc::frame_line(
+        &mut out,
+        BusTime::from_nanos(1_234_567_000),
+        1,
+        &frame("0300A0F5#0101"),
+    );
     asc::frame_line(&mut out, BusTime::from_nanos(1_300_000_000), 1, &frame("123#R4"));
     asc::error_line(&mut out, BusTime::from_nanos(1_400_000_000), 1);
     asc::footer(&mut out);

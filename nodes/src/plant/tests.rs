@@ -778,7 +778,7 @@ proptest! {
             t += gap;
             sampled.advance_to(BusTime::from_nanos(t));
             while reference.now() < sampled.now() {
-                reference.advance_to(reference.now() + 10_000_000);
+                reference.advance_to(reference.now() + bus::time::BusDuration::from_millis(10));
             }
             prop_assert_eq!(reference.now(), sampled.now());
             prop_assert_eq!(snapshot(&reference), snapshot(&sampled));

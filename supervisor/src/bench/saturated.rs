@@ -61,7 +61,7 @@ async fn saturated_bus(seed: u64) -> anyhow::Result<Addr<Hub>> {
             latency_class: protocol::ident::latency_class,
             ..BusConfig::default()
         },
-        ..HubConfig::default()
+        ..HubConfig::new(false)
     };
     let hub = Hub::new(config, None)?.start();
     let addresses: Vec<Address> = Address::all().collect();

@@ -148,7 +148,7 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
     let system = System::with_tokio_rt(move || runtime(fast).expect("a tokio runtime"));
     let result = system.block_on(async move {
         let mut stop = Stop::new()?;
-        let mut running = harvester::begin(&h, trace).await?;
+        let mut running = harvester::begin(&h, !fast, trace).await?;
         let mut reported = 0;
         let bridge = match &iface {
             Some(name) => {

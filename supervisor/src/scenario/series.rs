@@ -185,7 +185,7 @@ mod tests {
             loop {
                 let stop = series.next_stop(now, target);
                 if stop > now {
-                    now = stop + overshoot;
+                    now = stop + bus::time::BusDuration::from_nanos(overshoot);
                 }
                 if series.is_due(now) {
                     series.record(now, Sample::default());
