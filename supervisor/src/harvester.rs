@@ -28,7 +28,8 @@ use std::time::Duration;
 pub struct HarvesterConfig {
     /// Machine name.
     pub name: String,
-    /// Bit rate, bit/s: 10000 to 1000000, dividing 10^9 (`BitRate::RULE`).
+    /// Bit rate, bit/s: 10000 to 1000000, with an exact bit time on the bus clock
+    /// (`BitRate::RULE`: 30000, 125000, 250000, 500000 and 1000000 among them).
     pub bitrate: u32,
     /// The run's seed.
     pub seed: u64,
@@ -728,18 +729,20 @@ mod tests {
     }
 
     #[test]
-    fn every_rate_with_a_whole_nanosecond_bit_time_is_taken_and_the_message_says_so() {
+    fn every_rate_with_an_exact_bit_time_is_taken_and_the_message_says_so() {
         let one = THREE.replace(r#", "b.ron", "c.ron""#, "");
-        for ok in [10_000, 50_000, 100_000, 125_000, 800_000, 1_000_000] {
+        // 30 kbit/s (an 80C51 + SJA1000 board's rate) has a bit time of 33 333.3 ns.
+        for ok in [10_000, 30_000, 50_000, 100_000, 125_000, 800_000, 1_000_000] {
             let text = one.replace("250000", &ok.to_string());
             assert!(problems(&text, three).is_empty(), "{ok}");
         }
-        for bad in [0, 9_999, 300_000, 2_000_000] {
+        // 7 and 33.3 kbit/s have primes other than 2, 3 and 5 in them (7, 37).
+        for bad in [0, 7_000, 9_999, 33_300, 70_000, 2_000_000] {
             let text = one.replace("250000", &bad.to_string());
             let p = problems(&text, three);
             assert_eq!(p.len(), 1, "{p:?}");
             assert!(
-                p[0].starts_with(&format!("h.ron: bitrate: {bad} bit/s: a bit rate must be 10000 to 1000000 bit/s and divide 1000000000")),
+                p[0].starts_with(&format!("h.ron: bitrate: {bad} bit/s: a bit rate must be 10000 to 1000000 bit/s with a bit time the bus clock holds exactly")),
                 "{p:?}"
             );
         }

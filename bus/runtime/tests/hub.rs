@@ -368,6 +368,39 @@ fn real_time_paces_the_bus() {
     assert_eq!(snap.stats.frames, 20, "10 periodic frames and 10 replies");
 }
 
+/// The pairing `runtime` does not make by itself: a paced hub on a paused-clock runtime keeps
+/// to the wall clock (it waits on its own wall timer), and an unpaced hub on a normal runtime
+/// runs ahead of it.
+#[test]
+fn pacing_follows_the_config_not_the_runtime() {
+    for (virtual_runtime, paced) in [(true, true), (false, false)] {
+        let started = std::time::Instant::now();
+        let snap = System::with_tokio_rt(move || runtime(virtual_runtime).unwrap()).block_on(async move {
+            let hub = Hub::new(HubConfig::new(paced), None).unwrap().start();
+            attach(&hub, "a", Box::new(Periodic::new("123#01", 20, 0)), 0).await;
+            hub.send(RunUntil(BusTime::from_millis(300)))
+                .await
+                .unwrap()
+                .unwrap();
+            hub.send(GetSnapshot).await.unwrap()
+        });
+        let wall = started.elapsed();
+        if paced {
+            assert!(
+                wall >= Duration::from_millis(299),
+                "paced on a paused runtime: {wall:?}"
+            );
+        } else {
+            assert!(
+                wall < Duration::from_millis(250),
+                "unpaced on a normal runtime: {wall:?}"
+            );
+        }
+        // Either way the run reached the time asked for.
+        assert!(snap.now >= BusTime::from_millis(300), "{paced}: {:?}", snap.now);
+    }
+}
+
 /// Freezes the hub's thread once, at `at`, as a process that is not scheduled would be.
 struct Stall {
     at: BusTime,
