@@ -105,7 +105,9 @@ impl BusDuration {
     }
     /// Seconds, for display and statistics.
     pub fn as_secs_f64(self) -> f64 {
-        self.0 as f64 / TICKS_PER_SEC as f64
+        // Whole nanoseconds first, so that a time of whole nanoseconds gives the very f64 it
+        // gave when the clock counted nanoseconds (reports stay byte-identical).
+        self.as_nanos() as f64 / 1e9 + (self.0 % TICKS_PER_NS) as f64 / TICKS_PER_SEC as f64
     }
     /// As a std duration, truncated to the nanosecond.
     pub const fn as_std(self) -> Duration {

@@ -77,8 +77,8 @@ async fn attach(
 const NEW_YEAR_2024_NS: u64 = (54 * 365 + 13) * 86_400 * 1_000_000_000;
 
 /// The time a virtual-time trace writes for bus time `ns`.
-fn stamp(ns: u64) -> BusTime {
-    BusTime::from_nanos(NEW_YEAR_2024_NS + ns)
+fn stamp(ns: u64) -> bus::time::Stamp {
+    bus::time::Stamp(NEW_YEAR_2024_NS + ns)
 }
 
 fn lines(trace: &Shared) -> Vec<String> {

@@ -10,11 +10,11 @@
 //! bus already stops at every 10 ms for supervision, so a run gives the same verdicts whether
 //! anyone looks at its series or not.
 
-use bus::time::BusTime;
+use bus::time::{BusDuration, BusTime};
 use bus_runtime::hub::Snapshot;
 
 /// Sampling period.
-pub const SAMPLE_NS: u64 = 1_000_000_000;
+pub const SAMPLE: BusDuration = BusDuration::from_secs(1);
 /// Most samples kept before the resolution halves.
 pub const MAX_SAMPLES: usize = 4096;
 
@@ -75,18 +75,18 @@ pub struct Series {
     /// Bus time the run reached, s.
     pub end_s: f64,
     next: Option<BusTime>,
-    /// Sampling period, ns: [`SAMPLE_NS`] times a power of two (0 before the first halving).
-    period_ns: u64,
+    /// Sampling period: [`SAMPLE`] times a power of two (zero before the first halving).
+    period: BusDuration,
 }
 
 fn ceil_to_sample(t: BusTime) -> BusTime {
-    BusTime::from_nanos(t.as_nanos().div_ceil(SAMPLE_NS) * SAMPLE_NS)
+    t.ceil_to(SAMPLE)
 }
 
 impl Series {
-    /// The present sampling period, ns.
-    pub fn period_ns(&self) -> u64 {
-        self.period_ns.max(SAMPLE_NS)
+    /// The present sampling period.
+    pub fn period(&self) -> BusDuration {
+        self.period.max(SAMPLE)
     }
 
     /// The next sampling time, given that the bus is at `now`.
@@ -115,10 +115,9 @@ impl Series {
                 i += 1;
                 i % 2 == 1
             });
-            self.period_ns = self.period_ns() * 2;
+            self.period = self.period() * 2;
         }
-        let period = self.period_ns();
-        self.next = Some(BusTime::from_nanos((now.as_nanos() / period + 1) * period));
+        self.next = Some(now.next_multiple_of(self.period()));
     }
 
     /// Takes the hub's histories from the final snapshot.
@@ -202,7 +201,7 @@ mod tests {
             .collect()
     }
 
-    const S: u64 = SAMPLE_NS;
+    const S: u64 = 1_000_000_000; // one sample period, ns
 
     #[test]
     fn one_sample_per_whole_second_after_start_up() {
