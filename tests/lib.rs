@@ -57,7 +57,7 @@ pub fn parse_trace(text: &str) -> Vec<Line> {
             let (_iface, frame) = rest.split_once(' ')?;
             let (secs, micros) = time.split_once('.')?;
             let secs = secs.parse::<u64>().ok()?.checked_sub(VIRTUAL_EPOCH_S)?;
-            let at = BusTime(secs * 1_000_000_000 + micros.parse::<u64>().ok()? * 1000);
+            let at = BusTime::from_nanos(secs * 1_000_000_000 + micros.parse::<u64>().ok()? * 1000);
             // Error frames (CAN_ERR_FLAG in the identifier) are not frames: they fail to parse.
             let frame = bus::candump::parse_frame(frame).ok()?;
             Some(Line { at, frame })
@@ -76,7 +76,7 @@ pub fn run_virtual<T: 'static>(
     let trace = Shared::default();
     let t = trace.clone();
     let result = System::with_tokio_rt(|| runtime(true).expect("runtime")).block_on(async move {
-        let running = harvester::start(&h, Some(Box::new(t)))
+        let running = harvester::start(&h, false, Some(Box::new(t)))
             .await
             .expect("the harvester starts");
         setup(&running);
@@ -103,7 +103,7 @@ pub fn traffic_of(
     let trace = Shared::default();
     let t = trace.clone();
     System::with_tokio_rt(|| runtime(true).expect("runtime")).block_on(async move {
-        let running = harvester::start(&default_harvester(), Some(Box::new(t)))
+        let running = harvester::start(&default_harvester(), false, Some(Box::new(t)))
             .await
             .expect("the harvester starts");
         script(&running).await;

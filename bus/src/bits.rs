@@ -11,6 +11,7 @@
 //! in a `u128` (at most 118 bits) and the stuffed one in three words.
 
 use crate::Frame;
+use crate::time::BusDuration;
 use crc::{CRC_15_CAN, Crc};
 use embedded_can::Id;
 
@@ -304,24 +305,19 @@ impl BitRate {
     pub const SLOWEST: u32 = 10_000;
 
     /// The rule [`BitRate::for_bus`] applies, in words, for error messages.
-    pub const RULE: &str = "a bit rate must be 10000 to 1000000 bit/s and divide 1000000000, so that a bit lasts a whole number of nanoseconds (125000, 250000, 500000, 800000 and 1000000 do; 300000 does not)";
+    pub const RULE: &str = "a bit rate must be 10000 to 1000000 bit/s with a bit time the bus clock holds exactly: the rate must divide 3456000000000 (2^16 * 3^3 * 5^9), as 30000, 125000, 250000, 500000, 800000 and 1000000 do and 7000 or 33300 do not";
 
-    /// A rate the emulated bus runs at: [`BitRate::SLOWEST`] to 1 Mbit/s, with a whole-nanosecond
-    /// bit time ([`BitRate::RULE`]).
+    /// A rate the emulated bus runs at: [`BitRate::SLOWEST`] to 1 Mbit/s, with a bit time of a
+    /// whole number of bus-clock ticks ([`BitRate::RULE`]).
     pub fn for_bus(bits_per_second: u32) -> Option<BitRate> {
-        BitRate::new(bits_per_second).filter(|r| r.0 >= BitRate::SLOWEST && r.exact_bit_time_ns().is_some())
+        BitRate::new(bits_per_second).filter(|r| r.0 >= BitRate::SLOWEST && r.bit_time().is_some())
     }
 
-    /// The bit time in nanoseconds when it is a whole number, which the bus clock needs to stay
-    /// exact: for every rate that divides 10^9 (125, 250, 500, 800 and 1000 kbit/s among them).
-    pub fn exact_bit_time_ns(self) -> Option<u64> {
-        (1_000_000_000 % u64::from(self.0) == 0).then(|| 1_000_000_000 / u64::from(self.0))
-    }
-
-    /// How long `bits` last, in nanoseconds, rounded to the nearest nanosecond.
-    pub fn duration_ns(self, bits: u32) -> u64 {
-        let rate = u64::from(self.0);
-        (u64::from(bits) * 1_000_000_000 + rate / 2) / rate
+    /// The bit time, when it is a whole number of bus-clock ticks ([`crate::time`]), which the
+    /// bus needs to stay exact: for every rate of the form 2^a · 3^b · 5^c with a ≤ 16, b ≤ 3,
+    /// c ≤ 9 (all the standard CAN rates, and 30 kbit/s).
+    pub fn bit_time(self) -> Option<BusDuration> {
+        BusDuration::period_of(u64::from(self.0))
     }
 
     /// How long `bits` last, in microseconds, unrounded.
@@ -394,18 +390,23 @@ mod tests {
 
     #[test]
     fn durations() {
-        assert_eq!(BitRate::K250.exact_bit_time_ns(), Some(4000));
-        assert_eq!(BitRate::K125.exact_bit_time_ns(), Some(8000));
-        assert_eq!(BitRate::M1.exact_bit_time_ns(), Some(1000));
-        assert_eq!(BitRate::new(30_000).unwrap().exact_bit_time_ns(), None);
+        assert_eq!(BitRate::K250.bit_time(), Some(BusDuration::from_nanos(4000)));
+        assert_eq!(BitRate::K125.bit_time(), Some(BusDuration::from_nanos(8000)));
+        assert_eq!(BitRate::M1.bit_time(), Some(BusDuration::from_nanos(1000)));
+        let k30 = BitRate::new(30_000).and_then(BitRate::bit_time);
+        assert_eq!(k30.map(|b| b * 3), Some(BusDuration::from_micros(100)));
+        assert_eq!(BitRate::new(7_000).and_then(BitRate::bit_time), None);
+        assert_eq!(BitRate::new(33_300).and_then(BitRate::bit_time), None);
     }
 
     #[test]
-    fn a_bus_takes_every_rate_with_a_whole_nanosecond_bit_time_from_10_kbits() {
-        // 10^9 = 2^9 × 5^9: the rates that divide it are 2^a × 5^b.
-        let mut exact: Vec<u32> = (0..=9u32)
-            .flat_map(|a| (0..=9u32).map(move |b| 2u32.pow(a) * 5u32.pow(b)))
+    fn a_bus_takes_every_rate_with_an_exact_bit_time_from_10_kbits() {
+        // 3.456e12 = 2^16 × 3^3 × 5^9: the rates that divide it are 2^a × 3^b × 5^c.
+        let mut exact: Vec<u32> = (0..=16u32)
+            .flat_map(|a| (0..=3u32).flat_map(move |b| (0..=9u32).map(move |c| (a, b, c))))
+            .map(|(a, b, c)| 2u64.pow(a) * 3u64.pow(b) * 5u64.pow(c))
             .filter(|r| (10_000..=1_000_000).contains(r))
+            .map(|r| r as u32)
             .collect();
         exact.sort_unstable();
         let taken: Vec<u32> = (0..=1_100_000u32)
@@ -413,15 +414,15 @@ mod tests {
             .collect();
         assert_eq!(taken, exact);
         for r in [
-            10_000, 20_000, 50_000, 100_000, 125_000, 250_000, 500_000, 800_000, 1_000_000,
+            10_000, 20_000, 30_000, 50_000, 100_000, 125_000, 250_000, 500_000, 800_000, 1_000_000,
         ] {
             assert!(BitRate::for_bus(r).is_some(), "{r}");
         }
-        for r in [0, 1, 5_000, 9_999, 30_000, 300_000, 1_000_001, 2_000_000] {
+        for r in [
+            0, 1, 5_000, 7_000, 9_999, 33_300, 33_333, 70_000, 1_000_001, 2_000_000,
+        ] {
             assert!(BitRate::for_bus(r).is_none(), "{r}");
         }
-        assert_eq!(BitRate::K250.duration_ns(142), 568_000);
-        assert_eq!(BitRate::new(30_000).unwrap().duration_ns(3), 100_000);
         assert!(BitRate::new(0).is_none() && BitRate::new(1_000_001).is_none());
     }
 

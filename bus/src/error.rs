@@ -17,9 +17,11 @@ pub enum Error {
         /// 11 for a base frame, 29 for an extended frame.
         bits: u8,
     },
-    /// A bit rate whose bit time is not a whole number of nanoseconds, which the engine cannot
-    /// keep exactly.
-    #[error("bit rate {0} bit/s has no whole-nanosecond bit time: 1000000000 is not divisible by it")]
+    /// A bit rate whose bit time is not a whole number of bus-clock ticks, which the engine
+    /// cannot keep exactly.
+    #[error(
+        "bit rate {0} bit/s has no exact bit time on the bus clock: it does not divide 3456000000000 (2^16 * 3^3 * 5^9 ticks per second)"
+    )]
     InexactBitRate(u32),
     /// A request names a node the bus does not have.
     #[error("no node {0}")]

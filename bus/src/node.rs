@@ -197,7 +197,7 @@ mod tests {
         }
         fn handle_timeout(&mut self, now: BusTime) {
             self.log.push(format!("timeout {now:?}"));
-            self.next = Some(now + 10_000_000);
+            self.next = Some(now + crate::time::BusDuration::from_millis(10));
         }
         fn handle_event(&mut self, now: BusTime, _: ControllerEvent) {
             self.log.push(format!("event {now:?}"));

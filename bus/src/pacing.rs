@@ -86,7 +86,7 @@ impl Pacer {
 
     /// The bus time that wall time `wall_ns` stands for (where a frame from outside belongs).
     pub fn bus_time(&self, wall_ns: u64) -> BusTime {
-        BusTime(wall_ns.saturating_sub(self.slip_ns))
+        BusTime::from_nanos(wall_ns.saturating_sub(self.slip_ns))
     }
 
     /// Decides about committing bus time `t` at wall time `wall_ns`; slips when `t` is overdue
@@ -141,22 +141,34 @@ mod tests {
     #[test]
     fn bus_time_waits_for_the_wall_clock() {
         let mut p = pacer();
-        assert_eq!(p.check(5 * MS, BusTime(10 * MS)), Pace::Wait(10 * MS));
-        assert_eq!(p.check(10 * MS, BusTime(10 * MS)), Pace::Go { slipped: None });
+        assert_eq!(p.check(5 * MS, BusTime::from_nanos(10 * MS)), Pace::Wait(10 * MS));
+        assert_eq!(
+            p.check(10 * MS, BusTime::from_nanos(10 * MS)),
+            Pace::Go { slipped: None }
+        );
         // With slack, a little ahead of time.
         let mut p = Pacer::new(Duration::from_millis(2), Duration::from_millis(20));
-        assert_eq!(p.check(8 * MS, BusTime(10 * MS)), Pace::Go { slipped: None });
-        assert_eq!(p.check(7 * MS, BusTime(10 * MS)), Pace::Wait(8 * MS));
+        assert_eq!(
+            p.check(8 * MS, BusTime::from_nanos(10 * MS)),
+            Pace::Go { slipped: None }
+        );
+        assert_eq!(p.check(7 * MS, BusTime::from_nanos(10 * MS)), Pace::Wait(8 * MS));
     }
 
     #[test]
     fn lateness_up_to_the_threshold_is_caught_up_without_slipping() {
         let mut p = pacer();
         // 20 ms late: the frames go out back to back, bus time keeps its schedule.
-        assert_eq!(p.check(120 * MS, BusTime(100 * MS)), Pace::Go { slipped: None });
-        assert_eq!(p.check(120 * MS, BusTime(110 * MS)), Pace::Go { slipped: None });
+        assert_eq!(
+            p.check(120 * MS, BusTime::from_nanos(100 * MS)),
+            Pace::Go { slipped: None }
+        );
+        assert_eq!(
+            p.check(120 * MS, BusTime::from_nanos(110 * MS)),
+            Pace::Go { slipped: None }
+        );
         assert_eq!(p.overruns(), Overruns::default());
-        assert_eq!(p.bus_time(120 * MS), BusTime(120 * MS));
+        assert_eq!(p.bus_time(120 * MS), BusTime::from_nanos(120 * MS));
     }
 
     #[test]
@@ -164,19 +176,25 @@ mod tests {
         let mut p = pacer();
         // The process was frozen: at wall 500 ms, bus time 100 ms is 400 ms overdue.
         assert_eq!(
-            p.check(500 * MS, BusTime(100 * MS)),
+            p.check(500 * MS, BusTime::from_nanos(100 * MS)),
             Pace::Go {
                 slipped: Some(400 * MS)
             }
         );
         // The rest keeps its spacing from there: 200 ms is due at wall 600 ms, not at once.
-        assert_eq!(p.check(500 * MS, BusTime(200 * MS)), Pace::Wait(600 * MS));
-        assert_eq!(p.check(600 * MS, BusTime(200 * MS)), Pace::Go { slipped: None });
+        assert_eq!(
+            p.check(500 * MS, BusTime::from_nanos(200 * MS)),
+            Pace::Wait(600 * MS)
+        );
+        assert_eq!(
+            p.check(600 * MS, BusTime::from_nanos(200 * MS)),
+            Pace::Go { slipped: None }
+        );
         // A frame arriving from outside at wall 550 ms belongs at bus time 150 ms.
-        assert_eq!(p.bus_time(550 * MS), BusTime(150 * MS));
+        assert_eq!(p.bus_time(550 * MS), BusTime::from_nanos(150 * MS));
         // A second stall adds up.
         assert_eq!(
-            p.check(1_000 * MS, BusTime(250 * MS)),
+            p.check(1_000 * MS, BusTime::from_nanos(250 * MS)),
             Pace::Go {
                 slipped: Some(350 * MS)
             }
@@ -189,7 +207,7 @@ mod tests {
                 longest_ns: 400 * MS
             }
         );
-        assert_eq!(p.bus_time(1_000 * MS), BusTime(250 * MS));
+        assert_eq!(p.bus_time(1_000 * MS), BusTime::from_nanos(250 * MS));
     }
 
     #[test]
@@ -197,7 +215,10 @@ mod tests {
         let mut p = pacer();
         let mut overrun = |wall: u64| {
             let t = p.bus_time(wall).as_nanos().saturating_sub(30 * MS);
-            assert!(matches!(p.check(wall, BusTime(t)), Pace::Go { slipped: Some(_) }));
+            assert!(matches!(
+                p.check(wall, BusTime::from_nanos(t)),
+                Pace::Go { slipped: Some(_) }
+            ));
             p.log_due(wall)
         };
         assert_eq!(overrun(100 * MS), Some(1), "the first is logged");

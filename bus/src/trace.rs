@@ -17,7 +17,7 @@ use crate::candump::write_frame;
 use crate::engine::{BusError, Event, NodeId};
 use crate::fault::ErrorState;
 use crate::filter::CAN_ERR_FLAG;
-use crate::time::{BusTime, Epoch};
+use crate::time::{Epoch, Stamp};
 use core::fmt::Write;
 
 /// Error classes (can_id bits) and data bytes of linux/can/error.h.
@@ -161,19 +161,19 @@ pub fn error_frame(event: &Event) -> Option<ErrorFrame> {
 }
 
 /// Appends the timestamp and interface of a log line.
-fn prefix(out: &mut String, at: BusTime, iface: &str) {
+fn prefix(out: &mut String, at: Stamp, iface: &str) {
     let _ = write!(out, "({at}) {iface} ");
 }
 
 /// Appends one candump log line for a frame.
-pub fn frame_line(out: &mut String, at: BusTime, iface: &str, frame: &Frame) {
+pub fn frame_line(out: &mut String, at: Stamp, iface: &str, frame: &Frame) {
     prefix(out, at, iface);
     write_frame(out, frame);
     out.push('\n');
 }
 
 /// Appends one candump log line for an error frame.
-pub fn error_line(out: &mut String, at: BusTime, iface: &str, e: &ErrorFrame) {
+pub fn error_line(out: &mut String, at: Stamp, iface: &str, e: &ErrorFrame) {
     prefix(out, at, iface);
     error_frame_text(out, e);
 }
@@ -226,15 +226,16 @@ mod tests {
     use super::*;
     use crate::candump::parse_frame;
     use crate::engine::Location;
+    use crate::time::BusTime;
 
     #[test]
     fn frame_lines_look_like_candump() {
         let mut out = String::new();
         let f = parse_frame("0601F5D0#200D0002FFBFFF00").unwrap();
-        frame_line(&mut out, BusTime(1_708_620_903_978_650_123), "harv0", &f);
+        frame_line(&mut out, Stamp(1_708_620_903_978_650_123), "harv0", &f);
         assert_eq!(out, "(1708620903.978650) harv0 0601F5D0#200D0002FFBFFF00\n");
         out.clear();
-        frame_line(&mut out, BusTime(5_000), "harv0", &parse_frame("123#R").unwrap());
+        frame_line(&mut out, Stamp(5_000), "harv0", &parse_frame("123#R").unwrap());
         assert_eq!(out, "(0.000005) harv0 123#R\n");
     }
 
@@ -242,7 +243,7 @@ mod tests {
     fn error_frames_use_socketcan_encoding() {
         let ack = Event::BusError {
             node: NodeId(0),
-            at: BusTime(1_000_000),
+            at: BusTime::from_nanos(1_000_000),
             error: BusError::Ack,
             transmitting: true,
             location: Location::Ack,
@@ -262,7 +263,7 @@ mod tests {
         let seen = |error, location| {
             error_frame(&Event::BusError {
                 node: NodeId(1),
-                at: BusTime(0),
+                at: BusTime::ZERO,
                 error,
                 transmitting: false,
                 location,
@@ -278,13 +279,13 @@ mod tests {
         assert_eq!(seen(BusError::Form, Location::Eof).data[2..4], [0x02, 0x1A]);
         let over = error_frame(&Event::Overload {
             node: NodeId(2),
-            at: BusTime(0),
+            at: BusTime::ZERO,
         })
         .unwrap();
         assert_eq!((over.can_id, over.data[2]), (CAN_ERR_FLAG | 0x8, 0x20));
         let off = Event::State {
             node: NodeId(1),
-            at: BusTime(2_000_000),
+            at: BusTime::from_nanos(2_000_000),
             from: ErrorState::Passive,
             to: ErrorState::BusOff,
             tec: 256,
@@ -295,7 +296,7 @@ mod tests {
         assert_eq!((e.data[6], e.data[7]), (255, 3), "TEC saturates in its byte");
         let back = Event::State {
             node: NodeId(1),
-            at: BusTime(0),
+            at: BusTime::ZERO,
             from: ErrorState::BusOff,
             to: ErrorState::Active,
             tec: 0,
@@ -304,7 +305,7 @@ mod tests {
         assert_eq!(error_frame(&back).unwrap().can_id & 0x100, 0x100, "restarted");
         let passive = Event::State {
             node: NodeId(1),
-            at: BusTime(0),
+            at: BusTime::ZERO,
             from: ErrorState::Active,
             to: ErrorState::Passive,
             tec: 128,
@@ -314,7 +315,7 @@ mod tests {
         assert!(
             error_frame(&Event::Delivered {
                 node: NodeId(0),
-                at: BusTime(0)
+                at: BusTime::ZERO
             })
             .is_none()
         );

@@ -49,10 +49,10 @@ use bus::engine::{
     Rule, Schedule, SeenBy, Target,
 };
 use bus::fault::ErrorState;
-use bus::time::BusTime;
+use bus::time::{BusDuration, BusTime};
 
 /// One bit time at 250 kbit/s, in nanoseconds.
-const BIT: u64 = 4000;
+const BIT: BusDuration = BusDuration::from_micros(4);
 /// The stuffed bitstream of [`f`], SOF to the last CRC bit, laid out in the module docs.
 const F_STUFFED: &str = "0000010010010000010011000001001000101011111000";
 /// Stuffed length of [`f`].
@@ -71,13 +71,14 @@ fn f() -> Frame {
 
 /// Bus time of bit `n` (counted from a SOF at time 0).
 fn at(n: u64) -> BusTime {
-    BusTime(n * BIT)
+    BusTime::ZERO + BIT * n
 }
 
 /// A bus time in bits.
 fn bits_at(t: BusTime) -> u64 {
-    assert_eq!(t.0 % BIT, 0, "{t:?} is not on a bit boundary");
-    t.0 / BIT
+    let n = t.elapsed() / BIT;
+    assert_eq!(BIT * n, t.elapsed(), "{t:?} is not on a bit boundary");
+    n
 }
 
 /// A bus with a transmitter `tx` that has `f()` queued at time 0, and `receivers` receivers.
@@ -115,7 +116,7 @@ impl Net {
     }
     /// Runs everything that starts in the next `bits` bit times.
     fn run_for(&mut self, bits: u64) -> Vec<Event> {
-        let until = BusTime(self.b.committed().0 + bits * BIT);
+        let until = self.b.committed() + BIT * bits;
         self.b.run_until(until);
         self.b.take_events().collect()
     }

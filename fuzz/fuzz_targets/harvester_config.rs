@@ -22,7 +22,7 @@ fuzz_target!(|input: &[u8]| {
             assert!(!addresses.contains(&Address::MONITOR.0));
             // The bus clock counts whole nanoseconds, so a bit must last a whole number of them.
             assert!((1..=1_000_000).contains(&h.config.bitrate));
-            assert_eq!(1_000_000_000 % h.config.bitrate, 0);
+            assert_eq!(3_456_000_000_000 % u64::from(h.config.bitrate), 0);
             assert!(h.config.monitor.calibration_samples >= 1);
             // `start` runs the bus to the time relay before the field nodes power up.
             let _ = h.relay();

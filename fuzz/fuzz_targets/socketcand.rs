@@ -5,7 +5,7 @@
 //! writes it, reads back to the same frame, whose `< frame >` messages are well formed.
 #![no_main]
 
-use bus::time::BusTime;
+use bus::time::Stamp;
 use bus::{Frame, Id};
 use bus_runtime::gateway::protocol::{
     Action, Command, MAX_MESSAGE, Session, Splitter, bcm_frame_message, frame_message, parse,
@@ -51,8 +51,8 @@ fn round_trip(frame: &Frame) {
     let again = send_text(frame);
     assert_eq!(parse(&again), Ok(Command::Send(*frame)), "{again:?}");
     for m in [
-        frame_message(BusTime(u64::MAX), frame),
-        bcm_frame_message(BusTime(u64::MAX), frame),
+        frame_message(Stamp(u64::MAX), frame),
+        bcm_frame_message(Stamp(u64::MAX), frame),
     ] {
         assert!(frame_shape(&m, frame), "{m:?}");
         let out = Splitter::default().push(m.as_bytes());

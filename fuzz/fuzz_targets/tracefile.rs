@@ -6,7 +6,7 @@
 #![no_main]
 
 use bus::Error;
-use bus::time::BusTime;
+use bus::time::Stamp;
 use bus::tracefile::{self, Entry, ErrorFrames, Format, LineError, Lines, Reader, Record};
 use libfuzzer_sys::fuzz_target;
 use std::io::BufReader;
@@ -89,7 +89,7 @@ fn write_back(format: Format, records: &[Record]) {
     assert_eq!(back.len(), records.len(), "{out}");
     for (a, b) in records.iter().zip(&back) {
         assert_eq!(a.entry, b.entry, "{out}");
-        assert_eq!(BusTime(a.at.0 / 1000 * 1000), b.at, "{out}");
+        assert_eq!(Stamp(a.at.0 / 1000 * 1000), b.at, "{out}");
     }
 }
 

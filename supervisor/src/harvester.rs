@@ -7,7 +7,7 @@ use actix::prelude::*;
 use bus::bits::BitRate;
 use bus::engine::{BusConfig, ControllerConfig, Filter, NodeId};
 use bus::filter::SocketCanFilterSet;
-use bus::time::BusTime;
+use bus::time::{BusDuration, BusTime};
 use bus_runtime::hub::{Attach, GetCrashed, Hub, HubConfig, Replace, RunUntil};
 use bus_runtime::node::{Crash, NodeActor};
 use nodes::monitor::{DisplayHandle, Monitor, MonitorConfig};
@@ -28,7 +28,8 @@ use std::time::Duration;
 pub struct HarvesterConfig {
     /// Machine name.
     pub name: String,
-    /// Bit rate, bit/s: 10000 to 1000000, dividing 10^9 (`BitRate::RULE`).
+    /// Bit rate, bit/s: 10000 to 1000000, with an exact bit time on the bus clock
+    /// (`BitRate::RULE`: 30000, 125000, 250000, 500000 and 1000000 among them).
     pub bitrate: u32,
     /// The run's seed.
     pub seed: u64,
@@ -367,9 +368,10 @@ fn build(
 }
 
 /// Builds the harvester on a new hub and runs it through start-up: the monitor from time 0, the
-/// field nodes from the time relay on. Must run inside an actix system.
-pub async fn start(h: &Harvester, trace: Option<Box<dyn Write>>) -> anyhow::Result<Running> {
-    let mut running = begin(h, trace).await?;
+/// field nodes from the time relay on. Must run inside an actix system. `paced`: in real time
+/// (else virtual time, as fast as the nodes answer; see [`HubConfig::paced`]).
+pub async fn start(h: &Harvester, paced: bool, trace: Option<Box<dyn Write>>) -> anyhow::Result<Running> {
+    let mut running = begin(h, paced, trace).await?;
     running.run_until(h.relay()).await?;
     Ok(running)
 }
@@ -377,7 +379,7 @@ pub async fn start(h: &Harvester, trace: Option<Box<dyn Write>>) -> anyhow::Resu
 /// Builds the harvester on a new hub at time 0 with the monitor attached; the field nodes are
 /// attached when [`Running::run_until`] reaches the time relay. Start-up is thus an ordinary
 /// stretch of the run, which a caller can stop at any moment (a huge time relay, a signal).
-pub async fn begin(h: &Harvester, trace: Option<Box<dyn Write>>) -> anyhow::Result<Running> {
+pub async fn begin(h: &Harvester, paced: bool, trace: Option<Box<dyn Write>>) -> anyhow::Result<Running> {
     let c = &h.config;
     let bitrate = BitRate::new(c.bitrate).ok_or_else(|| BadInput(format!("bit rate {}", c.bitrate)))?;
     let mut hub_config = HubConfig {
@@ -386,7 +388,7 @@ pub async fn begin(h: &Harvester, trace: Option<Box<dyn Write>>) -> anyhow::Resu
             seed: c.seed,
             latency_class: protocol::ident::latency_class,
         },
-        ..HubConfig::default()
+        ..HubConfig::new(paced)
     };
     if let Some(epoch) = h.epoch {
         hub_config.epoch = epoch;
@@ -537,9 +539,8 @@ impl Running {
                     node: m.name.clone(),
                     what: format!("crashed: {why}"),
                 });
-                let window = BusTime((policy.window_s * 1e9) as u64).as_nanos();
-                m.restarts
-                    .retain(|t| now.as_nanos().saturating_sub(t.as_nanos()) < window);
+                let window = BusDuration::from_nanos((policy.window_s * 1e9) as u64);
+                m.restarts.retain(|t| now - *t < window);
                 if m.restarts.len() as u32 >= policy.max_restarts {
                     m.down = true;
                     let what = format!(
@@ -553,7 +554,7 @@ impl Running {
                         what,
                     });
                 } else {
-                    m.restart_at = Some(now + policy.backoff_ms.saturating_mul(1_000_000));
+                    m.restart_at = Some(now + BusDuration::from_millis(policy.backoff_ms));
                 }
             }
         }
@@ -618,7 +619,7 @@ impl Running {
             node: "*".into(),
             what: "power cycle".into(),
         });
-        let relay = now + self.harvester.config.time_relay_ms.saturating_mul(1_000_000);
+        let relay = now + BusDuration::from_millis(self.harvester.config.time_relay_ms);
         for i in 0..self.members.len() {
             let power_on = if matches!(self.members[i].spec, Spec::Monitor) {
                 now
@@ -727,18 +728,20 @@ mod tests {
     }
 
     #[test]
-    fn every_rate_with_a_whole_nanosecond_bit_time_is_taken_and_the_message_says_so() {
+    fn every_rate_with_an_exact_bit_time_is_taken_and_the_message_says_so() {
         let one = THREE.replace(r#", "b.ron", "c.ron""#, "");
-        for ok in [10_000, 50_000, 100_000, 125_000, 800_000, 1_000_000] {
+        // 30 kbit/s (an 80C51 + SJA1000 board's rate) has a bit time of 33 333.3 ns.
+        for ok in [10_000, 30_000, 50_000, 100_000, 125_000, 800_000, 1_000_000] {
             let text = one.replace("250000", &ok.to_string());
             assert!(problems(&text, three).is_empty(), "{ok}");
         }
-        for bad in [0, 9_999, 300_000, 2_000_000] {
+        // 7 and 33.3 kbit/s have primes other than 2, 3 and 5 in them (7, 37).
+        for bad in [0, 7_000, 9_999, 33_300, 70_000, 2_000_000] {
             let text = one.replace("250000", &bad.to_string());
             let p = problems(&text, three);
             assert_eq!(p.len(), 1, "{p:?}");
             assert!(
-                p[0].starts_with(&format!("h.ron: bitrate: {bad} bit/s: a bit rate must be 10000 to 1000000 bit/s and divide 1000000000")),
+                p[0].starts_with(&format!("h.ron: bitrate: {bad} bit/s: a bit rate must be 10000 to 1000000 bit/s with a bit time the bus clock holds exactly")),
                 "{p:?}"
             );
         }

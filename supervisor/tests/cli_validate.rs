@@ -74,7 +74,7 @@ fn a_bad_harvester_config_gives_exit_2_for_validate_and_run() {
     std::fs::write(
         &config,
         format!(
-            r#"Harvester(name: "x", bitrate: 300000, seed: 1, time_relay_ms: 500,
+            r#"Harvester(name: "x", bitrate: 33300, seed: 1, time_relay_ms: 500,
                 reaction_us: 18446744073709551615, nodes: [{:?}, "b2.ron", "b3.ron"])"#,
             b1.display().to_string()
         ),
@@ -83,7 +83,7 @@ fn a_bad_harvester_config_gives_exit_2_for_validate_and_run() {
     let c = config.display();
     let expected = [
         format!(
-            "{c}: bitrate: 300000 bit/s: a bit rate must be 10000 to 1000000 bit/s and divide 1000000000"
+            "{c}: bitrate: 33300 bit/s: a bit rate must be 10000 to 1000000 bit/s with a bit time the bus clock holds exactly"
         ),
         format!("{c}: reaction_us: 18446744073709551615 µs is over 1000000 µs (one second)"),
         format!(

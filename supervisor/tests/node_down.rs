@@ -42,7 +42,7 @@ fn a_node_down_by_itself_is_exit_4_and_an_injected_crash_is_not() {
     h.config.restart.max_restarts = 0;
     let system = System::with_tokio_rt(|| runtime(true).expect("a tokio runtime"));
     let (down, events) = system.block_on(async move {
-        let mut running = harvester::start(&h, None).await.unwrap();
+        let mut running = harvester::start(&h, false, None).await.unwrap();
         let d3 = running.node("D3").unwrap();
         let faulty = NodeActor::new("D3", Box::new(Faulty)).start();
         running
@@ -55,7 +55,7 @@ fn a_node_down_by_itself_is_exit_4_and_an_injected_crash_is_not() {
             .unwrap()
             .unwrap();
         running.crash("D4").await.unwrap();
-        let until = running.now() + 2_000_000_000;
+        let until = running.now() + bus::time::BusDuration::from_secs(2);
         running.run_until(until).await.unwrap();
         (running.down_by_themselves(), running.events.clone())
     });

@@ -20,11 +20,11 @@ fn watch(
     mut each: impl FnMut(BusTime, &mut Plant, &Display) -> bool + 'static,
 ) {
     System::with_tokio_rt(|| runtime(true).unwrap()).block_on(async move {
-        let running = harvester::start(&h, None).await.unwrap();
+        let running = harvester::start(&h, false, None).await.unwrap();
         let display = running.display.clone().expect("the monitor is on");
         let mut t = h.relay();
         while t < BusTime::from_secs(until_s) {
-            t = t + step_ms * 1_000_000;
+            t += bus::time::BusDuration::from_millis(step_ms);
             running.hub.send(RunUntil(t)).await.unwrap().unwrap();
             if !each(t, &mut running.plant.borrow_mut(), &display.borrow()) {
                 break;

@@ -26,7 +26,9 @@ fn run(h: Harvester, trace: Option<&str>, until: BusTime) -> (Vec<Line>, Display
         Schedule::from_records(records, &skip, Passes::Times(1))
     });
     let (display, played) = System::with_tokio_rt(|| runtime(true).expect("runtime")).block_on(async move {
-        let mut running = harvester::start(&h, Some(Box::new(o))).await.expect("starts");
+        let mut running = harvester::start(&h, false, Some(Box::new(o)))
+            .await
+            .expect("starts");
         let mut played = Played::default();
         if let Some(mut schedule) = schedule {
             let node = replay::attach(&running).await.expect("attach");
@@ -79,7 +81,7 @@ fn a_replayed_flow_sensor_drives_the_monitor_as_the_real_one_did() {
     let o = out.clone();
     let h = default_harvester();
     let original_display = System::with_tokio_rt(|| runtime(true).unwrap()).block_on(async move {
-        let running = harvester::start(&h, Some(Box::new(o))).await.unwrap();
+        let running = harvester::start(&h, false, Some(Box::new(o))).await.unwrap();
         running.hub.send(RunUntil(until)).await.unwrap().unwrap();
         running.display.as_ref().unwrap().borrow().clone()
     });
@@ -89,7 +91,7 @@ fn a_replayed_flow_sensor_drives_the_monitor_as_the_real_one_did() {
     let mut without = default_harvester();
     without.without(&["D3".to_string()]).unwrap();
     // A margin past the original's end: the replay starts when the field nodes are up.
-    let later = until + 1_000_000_000;
+    let later = until + bus::time::BusDuration::from_secs(1);
     let (replayed, display, played) = run(without.clone(), Some(&recorded), later);
     let (silent, alone, _) = run(without, None, later);
 

@@ -395,7 +395,7 @@ fn characters_xml_cannot_carry_become_replacement_characters_in_junit_and_the_re
             Verdict {
                 expectation: bad.into(),
                 passed: false,
-                at: Some(BusTime(1_000_000_000)),
+                at: Some(BusTime::from_nanos(1_000_000_000)),
                 observed: bad.into(),
             },
             Verdict {
@@ -407,7 +407,7 @@ fn characters_xml_cannot_carry_become_replacement_characters_in_junit_and_the_re
         ],
         seed: 1,
         events: vec![SupervisorEvent {
-            at: BusTime(500_000_000),
+            at: BusTime::from_nanos(500_000_000),
             node: bad.into(),
             what: bad.into(),
         }],

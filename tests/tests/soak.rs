@@ -145,7 +145,7 @@ fn a_short_soak_with_dense_random_faults_balances_its_books() {
     let end = snap.now;
     let recent: BTreeSet<u8> = lines
         .iter()
-        .filter(|l| end - l.at < 5_000_000_000)
+        .filter(|l| end - l.at < bus::time::BusDuration::from_secs(5))
         .map(|l| l.frame.raw_id() as u8)
         .collect();
     for s in &default_harvester().scripts {

@@ -85,7 +85,7 @@ fn a_30_s_run_shows_the_plant_the_monitor_and_the_bus() {
     assert!(row.contains(&format!("actual={actual:.2} km/h")), "{row}");
     assert!(row.contains("speed.status") && row.contains("E0>F5"), "{row}");
     // With one snapshot the rate is the mean over the run: frames less one over their span.
-    let span = (status.last().unwrap().at - status[0].at) as f64 / 1e9;
+    let span = (status.last().unwrap().at - status[0].at).as_secs_f64();
     let rate = (status.len() - 1) as f64 / span;
     assert!(row.contains(&format!(" {rate:.1} ")), "{rate:.1} fr/s in {row}");
     // Nothing went wrong: every node is error active with clean counters.

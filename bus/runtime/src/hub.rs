@@ -35,7 +35,7 @@ use bus::engine::{Bus, BusConfig, ControllerConfig, ControllerCounters, Event, N
 use bus::fault::ErrorState;
 use bus::node::{ControllerEvent, Report};
 use bus::pacing::{Overruns, Pace, Pacer};
-use bus::time::{BusTime, Epoch};
+use bus::time::{BusDuration, BusTime, Epoch};
 use bus::{Frame, trace};
 use std::io::Write;
 use std::time::Duration;
@@ -51,8 +51,9 @@ pub struct HubConfig {
     /// How far bus time may run ahead of the wall clock when paced (a frame goes out this much
     /// before its time at most; none by default).
     pub slack: Duration,
-    /// Keep bus time in step with the runtime's clock (real time); when false, run as fast as
-    /// the nodes answer (virtual time). Defaults to what [`runtime`] made on this thread.
+    /// Keep bus time in step with the wall clock (real time); when false, run as fast as the
+    /// nodes answer (virtual time). Chosen by the caller ([`HubConfig::new`]); either works on
+    /// either kind of [`runtime`], see there.
     pub paced: bool,
     /// When paced: how far bus time may fall behind its schedule before it slips instead of
     /// catching up ([`bus::pacing`]; [`bus::pacing::OVERRUN_THRESHOLD`] by default).
@@ -63,9 +64,10 @@ pub struct HubConfig {
     pub epoch: Epoch,
 }
 
-impl Default for HubConfig {
-    fn default() -> Self {
-        let paced = !VIRTUAL_TIME.get();
+impl HubConfig {
+    /// A 250 kbit/s bus named `harv0`, paced (real time) or not (virtual time), with the epoch
+    /// that goes with that ([`default_epoch`]).
+    pub fn new(paced: bool) -> Self {
         HubConfig {
             bus: BusConfig::default(),
             iface: "harv0".to_string(),
@@ -87,7 +89,7 @@ pub fn default_epoch(paced: bool) -> Epoch {
 struct Slot {
     name: String,
     node: Option<Recipient<Wake>>,
-    reaction_ns: u64,
+    reaction: BusDuration,
     next_timeout: Option<BusTime>,
     pending_since: Option<BusTime>,
     events: Vec<(BusTime, ControllerEvent)>,
@@ -108,7 +110,7 @@ impl Slot {
         if self.hung || self.crashed.is_some() || self.node.is_none() {
             return None;
         }
-        let reaction = self.pending_since.map(|t| t + self.reaction_ns);
+        let reaction = self.pending_since.map(|t| t + self.reaction);
         match (self.next_timeout, reaction) {
             (Some(a), Some(b)) => Some(a.min(b)),
             (a, b) => a.or(b),
@@ -232,9 +234,14 @@ impl Hub {
         })
     }
 
+    /// Nanoseconds since the hub started: on the wall clock when it has its wall timer (so a
+    /// paced hub keeps to real time even on a paused-clock runtime), else on the runtime's clock.
     fn clock(&self) -> u64 {
-        self.start
-            .map_or(0, |s| u64::try_from(s.elapsed().as_nanos()).unwrap_or(u64::MAX))
+        let elapsed = match &self.wall {
+            Some((_, start)) => start.elapsed(),
+            None => self.start.map_or(Duration::ZERO, |s| s.elapsed()),
+        };
+        u64::try_from(elapsed.as_nanos()).unwrap_or(u64::MAX)
     }
 
     /// True when the runtime's clock allows committing at `t`. A paced hub that finds `t`
@@ -267,7 +274,7 @@ impl Hub {
     /// future of bus time it stalled at.
     fn present(&mut self) -> BusTime {
         if !self.paced {
-            return BusTime(self.clock());
+            return BusTime::from_nanos(self.clock());
         }
         let frontier = if self.waiting > 0 {
             Some(self.now)
@@ -486,9 +493,13 @@ impl Hub {
             }
         }
         // A deadline the logic left in the past would wake it at the same instant for ever.
-        self.slots[i].next_timeout = report
-            .next_timeout
-            .map(|t| if t <= now { now + 1_000_000 } else { t });
+        self.slots[i].next_timeout = report.next_timeout.map(|t| {
+            if t <= now {
+                now + BusDuration::from_millis(1)
+            } else {
+                t
+            }
+        });
         self.slots[i].frames_can_wait = report.frames_can_wait;
         false
     }
@@ -585,7 +596,7 @@ impl Handler<Attach> for Hub {
         self.slots.push(Slot {
             name: msg.controller.name,
             node: msg.node,
-            reaction_ns: u64::try_from(msg.reaction.as_nanos()).unwrap_or(u64::MAX),
+            reaction: BusDuration::from_std(msg.reaction),
             // A first wake tells the node the time and collects its first deadline.
             next_timeout: Some(now),
             pending_since: None,
@@ -894,17 +905,17 @@ impl Handler<GetSnapshot> for Hub {
     }
 }
 
-thread_local! {
-    /// Whether the runtime last made on this thread by [`runtime`] runs virtual time.
-    static VIRTUAL_TIME: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
-}
-
 /// A tokio runtime for the hub: with paused time (`virtual_time`: deterministic, as fast as the
-/// CPU allows) or the normal clock (real time). Hubs configured by default on this thread from
-/// then on are unpaced or paced to match. Wrap it with
+/// CPU allows) or the normal clock (real time). It only builds the runtime: whether a hub is
+/// paced is its [`HubConfig::paced`], which the caller sets to match. Wrap it with
 /// `actix::System::with_tokio_rt(|| runtime(true).expect(...))`.
+///
+/// The other combinations work too. An unpaced hub on a normal-clock runtime runs as fast as the
+/// nodes answer, as on a paused one. A paced hub on a paused-clock runtime keeps to the wall
+/// clock all the same, because it waits on its own wall-timer thread, never on tokio's timers;
+/// only the bus time it gives frames from outside (a gateway, a SocketCAN interface) follows the
+/// paused clock, so such a hub must not take frames from outside.
 pub fn runtime(virtual_time: bool) -> std::io::Result<tokio::runtime::Runtime> {
-    VIRTUAL_TIME.set(virtual_time);
     let mut builder = tokio::runtime::Builder::new_current_thread();
     builder.enable_all();
     if virtual_time {

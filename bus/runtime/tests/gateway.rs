@@ -394,7 +394,7 @@ fn bcm_mode_runs_on_the_bus_clock() {
         // Frames are stamped with the hub's epoch: a million seconds after 1970 here.
         let config = HubConfig {
             epoch: bus::time::Epoch::from_secs(1_000_000),
-            ..HubConfig::default()
+            ..HubConfig::new(true)
         };
         let hub = common::hub_with_ticker_at(config, "0601F5D0#01", 10_000).await;
         let gw = Gateway::start(

@@ -77,8 +77,8 @@ async fn attach(
 const NEW_YEAR_2024_NS: u64 = (54 * 365 + 13) * 86_400 * 1_000_000_000;
 
 /// The time a virtual-time trace writes for bus time `ns`.
-fn stamp(ns: u64) -> BusTime {
-    BusTime(NEW_YEAR_2024_NS + ns)
+fn stamp(ns: u64) -> bus::time::Stamp {
+    bus::time::Stamp(NEW_YEAR_2024_NS + ns)
 }
 
 fn lines(trace: &Shared) -> Vec<String> {
@@ -94,7 +94,9 @@ fn periodic_frames_start_exactly_on_their_deadlines() {
     let trace = Shared::default();
     let t = trace.clone();
     in_virtual_time(async move {
-        let hub = Hub::new(HubConfig::default(), Some(Box::new(t))).unwrap().start();
+        let hub = Hub::new(HubConfig::new(false), Some(Box::new(t)))
+            .unwrap()
+            .start();
         attach(
             &hub,
             "a",
@@ -137,7 +139,9 @@ fn reaction_time_delays_the_reply() {
     let trace = Shared::default();
     let t = trace.clone();
     in_virtual_time(async move {
-        let hub = Hub::new(HubConfig::default(), Some(Box::new(t))).unwrap().start();
+        let hub = Hub::new(HubConfig::new(false), Some(Box::new(t)))
+            .unwrap()
+            .start();
         attach(&hub, "a", Box::new(Periodic::new("123#01", 10, 0)), 0).await;
         attach(
             &hub,
@@ -170,7 +174,7 @@ fn reaction_time_delays_the_reply() {
 #[test]
 fn a_hung_node_overruns_and_resumes() {
     let snap = in_virtual_time(async move {
-        let hub = Hub::new(HubConfig::default(), None).unwrap().start();
+        let hub = Hub::new(HubConfig::new(false), None).unwrap().start();
         attach(
             &hub,
             "a",
@@ -232,7 +236,7 @@ fn run_with(seed: u64, rules: Vec<Rule>) -> Vec<u8> {
                 seed,
                 ..BusConfig::default()
             },
-            ..HubConfig::default()
+            ..HubConfig::new(false)
         };
         let hub = Hub::new(config, Some(Box::new(t))).unwrap().start();
         for (i, period) in [(0u8, 10u64), (1, 20), (2, 50), (3, 7)] {
@@ -341,7 +345,7 @@ fn same_seed_same_trace_byte_for_byte() {
 fn real_time_paces_the_bus() {
     let started = std::time::Instant::now();
     let snap = System::with_tokio_rt(|| runtime(false).unwrap()).block_on(async {
-        let hub = Hub::new(HubConfig::default(), None).unwrap().start();
+        let hub = Hub::new(HubConfig::new(true), None).unwrap().start();
         attach(&hub, "a", Box::new(Periodic::new("123#01", 20, 0)), 0).await;
         attach(
             &hub,
@@ -362,6 +366,42 @@ fn real_time_paces_the_bus() {
     // Bus time never runs ahead of the wall clock by more than the slack.
     assert!(started.elapsed() >= Duration::from_millis(199));
     assert_eq!(snap.stats.frames, 20, "10 periodic frames and 10 replies");
+}
+
+/// The pairing `runtime` does not make by itself: a paced hub on a paused-clock runtime keeps
+/// to the wall clock (it waits on its own wall timer), and an unpaced hub on a normal runtime
+/// runs ahead of it.
+#[test]
+fn pacing_follows_the_config_not_the_runtime() {
+    // The unpaced run covers 60 s of bus time, so that it ends long before a paced one could
+    // (a paced run never ends before its bus time has passed on the wall clock) even on a loaded
+    // machine; the paced one covers 300 ms.
+    for (virtual_runtime, paced, until) in [
+        (true, true, BusTime::from_millis(300)),
+        (false, false, BusTime::from_secs(60)),
+    ] {
+        let started = std::time::Instant::now();
+        let snap = System::with_tokio_rt(move || runtime(virtual_runtime).unwrap()).block_on(async move {
+            let hub = Hub::new(HubConfig::new(paced), None).unwrap().start();
+            attach(&hub, "a", Box::new(Periodic::new("123#01", 20, 0)), 0).await;
+            hub.send(RunUntil(until)).await.unwrap().unwrap();
+            hub.send(GetSnapshot).await.unwrap()
+        });
+        let wall = started.elapsed();
+        if paced {
+            assert!(
+                wall >= Duration::from_millis(299),
+                "paced on a paused runtime: {wall:?}"
+            );
+        } else {
+            assert!(
+                wall < Duration::from_secs(30),
+                "unpaced on a normal runtime: {wall:?} for 60 s of bus time"
+            );
+        }
+        // Either way the run reached the time asked for.
+        assert!(snap.now >= until, "{paced}: {:?}", snap.now);
+    }
 }
 
 /// Freezes the hub's thread once, at `at`, as a process that is not scheduled would be.
@@ -390,7 +430,7 @@ impl NodeLogic for Stall {
 fn a_stall_slips_bus_time_instead_of_bursting() {
     let started = std::time::Instant::now();
     let snap = System::with_tokio_rt(|| runtime(false).unwrap()).block_on(async {
-        let hub = Hub::new(HubConfig::default(), None).unwrap().start();
+        let hub = Hub::new(HubConfig::new(true), None).unwrap().start();
         attach(&hub, "a", Box::new(Periodic::new("123#01", 10, 0)), 0).await;
         let stall = Stall {
             at: BusTime::from_millis(100),
@@ -420,7 +460,9 @@ fn three_nodes_contend_and_win_in_identifier_order() {
     let trace = Shared::default();
     let t = trace.clone();
     in_virtual_time(async move {
-        let hub = Hub::new(HubConfig::default(), Some(Box::new(t))).unwrap().start();
+        let hub = Hub::new(HubConfig::new(false), Some(Box::new(t)))
+            .unwrap()
+            .start();
         // All three deadlines at 1 ms: frame lengths 151, 142 and 74 bits (docs/CAN.md, test vectors).
         attach(
             &hub,

@@ -104,7 +104,7 @@ impl BusError {
 impl Bus {
     /// Brings a controller's carried protocol state to `at` through the recessive bits since.
     pub(super) fn settle(&mut self, i: usize, at: BusTime) {
-        let bit = self.bit_ns;
+        let bit = self.bit;
         let c = &mut self.controllers[i];
         if c.mac.phase == Phase::Idle || at <= c.mac_at {
             c.mac_at = c.mac_at.max(at);
@@ -117,7 +117,7 @@ impl Bus {
 
     /// Runs an attempt that starts at `sof` with `starters` sending their queued frames.
     pub(super) fn episode(&mut self, sof: BusTime, starters: &[usize], plan: Plan) {
-        let bit = self.bit_ns;
+        let bit = self.bit;
         let n = self.controllers.len();
         // Bus-off controllers have been counting an idle bus since `recessive_since`.
         for c in &mut self.controllers {
@@ -313,7 +313,7 @@ impl Bus {
             completed,
         } = tally;
         let node = NodeId(i as u16);
-        let bit = self.bit_ns;
+        let bit = self.bit;
         match detected {
             Detected::Nothing | Detected::Sof => {}
             Detected::LostArbitration => self.controllers[i].counters.arbitration_lost += 1,

@@ -55,7 +55,7 @@ pub use wire::Location;
 use crate::bits::{self, BitRate};
 use crate::fault::{Changes, ErrorState};
 use crate::filter::{AcceptanceFilter, kernel_can_id};
-use crate::time::BusTime;
+use crate::time::{BusDuration, BusTime};
 use crate::{Error, Frame};
 use controller::Pending;
 use episode::{Flip, Plan, Who};
@@ -68,7 +68,8 @@ const SUSPEND_BITS: u64 = wire::SUSPEND_BITS as u64;
 /// How a bus is built.
 #[derive(Clone, Copy, Debug)]
 pub struct BusConfig {
-    /// Nominal bit rate; must have a whole-nanosecond bit time.
+    /// Nominal bit rate; its bit time must be a whole number of bus-clock ticks
+    /// ([`BitRate::bit_time`]).
     pub bitrate: BitRate,
     /// Seed of the injection generator.
     pub seed: u64,
@@ -312,7 +313,7 @@ pub enum NextEvent {
 pub struct Bus {
     latency_class: LatencyClass,
     bitrate: BitRate,
-    bit_ns: u64,
+    bit: BusDuration,
     /// When the last committed activity on the bus ended.
     idle_at: BusTime,
     /// Disturbances still to come, in the order given.
@@ -332,15 +333,16 @@ pub struct Bus {
 }
 
 impl Bus {
-    /// An empty bus. Fails for a bit rate whose bit time is not a whole number of nanoseconds.
+    /// An empty bus. Fails for a bit rate whose bit time the bus clock cannot hold exactly
+    /// ([`BitRate::bit_time`]).
     pub fn new(config: BusConfig) -> Result<Bus, Error> {
-        let bit_ns = config
+        let bit = config
             .bitrate
-            .exact_bit_time_ns()
+            .bit_time()
             .ok_or(Error::InexactBitRate(config.bitrate.bits_per_second()))?;
         Ok(Bus {
             bitrate: config.bitrate,
-            bit_ns,
+            bit,
             idle_at: BusTime::ZERO,
             disturbances: Vec::new(),
             carried: false,
@@ -348,7 +350,7 @@ impl Bus {
             controllers: Vec::new(),
             injector: Injector::new(config.seed),
             latency_class: config.latency_class,
-            stats: Stats::new(bit_ns),
+            stats: Stats::new(bit),
             events: Vec::new(),
             next_token: 1,
             late_submissions: 0,
@@ -360,9 +362,9 @@ impl Bus {
     pub fn bitrate(&self) -> BitRate {
         self.bitrate
     }
-    /// One bit time in nanoseconds.
-    pub fn bit_ns(&self) -> u64 {
-        self.bit_ns
+    /// One bit time.
+    pub fn bit_time(&self) -> BusDuration {
+        self.bit
     }
     /// Adds a controller.
     pub fn attach(&mut self, config: ControllerConfig) -> NodeId {
@@ -506,7 +508,7 @@ impl Bus {
             .enumerate()
             .filter(|(_, c)| c.fault.state() == ErrorState::BusOff)
             .map(|(i, c)| {
-                let at = c.recessive_since + u64::from(c.fault.recovery_bits_remaining()) * self.bit_ns;
+                let at = c.recessive_since + u64::from(c.fault.recovery_bits_remaining()) * self.bit;
                 (at, i)
             })
             .min()
@@ -613,7 +615,7 @@ impl Bus {
 
     /// Bus-off nodes see a dominant bit at `sof`: the recessive run they were counting ends.
     fn break_recessive_runs(&mut self, sof: BusTime, resume: BusTime) {
-        let bit_ns = self.bit_ns;
+        let bit_ns = self.bit;
         for c in &mut self.controllers {
             if c.connected && c.fault.state() == ErrorState::BusOff {
                 let bits = (sof - c.recessive_since) / bit_ns;
@@ -626,7 +628,7 @@ impl Bus {
 
     fn attempt(&mut self, sof: BusTime) {
         self.committed = self.committed.max(sof);
-        let bit = self.bit_ns;
+        let bit = self.bit;
         // Contenders: nodes ready to start within the same bit time.
         let mut winner: Option<(crate::ArbitrationKey, usize)> = None;
         let mut starters = std::mem::take(&mut self.transmitters);
@@ -749,11 +751,11 @@ impl Bus {
     }
 
     fn succeed(&mut self, sof: BusTime, w: usize, transmitters: &[usize], frame: Frame, total_bits: u32) {
-        let bit = self.bit_ns;
+        let bit = self.bit;
         let end = sof + (u64::from(total_bits) - INTERMISSION_BITS) * bit;
         let idle = sof + u64::from(total_bits) * bit;
         // After the ACK slot (dominant) everything up to the next SOF is recessive.
-        let ack_slot_end = BusTime(end.0 - (7 + 1) * bit);
+        let ack_slot_end = end - (7 + 1) * bit;
         self.break_recessive_runs(sof, ack_slot_end);
         let suspend_end = idle + SUSPEND_BITS * bit;
         self.stats.advance_to(end);

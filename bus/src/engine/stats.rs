@@ -2,12 +2,12 @@
 
 use super::NodeId;
 use crate::fault::ErrorState;
-use crate::time::BusTime;
+use crate::time::{BusDuration, BusTime, TICKS_PER_NS};
 use serde::Serialize;
 use std::collections::HashMap;
 
 /// Width of one load bucket.
-pub const BUCKET_NS: u64 = 10_000_000;
+pub const BUCKET: BusDuration = BusDuration::from_millis(10);
 /// Buckets kept for sliding windows (10 s).
 const BUCKETS: usize = 1000;
 /// Most points a history keeps before it halves its resolution.
@@ -48,7 +48,7 @@ impl IdStats {
             self.first = at;
             self.min_period_ns = u64::MAX;
         } else {
-            let interval = at - self.last;
+            let interval = (at - self.last).as_nanos();
             self.min_period_ns = self.min_period_ns.min(interval);
             self.max_period_ns = self.max_period_ns.max(interval);
             // Welford's running mean and variance of the intervals.
@@ -284,7 +284,8 @@ pub struct Stats {
     pub busy_bits: u64,
     /// End of the last busy stretch (a frame committed before a stop may end after it).
     pub busy_until: BusTime,
-    bit_ns: u64,
+    #[serde(rename = "bit_ns")]
+    bit: BusDuration,
     /// Successful frames.
     pub frames: u64,
     /// Frames placed in receive FIFOs.
@@ -306,7 +307,7 @@ pub struct Stats {
     pub latency: Vec<Latency>,
     /// Busy ns per 10 ms bucket over the last 10 s (ring).
     #[serde(skip)]
-    buckets: Vec<u64>,
+    buckets: Vec<BusDuration>,
     #[serde(skip)]
     bucket_index: u64,
     /// Load per second over the whole run.
@@ -316,12 +317,12 @@ pub struct Stats {
 }
 
 impl Stats {
-    pub(crate) fn new(bit_ns: u64) -> Stats {
+    pub(crate) fn new(bit: BusDuration) -> Stats {
         Stats {
             elapsed: BusTime::ZERO,
             busy_bits: 0,
             busy_until: BusTime::ZERO,
-            bit_ns,
+            bit,
             frames: 0,
             overloads: 0,
             deliveries: 0,
@@ -331,7 +332,7 @@ impl Stats {
             per_id: Default::default(),
             untracked_frames: 0,
             latency: vec![Latency::default(); LATENCY_CLASSES],
-            buckets: vec![0; BUCKETS],
+            buckets: vec![BusDuration::ZERO; BUCKETS],
             bucket_index: 0,
             load_history: History::default(),
             nodes: Vec::new(),
@@ -343,20 +344,22 @@ impl Stats {
         if now <= self.elapsed {
             return;
         }
-        let target = now.as_nanos() / BUCKET_NS;
+        let target = now.elapsed() / BUCKET;
         while self.bucket_index < target {
             // Closing bucket `bucket_index`; at each whole second, record the second's load.
             let closing = self.bucket_index;
             self.bucket_index += 1;
             let next = (self.bucket_index as usize) % BUCKETS;
             if (closing + 1).is_multiple_of(100) {
-                let second: u64 = (0..100)
+                let second = (0..100)
                     .map(|k| self.buckets[((closing - k) as usize) % BUCKETS])
-                    .sum();
-                self.load_history
-                    .push(BusTime((closing + 1) * BUCKET_NS), second as f32 / 1e9);
+                    .fold(BusDuration::ZERO, |a, b| a + b);
+                self.load_history.push(
+                    BusTime::at(BUCKET * (closing + 1)),
+                    second.as_nanos() as f32 / 1e9,
+                );
             }
-            self.buckets[next] = 0;
+            self.buckets[next] = BusDuration::ZERO;
         }
         self.elapsed = now;
     }
@@ -365,11 +368,10 @@ impl Stats {
     pub(crate) fn busy(&mut self, start: BusTime, end: BusTime, bits: u32) {
         self.busy_bits += u64::from(bits);
         self.busy_until = self.busy_until.max(end);
-        let mut t = start.as_nanos();
-        let end = end.as_nanos();
+        let mut t = start;
         while t < end {
-            let bucket = t / BUCKET_NS;
-            let bucket_end = ((bucket + 1) * BUCKET_NS).min(end);
+            let bucket = t.elapsed() / BUCKET;
+            let bucket_end = BusTime::at(BUCKET * (bucket + 1)).min(end);
             if bucket + (BUCKETS as u64) > self.bucket_index {
                 self.buckets[(bucket as usize) % BUCKETS] += bucket_end - t;
             }
@@ -383,10 +385,10 @@ impl Stats {
         payload: &[u8],
         class: usize,
         end: BusTime,
-        latency_ns: u64,
+        latency: BusDuration,
     ) {
         self.frames += 1;
-        self.latency[class.min(LATENCY_CLASSES - 1)].record(latency_ns);
+        self.latency[class.min(LATENCY_CLASSES - 1)].record(latency.as_nanos());
         let tracked = self.per_id.len();
         match self.per_id.get_mut(&kernel_id) {
             Some(s) => s.record(end, payload),
@@ -411,7 +413,9 @@ impl Stats {
 
     /// Load over the whole run, 0..=1.
     pub fn total_load(&self) -> f64 {
-        let elapsed_bits = self.elapsed.max(self.busy_until).as_nanos() as f64 / self.bit_ns as f64;
+        // In nanoseconds, as reports have always computed it (a bit time is exact in f64).
+        let bit_ns = self.bit.as_ticks() as f64 / TICKS_PER_NS as f64;
+        let elapsed_bits = self.elapsed.max(self.busy_until).as_nanos() as f64 / bit_ns;
         if elapsed_bits > 0.0 {
             self.busy_bits as f64 / elapsed_bits
         } else {
@@ -419,18 +423,18 @@ impl Stats {
         }
     }
 
-    /// Load over the last `window_ns` (at most 10 s) of closed 10 ms buckets, 0..=1.
-    pub fn window_load(&self, window_ns: u64) -> f64 {
-        let n = (window_ns / BUCKET_NS)
+    /// Load over the last `window` (at most 10 s) of closed 10 ms buckets, 0..=1.
+    pub fn window_load(&self, window: BusDuration) -> f64 {
+        let n = (window / BUCKET)
             .clamp(1, BUCKETS as u64 - 1)
             .min(self.bucket_index);
         if n == 0 {
             return 0.0;
         }
-        let busy: u64 = (1..=n)
+        let busy = (1..=n)
             .map(|k| self.buckets[((self.bucket_index - k) as usize) % BUCKETS])
-            .sum();
-        busy as f64 / (n * BUCKET_NS) as f64
+            .fold(BusDuration::ZERO, |a, b| a + b);
+        busy.as_ticks() as f64 / (BUCKET * n).as_ticks() as f64
     }
 }
 
@@ -442,7 +446,7 @@ mod tests {
     fn id_stats_period_and_jitter() {
         let mut s = IdStats::default();
         for t in [0u64, 100, 210, 300, 400] {
-            s.record(BusTime(t), &[]);
+            s.record(BusTime::from_nanos(t), &[]);
         }
         // Intervals 100, 110, 90, 100: mean 100, sample std dev sqrt(200/3).
         assert_eq!(s.mean_period_ns(), Some(100.0));
@@ -454,12 +458,12 @@ mod tests {
     fn id_stats_keep_the_last_payload_only() {
         let mut s = IdStats::default();
         assert_eq!(s.last_payload(), &[] as &[u8]);
-        s.record(BusTime(0), &[1, 2, 3, 4, 5, 6, 7, 8]);
+        s.record(BusTime::from_nanos(0), &[1, 2, 3, 4, 5, 6, 7, 8]);
         assert_eq!(s.last_payload(), &[1, 2, 3, 4, 5, 6, 7, 8]);
         // A shorter payload leaves nothing of the longer one behind.
-        s.record(BusTime(10), &[0xAA, 0xBB]);
+        s.record(BusTime::from_nanos(10), &[0xAA, 0xBB]);
         assert_eq!(s.last_payload(), &[0xAA, 0xBB]);
-        s.record(BusTime(20), &[]);
+        s.record(BusTime::from_nanos(20), &[]);
         assert_eq!(s.last_payload(), &[] as &[u8]);
         assert_eq!(s.count, 3);
     }
@@ -480,7 +484,7 @@ mod tests {
     fn history_stays_bounded() {
         let mut h = History::default();
         for i in 0..100_000u64 {
-            h.push(BusTime(i), i);
+            h.push(BusTime::from_nanos(i), i);
         }
         assert!(h.points.len() <= HISTORY_POINTS);
         assert!(h.points.windows(2).all(|w| w[0].0 < w[1].0));
@@ -489,21 +493,22 @@ mod tests {
 
     #[test]
     fn window_and_total_load() {
-        let mut s = Stats::new(4000);
+        let mut s = Stats::new(BusDuration::from_micros(4));
         // Busy for the first 5 ms of every 10 ms bucket, for 2 s.
+        let half = BusDuration::from_millis(5);
         for k in 0..200u64 {
-            let start = BusTime(k * BUCKET_NS);
-            s.advance_to(start + 5_000_000);
-            s.busy(start, start + 5_000_000, 1250);
+            let start = BusTime::from_millis(10 * k);
+            s.advance_to(start + half);
+            s.busy(start, start + half, 1250);
         }
-        s.advance_to(BusTime(2_000_000_000));
+        s.advance_to(BusTime::from_nanos(2_000_000_000));
         assert!((s.total_load() - 0.5).abs() < 1e-12);
-        assert!((s.window_load(1_000_000_000) - 0.5).abs() < 1e-12);
+        assert!((s.window_load(BusDuration::from_secs(1)) - 0.5).abs() < 1e-12);
         assert_eq!(s.load_history.points.len(), 2);
         assert!((s.load_history.points[0].1 - 0.5).abs() < 1e-6);
         // A long idle stretch.
-        s.advance_to(BusTime(60_000_000_000));
-        assert_eq!(s.window_load(1_000_000_000), 0.0);
+        s.advance_to(BusTime::from_nanos(60_000_000_000));
+        assert_eq!(s.window_load(BusDuration::from_secs(1)), 0.0);
         assert_eq!(s.load_history.points.len(), 60);
     }
 }

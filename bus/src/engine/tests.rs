@@ -13,7 +13,7 @@ fn f(text: &str) -> Frame {
 }
 
 fn run(bus: &mut Bus, until_ns: u64) -> Vec<Event> {
-    bus.run_until(BusTime(until_ns));
+    bus.run_until(BusTime::from_nanos(until_ns));
     bus.take_events().collect()
 }
 
@@ -27,7 +27,7 @@ fn frames(events: &[Event]) -> Vec<(u64, u64, NodeId, u32)> {
                 node,
                 frame,
                 ..
-            } => Some((start.0, end.0, *node, frame.raw_id())),
+            } => Some((start.as_nanos(), end.as_nanos(), *node, frame.raw_id())),
             _ => None,
         })
         .collect()
@@ -40,11 +40,11 @@ fn arbitration_under_contention() {
         .map(|i| b.attach(ControllerConfig::named(format!("n{i}"))))
         .collect();
     // Frame lengths (docs/CAN.md, test vectors): 151, 142 and 74 bits, intermission included.
-    b.submit(n[0], f("1FFFFFFF#0000000000000000"), BusTime(0))
+    b.submit(n[0], f("1FFFFFFF#0000000000000000"), BusTime::from_nanos(0))
         .unwrap();
-    b.submit(n[1], f("0300A0F5#0102030405060708"), BusTime(0))
+    b.submit(n[1], f("0300A0F5#0102030405060708"), BusTime::from_nanos(0))
         .unwrap();
-    b.submit(n[2], f("00000000#"), BusTime(0)).unwrap();
+    b.submit(n[2], f("00000000#"), BusTime::from_nanos(0)).unwrap();
     let got = frames(&run(&mut b, 1_000_000_000));
     let (s1, s2) = (74 * BIT, (74 + 142) * BIT);
     assert_eq!(
@@ -69,8 +69,8 @@ fn a_late_starter_waits_for_the_bus() {
     let a = b.attach(ControllerConfig::named("a"));
     let c = b.attach(ControllerConfig::named("c"));
     // c has the higher priority but asks one bit after a started: it waits for the next idle.
-    b.submit(a, f("123#DEADBEEF"), BusTime(0)).unwrap();
-    b.submit(c, f("000#"), BusTime(BIT)).unwrap();
+    b.submit(a, f("123#DEADBEEF"), BusTime::from_nanos(0)).unwrap();
+    b.submit(c, f("000#"), BusTime::from_nanos(BIT)).unwrap();
     let got = frames(&run(&mut b, 1_000_000));
     assert_eq!(
         got,
@@ -80,8 +80,8 @@ fn a_late_starter_waits_for_the_bus() {
     let mut b = bus();
     let a = b.attach(ControllerConfig::named("a"));
     let c = b.attach(ControllerConfig::named("c"));
-    b.submit(a, f("123#DEADBEEF"), BusTime(0)).unwrap();
-    b.submit(c, f("000#"), BusTime(BIT - 1)).unwrap();
+    b.submit(a, f("123#DEADBEEF"), BusTime::from_nanos(0)).unwrap();
+    b.submit(c, f("000#"), BusTime::from_nanos(BIT - 1)).unwrap();
     assert_eq!(frames(&run(&mut b, 1_000_000))[0].2, c);
 }
 
@@ -104,15 +104,16 @@ fn bus_load_is_the_sum_of_exact_lengths() {
     let mut expected_bits = 0;
     for k in 0..100u64 {
         let i = (k % 5) as usize;
-        b.submit(a, f(texts[i]), BusTime(k * 1_000_000)).unwrap();
+        b.submit(a, f(texts[i]), BusTime::from_nanos(k * 1_000_000))
+            .unwrap();
         expected_bits += lengths[i];
     }
     run(&mut b, 100_000_000);
-    b.advance_stats(BusTime(100_000_000));
+    b.advance_stats(BusTime::from_nanos(100_000_000));
     assert_eq!(b.stats().busy_bits, expected_bits);
     let load = expected_bits as f64 * BIT as f64 / 100_000_000.0;
     assert!((b.stats().total_load() - load).abs() < 1e-12);
-    assert!((b.stats().window_load(100_000_000) - load).abs() < 1e-12);
+    assert!((b.stats().window_load(BusDuration::from_millis(100)) - load).abs() < 1e-12);
     assert_eq!(b.stats().frames, 100);
     // Nobody drains the receiver: frames go in while they fit 64 bytes at 3 (base) or 5
     // (extended) bytes plus data each (SJA1000 data sheet, receive FIFO), the rest overrun.
@@ -142,8 +143,12 @@ fn overrun_when_a_node_stops_draining() {
     let a = b.attach(ControllerConfig::named("a"));
     let rx = b.attach(ControllerConfig::named("rx"));
     for k in 0..10u64 {
-        b.submit(a, f("0601F5D0#0101341EEA2BEF2C"), BusTime(k * 1_000_000))
-            .unwrap();
+        b.submit(
+            a,
+            f("0601F5D0#0101341EEA2BEF2C"),
+            BusTime::from_nanos(k * 1_000_000),
+        )
+        .unwrap();
     }
     let events = run(&mut b, 20_000_000);
     // 13 bytes per extended 8-byte frame: four fit in 64 bytes, the rest overrun.
@@ -160,10 +165,15 @@ fn overrun_when_a_node_stops_draining() {
     assert!(b.controller(rx).unwrap().overrun_flag());
     let (got, overrun) = b.drain_rx(rx, BusTime::NEVER).unwrap();
     assert_eq!((got.len(), overrun), (4, true));
-    assert_eq!(got[0].at, BusTime(137 * BIT), "stamped with the end of frame");
+    assert_eq!(
+        got[0].at,
+        BusTime::from_nanos(137 * BIT),
+        "stamped with the end of frame"
+    );
     // Drained: there is room again, and the flag is clear.
     assert!(!b.controller(rx).unwrap().overrun_flag());
-    b.submit(a, f("0601F5D0#01"), BusTime(30_000_000)).unwrap();
+    b.submit(a, f("0601F5D0#01"), BusTime::from_nanos(30_000_000))
+        .unwrap();
     run(&mut b, 40_000_000);
     assert_eq!(b.controller(rx).unwrap().rx_len(), 1);
 }
@@ -178,7 +188,8 @@ fn bus_off_and_recovery_after_128_times_11_recessive_bits() {
         Schedule::Always,
         BitPosition::At(40),
     ));
-    b.submit(bad, f("0601F5D0#0101341EEA2BEF2C"), BusTime(0)).unwrap();
+    b.submit(bad, f("0601F5D0#0101341EEA2BEF2C"), BusTime::from_nanos(0))
+        .unwrap();
     let events = run(&mut b, 1_000_000_000);
     let errors: Vec<&Event> = events
         .iter()
@@ -212,7 +223,7 @@ fn bus_off_and_recovery_after_128_times_11_recessive_bits() {
         unreachable!()
     };
     assert_eq!(
-        flag.0 - start.0,
+        flag.as_nanos() - start.as_nanos(),
         41 * BIT,
         "bus off at the first bit after the error"
     );
@@ -238,8 +249,8 @@ fn bus_off_and_recovery_after_128_times_11_recessive_bits() {
         })
         .unwrap();
     assert_eq!(
-        recovered.0,
-        start.0 + (sixth_equal + 1 + 6) * BIT + 128 * 11 * BIT
+        recovered.as_nanos(),
+        start.as_nanos() + (sixth_equal + 1 + 6) * BIT + 128 * 11 * BIT
     );
     // The frame it was sending when it went bus off was dropped.
     assert_eq!(
@@ -265,9 +276,10 @@ fn recovery_counts_recessive_runs_between_frames() {
         Schedule::Always,
         BitPosition::At(40),
     ));
-    b.submit(bad, f("0601F5D0#01"), BusTime(0)).unwrap();
+    b.submit(bad, f("0601F5D0#01"), BusTime::from_nanos(0)).unwrap();
     for k in 0..200u64 {
-        b.submit(good, f("0601F5D1#01"), BusTime(k * 2_000_000)).unwrap();
+        b.submit(good, f("0601F5D1#01"), BusTime::from_nanos(k * 2_000_000))
+            .unwrap();
     }
     let events = run(&mut b, 400_000_000);
     let off = events.iter().find_map(|e| match e {
@@ -290,6 +302,7 @@ fn recovery_counts_recessive_runs_between_frames() {
         _ => None,
     });
     let (off, back) = (off.unwrap(), back.unwrap());
+    let (back, off) = (back.as_nanos(), off.as_nanos());
     assert!(back - off > 1408 * BIT, "frames in between break the runs");
     // Each 2 ms gap holds 500 bits, so 45 sequences per gap: three gaps' worth at least.
     assert!(back - off < 4 * 2_000_000 + 1408 * BIT);
@@ -299,7 +312,7 @@ fn recovery_counts_recessive_runs_between_frames() {
 fn a_lone_transmitter_goes_error_passive_and_never_bus_off() {
     let mut b = bus();
     let lone = b.attach(ControllerConfig::named("lone"));
-    b.submit(lone, f("0300A0F5#01"), BusTime(0)).unwrap();
+    b.submit(lone, f("0300A0F5#01"), BusTime::from_nanos(0)).unwrap();
     let events = run(&mut b, 2_000_000_000);
     let acks = events
         .iter()
@@ -332,7 +345,7 @@ fn a_node_that_does_not_ack() {
     let a = b.attach(ControllerConfig::named("a"));
     let mute = b.attach(ControllerConfig::named("mute"));
     b.set_ack(mute, false).unwrap();
-    b.submit(a, f("0300A0F5#01"), BusTime(0)).unwrap();
+    b.submit(a, f("0300A0F5#01"), BusTime::from_nanos(0)).unwrap();
     let events = run(&mut b, 1_000_000);
     let Some(Event::ErrorFrame {
         error,
@@ -352,7 +365,7 @@ fn a_node_that_does_not_ack() {
     // the ACK slot.
     let stuffed = crate::bits::encode(&f("0300A0F5#01")).stuffed.len() as u64;
     assert_eq!(u64::from(bit), stuffed + 1);
-    assert_eq!(flag.0 - start.0, (stuffed + 2) * BIT);
+    assert_eq!(flag.as_nanos() - start.as_nanos(), (stuffed + 2) * BIT);
     assert_eq!(
         b.controller(mute).unwrap().fault().rec(),
         events
@@ -372,14 +385,15 @@ fn disconnected_nodes_neither_send_nor_receive() {
     let a = b.attach(ControllerConfig::named("a"));
     let rx = b.attach(ControllerConfig::named("rx"));
     let gone = b.attach(ControllerConfig::named("gone"));
-    b.set_connected(gone, false, BusTime(0)).unwrap();
-    b.submit(gone, f("001#"), BusTime(0)).unwrap();
-    b.submit(a, f("002#"), BusTime(0)).unwrap();
+    b.set_connected(gone, false, BusTime::from_nanos(0)).unwrap();
+    b.submit(gone, f("001#"), BusTime::from_nanos(0)).unwrap();
+    b.submit(a, f("002#"), BusTime::from_nanos(0)).unwrap();
     let events = run(&mut b, 10_000_000);
     assert_eq!(frames(&events).iter().map(|f| f.2).collect::<Vec<_>>(), [a]);
     assert_eq!(b.controller(gone).unwrap().rx_len(), 0);
     assert_eq!(b.controller(rx).unwrap().rx_len(), 1);
-    b.set_connected(gone, true, BusTime(10_000_000)).unwrap();
+    b.set_connected(gone, true, BusTime::from_nanos(10_000_000))
+        .unwrap();
     let events = run(&mut b, 20_000_000);
     assert_eq!(
         frames(&events).iter().map(|f| (f.0, f.2)).collect::<Vec<_>>(),
@@ -396,8 +410,8 @@ fn filters_decide_what_reaches_the_fifo() {
         crate::filter::CAN_EFF_FLAG | 0xFF00,
     )]);
     let m = b.attach(ControllerConfig::named("m").with_filter(Filter::SocketCan(monitor_only)));
-    b.submit(a, f("0601F5D0#01"), BusTime(0)).unwrap();
-    b.submit(a, f("0300A0F5#01"), BusTime(0)).unwrap();
+    b.submit(a, f("0601F5D0#01"), BusTime::from_nanos(0)).unwrap();
+    b.submit(a, f("0300A0F5#01"), BusTime::from_nanos(0)).unwrap();
     run(&mut b, 10_000_000);
     let c = b.controller(m).unwrap();
     assert_eq!((c.rx_len(), c.counters().rx_filtered), (1, 1));
@@ -411,8 +425,8 @@ fn identical_frames_go_out_together_different_ones_collide() {
     let x = b.attach(ControllerConfig::named("x"));
     let y = b.attach(ControllerConfig::named("y"));
     let _z = b.attach(ControllerConfig::named("z"));
-    b.submit(x, f("100#01"), BusTime(0)).unwrap();
-    b.submit(y, f("100#01"), BusTime(0)).unwrap();
+    b.submit(x, f("100#01"), BusTime::from_nanos(0)).unwrap();
+    b.submit(y, f("100#01"), BusTime::from_nanos(0)).unwrap();
     let events = run(&mut b, 1_000_000);
     assert_eq!(frames(&events).len(), 1);
     assert_eq!(
@@ -422,8 +436,8 @@ fn identical_frames_go_out_together_different_ones_collide() {
             .count(),
         2
     );
-    b.submit(x, f("100#01"), BusTime(2_000_000)).unwrap();
-    b.submit(y, f("100#02"), BusTime(2_000_000)).unwrap();
+    b.submit(x, f("100#01"), BusTime::from_nanos(2_000_000)).unwrap();
+    b.submit(y, f("100#02"), BusTime::from_nanos(2_000_000)).unwrap();
     assert!(b.step());
     let events: Vec<Event> = b.take_events().collect();
     let lost = |node| {
@@ -461,9 +475,9 @@ fn late_submissions_are_moved_to_the_present_and_counted() {
     let mut b = bus();
     let a = b.attach(ControllerConfig::named("a"));
     let _rx = b.attach(ControllerConfig::named("rx"));
-    b.submit(a, f("001#"), BusTime(5_000_000)).unwrap();
+    b.submit(a, f("001#"), BusTime::from_nanos(5_000_000)).unwrap();
     run(&mut b, 10_000_000);
-    b.submit(a, f("002#"), BusTime(1_000_000)).unwrap();
+    b.submit(a, f("002#"), BusTime::from_nanos(1_000_000)).unwrap();
     assert_eq!(b.late_submissions(), 1);
     let got = frames(&run(&mut b, 20_000_000));
     assert_eq!(
@@ -480,9 +494,9 @@ fn transmit_queue_is_bounded() {
         tx_queue_len: 2,
         ..ControllerConfig::named("a")
     });
-    assert!(b.submit(a, f("001#"), BusTime(0)).unwrap().is_some());
-    assert!(b.submit(a, f("001#"), BusTime(0)).unwrap().is_some());
-    assert!(b.submit(a, f("001#"), BusTime(0)).unwrap().is_none());
+    assert!(b.submit(a, f("001#"), BusTime::from_nanos(0)).unwrap().is_some());
+    assert!(b.submit(a, f("001#"), BusTime::from_nanos(0)).unwrap().is_some());
+    assert!(b.submit(a, f("001#"), BusTime::from_nanos(0)).unwrap().is_none());
     assert_eq!(b.controller(a).unwrap().counters().tx_refused, 1);
 }
 
@@ -505,8 +519,12 @@ fn random_injection_is_deterministic_under_a_seed() {
             BitPosition::Random,
         ));
         for k in 0..500u64 {
-            b.submit(a, f("0601F5D0#0101341EEA2BEF2C"), BusTime(k * 1_000_000))
-                .unwrap();
+            b.submit(
+                a,
+                f("0601F5D0#0101341EEA2BEF2C"),
+                BusTime::from_nanos(k * 1_000_000),
+            )
+            .unwrap();
         }
         run(&mut b, 600_000_000)
     };
@@ -524,11 +542,11 @@ fn random_injection_is_deterministic_under_a_seed() {
 #[test]
 fn rejects_inexact_bit_rates() {
     let err = Bus::new(BusConfig {
-        bitrate: crate::bits::BitRate::new(30_000).unwrap(),
+        bitrate: crate::bits::BitRate::new(33_300).unwrap(),
         ..BusConfig::default()
     })
     .unwrap_err();
-    assert!(err.to_string().contains("30000"));
+    assert!(err.to_string().contains("33300"), "{err}");
 }
 
 #[test]
@@ -541,14 +559,15 @@ fn error_counters_are_kept_over_time() {
         Schedule::Always,
         BitPosition::At(40),
     ));
-    b.submit(a, f("123#01"), BusTime(0)).unwrap();
+    b.submit(a, f("123#01"), BusTime::from_nanos(0)).unwrap();
     // Four errors, then the rule goes and the frame and four more go through.
     for _ in 0..4 {
         b.step();
     }
     b.injector_mut().remove(rule);
     for k in 0..5u64 {
-        b.submit(a, f("123#01"), BusTime(1_000_000 * (k + 1))).unwrap();
+        b.submit(a, f("123#01"), BusTime::from_nanos(1_000_000 * (k + 1)))
+            .unwrap();
     }
     run(&mut b, 100_000_000);
     let tec: Vec<u16> = b.stats().nodes[0]
@@ -588,22 +607,22 @@ fn receive_books_place_every_frame() {
     let mut t = 0;
     let send = |b: &mut Bus, t: &mut u64, frame: Frame, n: usize| {
         for _ in 0..n {
-            b.submit(tx, frame, BusTime(*t)).unwrap();
+            b.submit(tx, frame, BusTime::from_nanos(*t)).unwrap();
             *t += 1_000_000;
-            b.run_until(BusTime(*t));
+            b.run_until(BusTime::from_nanos(*t));
         }
     };
     send(&mut b, &mut t, to_rx, 3); // stored
     send(&mut b, &mut t, other, 2); // filtered
-    b.set_connected(rx, false, BusTime(t)).unwrap();
+    b.set_connected(rx, false, BusTime::from_nanos(t)).unwrap();
     send(&mut b, &mut t, to_rx, 4); // missed
     send(&mut b, &mut t, other, 1); // not addressed to it: not missed either
-    b.set_connected(rx, true, BusTime(t)).unwrap();
+    b.set_connected(rx, true, BusTime::from_nanos(t)).unwrap();
     send(&mut b, &mut t, to_rx, 2); // stored
-    let (read, _) = b.drain_rx(rx, BusTime(t)).unwrap();
+    let (read, _) = b.drain_rx(rx, BusTime::from_nanos(t)).unwrap();
     assert_eq!(read.len(), 5);
     send(&mut b, &mut t, to_rx, 1); // stored, then cleared by the reset
-    b.reset_node(rx, BusTime(t)).unwrap();
+    b.reset_node(rx, BusTime::from_nanos(t)).unwrap();
     send(&mut b, &mut t, to_rx, 1); // stored, still there
     // The sender's own frames are not received, but its filter (All) accepts them.
     let c = *b.controller(rx).unwrap().counters();
@@ -646,20 +665,20 @@ fn a_frame_an_error_passive_receiver_alone_flagged_is_booked() {
     // its REC past 127. Its retransmission then succeeds, which leaves its REC alone: it stays
     // error passive.
     b.disturb(Disturbance {
-        at: BusTime(20 * BIT),
+        at: BusTime::from_nanos(20 * BIT),
         bits: 160,
         level: Some(false),
         nodes: Some(vec![rx]),
     });
-    b.submit(rx, f("1F00A0F5#01"), BusTime(0)).unwrap();
+    b.submit(rx, f("1F00A0F5#01"), BusTime::from_nanos(0)).unwrap();
     run(&mut b, 100_000_000);
     let c = b.controller(rx).unwrap();
     assert_eq!((c.fault().state(), c.tx_len()), (ErrorState::Passive, 0));
     let before = placed(&b, rx);
     // A disturbance only `rx` samples, in the identifier of the next frame.
-    let at = BusTime(300_000_000);
+    let at = BusTime::from_nanos(300_000_000);
     b.disturb(Disturbance {
-        at: at + 10 * BIT,
+        at: at + BusDuration::from_nanos(10 * BIT),
         bits: 1,
         level: None,
         nodes: Some(vec![rx]),
@@ -684,15 +703,15 @@ fn a_frame_completed_bit_by_bit_is_missed_by_a_disconnected_node() {
     let rx = b.attach(ControllerConfig::named("rx"));
     let tx = b.attach(ControllerConfig::named("tx").with_filter(Filter::Nothing));
     b.attach(ControllerConfig::named("ack").with_filter(Filter::Nothing));
-    b.set_connected(rx, false, BusTime(0)).unwrap();
+    b.set_connected(rx, false, BusTime::from_nanos(0)).unwrap();
     // A disturbance that reaches nobody sends the attempt down the bit-level path.
     b.disturb(Disturbance {
-        at: BusTime(0),
+        at: BusTime::from_nanos(0),
         bits: 1,
         level: None,
         nodes: Some(Vec::new()),
     });
-    b.submit(tx, f("0500F5B1#02"), BusTime(0)).unwrap();
+    b.submit(tx, f("0500F5B1#02"), BusTime::from_nanos(0)).unwrap();
     let events = run(&mut b, 100_000_000);
     assert_eq!(frames(&events).len(), 1, "{events:?}");
     assert_eq!(placed(&b, rx), (1, 0, 1));
@@ -720,7 +739,7 @@ fn bit_by_bit_and_closed_form_agree_on_clean_frames() {
             .collect();
         let mut events = Vec::new();
         for (k, text) in texts.iter().enumerate() {
-            let at = BusTime(k as u64 * 2_000_000);
+            let at = BusTime::from_nanos(k as u64 * 2_000_000);
             if bit_level {
                 b.disturb(Disturbance {
                     at,
@@ -732,7 +751,7 @@ fn bit_by_bit_and_closed_form_agree_on_clean_frames() {
             b.submit(tx, f(text), at).unwrap();
             // A receiver answers at once: two frames contend with the next one.
             b.submit(rx[k % 3], f("0100F5B2#AA"), at).unwrap();
-            events.extend(run(&mut b, at.0 + 1_900_000));
+            events.extend(run(&mut b, at.as_nanos() + 1_900_000));
         }
         events.retain(|e| !matches!(e, Event::State { .. } | Event::Warning { .. }));
         (events, b.stats().busy_bits, b.stats().frames)
@@ -787,7 +806,7 @@ proptest::proptest! {
         let mut done = 0u64;
         let mut aborted = 0u64;
         for step in 0..60u64 {
-            let at = BusTime(step * 300_000);
+            let at = BusTime::from_nanos(step * 300_000);
             for (i, &n) in nodes.iter().enumerate() {
                 if (step + i as u64).is_multiple_of(3) {
                     let frame = Frame::extended(0x0600_0000 | (i as u32) << 8 | step as u32 & 0xFF, &[step as u8, i as u8]).unwrap();
@@ -796,7 +815,7 @@ proptest::proptest! {
                     }
                 }
             }
-            b.run_until(BusTime(at.0 + 300_000));
+            b.run_until(BusTime::from_nanos(at.as_nanos() + 300_000));
             for e in b.take_events() {
                 match e {
                     Event::TxDone { .. } => done += 1,
@@ -847,12 +866,12 @@ fn the_worked_error_frame_of_can_md() {
         Schedule::Once,
         BitPosition::At(51),
     ));
-    b.submit(tx, frame, BusTime(0)).unwrap();
+    b.submit(tx, frame, BusTime::from_nanos(0)).unwrap();
     let events = run(&mut b, 2_000_000);
     let seen: Vec<(NodeId, u64, BusError)> = events
         .iter()
         .filter_map(|e| match *e {
-            Event::BusError { node, at, error, .. } => Some((node, at.0 / BIT, error)),
+            Event::BusError { node, at, error, .. } => Some((node, at.as_nanos() / BIT, error)),
             _ => None,
         })
         .collect();

@@ -31,7 +31,7 @@
 use super::{Entry, parse_time};
 use crate::frame::{extended_id, standard_id};
 use crate::text::quote;
-use crate::time::BusTime;
+use crate::time::{BusTime, Stamp};
 use crate::{Frame, Id};
 use core::fmt::Write;
 use std::time::SystemTime;
@@ -42,7 +42,7 @@ use std::time::SystemTime;
 pub(super) struct ReadState {
     radix: u32,
     relative: bool,
-    clock: BusTime,
+    clock: Stamp,
 }
 
 impl Default for ReadState {
@@ -50,7 +50,7 @@ impl Default for ReadState {
         ReadState {
             radix: 16,
             relative: false,
-            clock: BusTime::ZERO,
+            clock: Stamp(0),
         }
     }
 }
@@ -66,7 +66,7 @@ const HEADER: &[&str] = &[
 
 impl ReadState {
     /// Parses one line (trimmed, not blank): `None` for lines that hold no frame.
-    pub(super) fn parse_line(&mut self, line: &str) -> Result<Option<(BusTime, Entry)>, String> {
+    pub(super) fn parse_line(&mut self, line: &str) -> Result<Option<(Stamp, Entry)>, String> {
         let lower = line.to_ascii_lowercase();
         if lower.starts_with("//") || HEADER.iter().any(|h| lower.starts_with(h)) {
             return Ok(None);
@@ -102,7 +102,7 @@ impl ReadState {
             )
         })?;
         if self.relative {
-            at = BusTime(
+            at = Stamp(
                 self.clock
                     .as_nanos()
                     .checked_add(at.as_nanos())

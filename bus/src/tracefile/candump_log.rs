@@ -6,11 +6,11 @@ use super::{Entry, parse_time};
 use crate::candump::{parse_frame, parse_hex_bytes};
 use crate::filter::CAN_ERR_FLAG;
 use crate::text::quote;
-use crate::time::BusTime;
+use crate::time::Stamp;
 use crate::trace::ErrorFrame;
 
 /// Parses one line (already trimmed, not blank).
-pub(super) fn parse_line(line: &str) -> Result<(BusTime, Entry), String> {
+pub(super) fn parse_line(line: &str) -> Result<(Stamp, Entry), String> {
     let (time, rest) = line
         .strip_prefix('(')
         .and_then(|l| l.split_once(')'))

@@ -37,7 +37,7 @@ pub use convert::AscWriter;
 pub use lines::{LineError, Lines, MAX_LINE};
 
 use crate::text::quote;
-use crate::time::BusTime;
+use crate::time::Stamp;
 use crate::trace::ErrorFrame;
 use crate::{Error, Frame};
 use std::io::BufRead;
@@ -74,7 +74,7 @@ pub enum Entry {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Record {
     /// The time written on the line, in nanoseconds.
-    pub at: BusTime,
+    pub at: Stamp,
     /// 1-based line number.
     pub line: usize,
     /// The frame or error frame.
@@ -89,7 +89,7 @@ pub struct Reader {
     asc: asc::ReadState,
     line: usize,
     /// The time of the last frame or error frame, with its line.
-    last: Option<(BusTime, usize)>,
+    last: Option<(Stamp, usize)>,
 }
 
 impl Reader {
@@ -206,7 +206,7 @@ pub fn read_str(text: &str, errors: ErrorFrames) -> Result<Vec<Record>, Error> {
 }
 
 /// Reads `secs.fraction` exactly (up to 9 fraction digits; more are cut off).
-fn parse_time(text: &str) -> Result<BusTime, String> {
+fn parse_time(text: &str) -> Result<Stamp, String> {
     let bad = || format!("{} is not a time in seconds (e.g. 1.234567)", quote(text));
     let (secs, fraction) = text.split_once('.').unwrap_or((text, ""));
     if secs.is_empty()
@@ -223,6 +223,6 @@ fn parse_time(text: &str) -> Result<BusTime, String> {
     }
     secs.checked_mul(1_000_000_000)
         .and_then(|s| s.checked_add(nanos))
-        .map(BusTime)
+        .map(Stamp)
         .ok_or_else(|| format!("time {} is too large", quote(text)))
 }

@@ -1,5 +1,6 @@
 use super::*;
 use crate::candump::parse_frame;
+use crate::time::BusTime;
 use crate::trace::{err, frame_line};
 use proptest::prelude::*;
 use std::time::{Duration, UNIX_EPOCH};
@@ -261,11 +262,11 @@ fn reading_stops_at_the_first_bad_line() {
 fn times_are_exact() {
     assert_eq!(
         parse_time("1708620903.978650"),
-        Ok(BusTime(1_708_620_903_978_650_000))
+        Ok(Stamp(1_708_620_903_978_650_000))
     );
-    assert_eq!(parse_time("0.000001"), Ok(BusTime(1_000)));
-    assert_eq!(parse_time("2"), Ok(BusTime(2_000_000_000)));
-    assert_eq!(parse_time("1.1234567891"), Ok(BusTime(1_123_456_789)));
+    assert_eq!(parse_time("0.000001"), Ok(Stamp(1_000)));
+    assert_eq!(parse_time("2"), Ok(Stamp(2_000_000_000)));
+    assert_eq!(parse_time("1.1234567891"), Ok(Stamp(1_123_456_789)));
     assert!(parse_time("-1.0").is_err());
     assert!(parse_time("99999999999.0").is_err());
 }
@@ -284,9 +285,14 @@ fn asc_header_and_lines() {
          Begin Triggerblock Thu Feb 22 04:55:03.978 pm 2024\n   0.000000 Start of measurement\n"
     );
     out.clear();
-    asc::frame_line(&mut out, BusTime(1_234_567_000), 1, &frame("0300A0F5#0101"));
-    asc::frame_line(&mut out, BusTime(1_300_000_000), 1, &frame("123#R4"));
-    asc::error_line(&mut out, BusTime(1_400_000_000), 1);
+    asc::frame_line(
+        &mut out,
+        BusTime::from_nanos(1_234_567_000),
+        1,
+        &frame("0300A0F5#0101"),
+    );
+    asc::frame_line(&mut out, BusTime::from_nanos(1_300_000_000), 1, &frame("123#R4"));
+    asc::error_line(&mut out, BusTime::from_nanos(1_400_000_000), 1);
     asc::footer(&mut out);
     assert_eq!(
         out,

@@ -22,7 +22,7 @@ pub mod flow;
 
 use bus::Frame;
 use bus::node::NodeLogic;
-use bus::time::BusTime;
+use bus::time::{BusDuration, BusTime};
 use cruise::{Cruise, CruiseConfig};
 pub use display::{Alarm, Display, FrameTally, RowYield};
 use flow::{Calibration, FlowSession, Group};
@@ -32,8 +32,6 @@ use serde::{Deserialize, Serialize};
 use std::cell::RefCell;
 use std::collections::{BTreeMap, VecDeque};
 use std::rc::Rc;
-
-const MS: u64 = 1_000_000;
 
 /// The monitor's settings (the `monitor` section of the harvester config).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -278,7 +276,7 @@ impl Monitor {
         let dt = self
             .last_flow
             .get(&d.node)
-            .map_or(0.1, |&t| (at - t) as f64 / 1e9)
+            .map_or(0.1, |&t| (at - t).as_nanos() as f64 / 1e9)
             .min(1.0);
         self.last_flow.insert(d.node, at);
         let mut disp = self.display.borrow_mut();
@@ -287,7 +285,7 @@ impl Monitor {
         disp.total_kg = disp.rows.iter().map(|r| r.kg).sum();
         // Feed rate: the rows' latest flows, low-pass filtered in time.
         let feed: f64 = disp.rows.iter().map(|r| r.flow_g_s).sum::<f64>() / 1000.0;
-        let since = self.last_feed.map_or(0.0, |t| (at - t) as f64 / 1e9);
+        let since = self.last_feed.map_or(0.0, |t| (at - t).as_nanos() as f64 / 1e9);
         self.last_feed = Some(at);
         disp.feed_kg_s += (feed - disp.feed_kg_s) * (since / self.config.cruise.filter_s.max(1e-3)).min(1.0);
         if disp.area_ha > 0.0 {
@@ -321,7 +319,7 @@ impl Monitor {
                 disp.ground_speed_kmh = v("ground_speed");
                 let speed = v("ground_speed").unwrap_or(0.0);
                 if let Some((t0, s0)) = self.last_ground {
-                    let metres = s0 / 3.6 * ((at - t0) as f64 / 1e9).min(1.0);
+                    let metres = s0 / 3.6 * ((at - t0).as_nanos() as f64 / 1e9).min(1.0);
                     disp.distance_m += metres;
                     disp.area_ha =
                         disp.distance_m * self.config.row_spacing_m * disp.rows.len() as f64 / 10_000.0;
@@ -357,7 +355,7 @@ impl Monitor {
 
     /// Nodes not heard for `silence_ms` raise an alarm.
     fn watch(&mut self, now: BusTime) {
-        let limit = self.config.silence_ms.saturating_mul(MS);
+        let limit = BusDuration::from_millis(self.config.silence_ms);
         let silent: Vec<Address> = self
             .heard
             .iter()
@@ -370,7 +368,11 @@ impl Monitor {
     }
 
     fn drive(&mut self, now: BusTime) {
-        let start = self.config.cruise.start_s.map(|s| BusTime((s * 1e9) as u64));
+        let start = self
+            .config
+            .cruise
+            .start_s
+            .map(|s| BusTime::from_nanos((s * 1e9) as u64));
         if self.cruise.is_none() && start.is_some_and(|s| now >= s) && self.next_control == BusTime::NEVER {
             let speed = self
                 .display
@@ -381,7 +383,7 @@ impl Monitor {
             self.send("speed.mode", Address::SPEED_CONTROL, &[("mode", 1.0)]);
             self.send("row.command", Address::ROW_ALIGNMENT, &[("command", 1.0)]);
             self.next_setpoint = now;
-            self.next_control = now + self.config.cruise.period_ms.saturating_mul(MS);
+            self.next_control = now + BusDuration::from_millis(self.config.cruise.period_ms);
             self.display.borrow_mut().cruise = true;
         }
         let Some(cruise) = self.cruise.as_mut() else {
@@ -390,7 +392,7 @@ impl Monitor {
         if now >= self.next_control {
             let feed = self.display.borrow().feed_kg_s;
             cruise.step(feed);
-            self.next_control = self.next_control + self.config.cruise.period_ms.saturating_mul(MS);
+            self.next_control += BusDuration::from_millis(self.config.cruise.period_ms);
         }
         let setpoint = cruise.setpoint;
         self.display.borrow_mut().cruise_setpoint_kmh = Some(setpoint);
@@ -401,7 +403,7 @@ impl Monitor {
                 Address::SPEED_CONTROL,
                 &[("setpoint", setpoint)],
             );
-            self.next_setpoint = self.next_setpoint + 200 * MS;
+            self.next_setpoint += BusDuration::from_millis(200);
         }
     }
 }
@@ -436,7 +438,7 @@ impl NodeLogic for Monitor {
         self.watch(now);
         self.drive(now);
         self.display.borrow_mut().now = now;
-        self.next_tick = now + self.config.tick_ms.max(1).saturating_mul(MS);
+        self.next_tick = now + BusDuration::from_millis(self.config.tick_ms.max(1));
     }
 
     fn poll_transmit(&mut self) -> Option<Frame> {

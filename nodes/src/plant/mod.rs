@@ -88,7 +88,7 @@ use std::cell::RefCell;
 use std::collections::BTreeMap;
 use std::rc::Rc;
 
-use bus::time::BusTime;
+use bus::time::{BusDuration, BusTime};
 
 pub use config::PlantConfig;
 pub use inputs::InputRange;
@@ -141,8 +141,8 @@ pub enum PlantError {
 pub struct Plant {
     model: Model,
     seed: u64,
-    /// Grid step [ns].
-    step_ns: u64,
+    /// Grid step.
+    step: BusDuration,
     /// Inputs as last set; copied into the model at each step.
     pending: Inputs,
     overrides: BTreeMap<Output, f64>,
@@ -153,13 +153,13 @@ impl Plant {
     /// defaults (see [`PlantConfig::sanitized`]); validate the config first to report them.
     pub fn new(config: PlantConfig, seed: u64) -> Plant {
         let config = config.sanitized();
-        let step_ns = config.step_ms * 1_000_000;
+        let step = BusDuration::from_millis(config.step_ms);
         let model = Model::new(config, seed);
         Plant {
             pending: model.state.applied,
             model,
             seed,
-            step_ns,
+            step,
             overrides: BTreeMap::new(),
         }
     }
@@ -186,7 +186,7 @@ impl Plant {
         if t == BusTime::NEVER {
             return;
         }
-        let target = t.as_nanos() / self.step_ns;
+        let target = t.elapsed() / self.step;
         while self.model.state.steps < target {
             self.model.step(&self.pending);
         }
@@ -194,7 +194,7 @@ impl Plant {
 
     /// The last grid time reached.
     pub fn now(&self) -> BusTime {
-        BusTime(self.model.state.steps.saturating_mul(self.step_ns))
+        BusTime::at(self.step * self.model.state.steps)
     }
 
     /// Current value of a named output (its override if one is set) or of an input (as last

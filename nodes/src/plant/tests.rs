@@ -9,7 +9,7 @@ const SEED: u64 = 0x4D5A_0006;
 
 /// Bus time of `s` seconds.
 fn at(s: f64) -> BusTime {
-    BusTime((s * 1e9).round() as u64)
+    BusTime::from_nanos((s * 1e9).round() as u64)
 }
 
 fn get(p: &Plant, name: &str) -> f64 {
@@ -776,9 +776,9 @@ proptest! {
         let mut t = 0u64;
         for gap in gaps {
             t += gap;
-            sampled.advance_to(BusTime(t));
+            sampled.advance_to(BusTime::from_nanos(t));
             while reference.now() < sampled.now() {
-                reference.advance_to(reference.now() + 10_000_000);
+                reference.advance_to(reference.now() + bus::time::BusDuration::from_millis(10));
             }
             prop_assert_eq!(reference.now(), sampled.now());
             prop_assert_eq!(snapshot(&reference), snapshot(&sampled));

@@ -3,7 +3,7 @@
 use super::model::*;
 use bus::Frame;
 use bus::node::{NodeFault, NodeLogic, Refused};
-use bus::time::BusTime;
+use bus::time::{BusDuration, BusTime};
 use protocol::catalogue::{self, Decoded, Direction};
 use protocol::ident::Address;
 use rand::SeedableRng;
@@ -25,8 +25,6 @@ pub trait Environment {
 
 /// The environment shared by the nodes of one harvester.
 pub type SharedEnv = Rc<RefCell<dyn Environment>>;
-
-const MS: u64 = 1_000_000;
 
 #[derive(Clone, Debug)]
 struct SendState {
@@ -142,7 +140,7 @@ pub struct ScriptedNode {
 impl ScriptedNode {
     /// A node that powers on at `power_on`; `seed` drives its noise faults.
     pub fn new(script: NodeScript, env: SharedEnv, power_on: BusTime, seed: u64) -> ScriptedNode {
-        let boot_at = power_on + script.boot_delay_ms.saturating_mul(MS);
+        let boot_at = power_on + BusDuration::from_millis(script.boot_delay_ms);
         let faults = script.faults.iter().map(|f| (f.clone(), power_on)).collect();
         ScriptedNode {
             address: Address(script.address),
@@ -246,7 +244,7 @@ impl ScriptedNode {
         // Timers restart on entering a state they run in, and stop outside their states.
         for (k, t) in self.s.timers.iter().enumerate() {
             let on = self.booted && (t.states.is_empty() || t.states.iter().any(|s| s == name));
-            self.timers[k] = on.then(|| self.now + t.after_ms.saturating_mul(MS));
+            self.timers[k] = on.then(|| self.now + BusDuration::from_millis(t.after_ms));
         }
     }
 
@@ -255,7 +253,7 @@ impl ScriptedNode {
         let b = self.boot_at;
         for (k, m) in self.s.messages.iter().enumerate() {
             self.sends[k].next = match m.when {
-                When::Periodic { phase_ms, .. } => b + phase_ms.saturating_mul(MS),
+                When::Periodic { phase_ms, .. } => b + BusDuration::from_millis(phase_ms),
                 When::OnChange { .. } => {
                     self.sends[k].check_next = b;
                     b
@@ -355,7 +353,7 @@ impl ScriptedNode {
         self.spare = std::mem::replace(&mut self.sends[k].last, frames);
         self.sends[k].last_sent = Some(self.now);
         if let Some(ack) = &self.s.messages[k].ack {
-            let due = self.now + ack.timeout_ms.saturating_mul(MS);
+            let due = self.now + BusDuration::from_millis(ack.timeout_ms);
             self.acks.awaited.push_back((due, k));
         }
     }
@@ -412,9 +410,9 @@ impl ScriptedNode {
             let from = if self.unchecked_from.is_some_and(|first| j >= first) {
                 now
             } else {
-                now + 1
+                now + BusDuration::from_ticks(1)
             };
-            st.check_next = grid_from(st.check_next, check_ms.saturating_mul(MS), from);
+            st.check_next = grid_from(st.check_next, BusDuration::from_millis(check_ms), from);
             st.next = st.next.min(st.check_next);
         }
     }
@@ -462,7 +460,7 @@ impl ScriptedNode {
                     if let Some(k) = self.s.timers.iter().position(|d| &d.name == t)
                         && self.timers[k].is_some()
                     {
-                        self.timers[k] = Some(self.now + self.s.timers[k].after_ms.saturating_mul(MS));
+                        self.timers[k] = Some(self.now + BusDuration::from_millis(self.s.timers[k].after_ms));
                     }
                 }
             }
@@ -471,12 +469,11 @@ impl ScriptedNode {
 }
 
 /// The first point of the grid `start + n × step` at or after `from`.
-fn grid_from(start: BusTime, step: u64, from: BusTime) -> BusTime {
-    if start >= from || step == 0 {
+fn grid_from(start: BusTime, step: BusDuration, from: BusTime) -> BusTime {
+    if start >= from || step == BusDuration::ZERO {
         return start;
     }
-    let n = (from.as_nanos() - start.as_nanos()).div_ceil(step);
-    BusTime(start.as_nanos().saturating_add(n.saturating_mul(step)))
+    start + step * (from - start).div_ceil(step)
 }
 
 /// A standard normal deviate (Box–Muller) from a seeded generator.
@@ -540,7 +537,7 @@ impl NodeLogic for ScriptedNode {
             let go = self.sends[k].enabled && self.active(&m.states);
             match m.when {
                 When::Periodic { period_ms, .. } => {
-                    self.sends[k].next = self.sends[k].next + period_ms.saturating_mul(MS);
+                    self.sends[k].next += BusDuration::from_millis(period_ms);
                     if go {
                         self.emit(k, None);
                     }
@@ -554,16 +551,16 @@ impl NodeLogic for ScriptedNode {
                         // Woken for its heartbeat: the grid is where it would be by now.
                         let st = &mut self.sends[k];
                         st.idle = false;
-                        st.check_next = grid_from(st.check_next, check_ms.saturating_mul(MS), now);
+                        st.check_next = grid_from(st.check_next, BusDuration::from_millis(check_ms), now);
                     }
                     let checking = self.sends[k].check_next <= now;
                     if checking {
-                        self.sends[k].check_next = self.sends[k].check_next + check_ms.saturating_mul(MS);
+                        self.sends[k].check_next += BusDuration::from_millis(check_ms);
                     }
                     if go {
                         let stale = self.sends[k]
                             .last_sent
-                            .is_none_or(|t| now - t >= heartbeat_ms.saturating_mul(MS));
+                            .is_none_or(|t| now - t >= BusDuration::from_millis(heartbeat_ms));
                         // What a check built is what goes out: the node sends the values it saw.
                         let checked = if checking { self.build(k, None) } else { None };
                         let changed = checked.as_ref().is_some_and(|f| *f != self.sends[k].last);
@@ -584,7 +581,7 @@ impl NodeLogic for ScriptedNode {
                     // The heartbeat is kept exactly, not rounded up to the next check.
                     let heartbeat = self.sends[k]
                         .last_sent
-                        .map_or(BusTime::NEVER, |t| t + heartbeat_ms.saturating_mul(MS));
+                        .map_or(BusTime::NEVER, |t| t + BusDuration::from_millis(heartbeat_ms));
                     let st = &mut self.sends[k];
                     st.next = if st.idle {
                         heartbeat
@@ -598,7 +595,7 @@ impl NodeLogic for ScriptedNode {
         self.unchecked_from = None;
         for k in 0..self.timers.len() {
             if self.timers[k].is_some_and(|t| t <= now) {
-                self.timers[k] = Some(now + self.s.timers[k].after_ms.saturating_mul(MS));
+                self.timers[k] = Some(now + BusDuration::from_millis(self.s.timers[k].after_ms));
                 let script = Rc::clone(&self.s);
                 let actions = &script.timers[k].actions;
                 self.run_actions(actions, None);

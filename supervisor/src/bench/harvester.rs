@@ -3,11 +3,11 @@
 use super::Totals;
 use crate::harvester::{self, Harvester};
 use actix::prelude::*;
-use bus::time::BusTime;
+use bus::time::{BusDuration, BusTime};
 use bus_runtime::hub::runtime;
 
 /// Bus time each harvester runs before the next one's turn.
-const SLICE: BusTime = BusTime::from_millis(1000);
+const SLICE: BusDuration = BusDuration::from_secs(1);
 
 /// Runs `count` harvesters on this thread for `seconds` of virtual time each; harvester `i` gets
 /// the config's seed plus `first + i`, so that no two buses run the same traffic in lockstep.
@@ -19,7 +19,11 @@ pub fn run_on_this_thread(h: &Harvester, count: usize, first: u64, seconds: f64)
         for i in 0..count as u64 {
             let mut h = h.clone();
             h.config.seed = h.config.seed.wrapping_add(first + i);
-            running.push(harvester::start(&h, None).await.map_err(|e| format!("{e:#}"))?);
+            running.push(
+                harvester::start(&h, false, None)
+                    .await
+                    .map_err(|e| format!("{e:#}"))?,
+            );
         }
         // Round robin in slices of bus time, one harvester at a time: each one's working set
         // (plant, scripts, queues) stays in the core's cache for a whole slice instead of being
@@ -27,7 +31,7 @@ pub fn run_on_this_thread(h: &Harvester, count: usize, first: u64, seconds: f64)
         let until = BusTime::from_secs_f64(seconds);
         let mut reached = BusTime::ZERO;
         while reached < until {
-            reached = (reached + SLICE.as_nanos()).min(until);
+            reached = (reached + SLICE).min(until);
             for r in &mut running {
                 r.run_until(reached).await.map_err(|e| format!("{e:#}"))?;
             }

@@ -10,7 +10,7 @@
 use super::Measurement;
 use crate::harvester::{self, Harvester};
 use actix::prelude::*;
-use bus::time::BusTime;
+use bus::time::{BusDuration, BusTime};
 use bus_runtime::hub::{GetSnapshot, Observed, Subscribe, runtime};
 use serde::Serialize;
 use std::cell::RefCell;
@@ -141,7 +141,9 @@ pub fn measure(h: &Harvester, seconds: f64) -> Result<Measurement, String> {
     let h = h.clone();
     let started = Instant::now();
     let (jitter, snap) = system.block_on(async move {
-        let mut running = harvester::start(&h, None).await.map_err(|e| format!("{e:#}"))?;
+        let mut running = harvester::start(&h, true, None)
+            .await
+            .map_err(|e| format!("{e:#}"))?;
         // Large enough for minutes of traffic: the observer must not be the one losing frames.
         let (tx, mut rx) = tokio::sync::mpsc::channel::<Observed>(65_536);
         running.hub.send(Subscribe(tx)).await.map_err(|e| e.to_string())?;
@@ -164,7 +166,7 @@ pub fn measure(h: &Harvester, seconds: f64) -> Result<Measurement, String> {
         });
         let from = running.now();
         running
-            .run_until(from + BusTime::from_secs_f64(seconds).as_nanos())
+            .run_until(from + BusDuration::from_secs_f64(seconds))
             .await
             .map_err(|e| format!("{e:#}"))?;
         // Let the observer take what is still queued.
@@ -214,11 +216,11 @@ mod tests {
         // A 100 ms identifier whose wall-clock periods deviate by 0, 2, 0 and 1 ms.
         let walls = [0, 100, 202, 302, 403];
         for (i, w) in walls.iter().enumerate() {
-            s.add(0x100, BusTime(i as u64 * 100 * MS), w * MS);
+            s.add(0x100, BusTime::from_nanos(i as u64 * 100 * MS), w * MS);
         }
         // An event-driven identifier (bus gaps 10, 500, 30 ms) is not periodic: left out.
         for (bus, wall) in [(0, 0), (10, 10), (510, 900), (540, 950)] {
-            s.add(0x200, BusTime(bus * MS), wall * MS);
+            s.add(0x200, BusTime::from_nanos(bus * MS), wall * MS);
         }
         let j = s.jitter();
         assert_eq!(j.periodic_ids, 1);

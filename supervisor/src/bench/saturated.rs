@@ -61,7 +61,7 @@ async fn saturated_bus(seed: u64) -> anyhow::Result<Addr<Hub>> {
             latency_class: protocol::ident::latency_class,
             ..BusConfig::default()
         },
-        ..HubConfig::default()
+        ..HubConfig::new(false)
     };
     let hub = Hub::new(config, None)?.start();
     let addresses: Vec<Address> = Address::all().collect();
@@ -107,7 +107,7 @@ pub fn run_on_this_thread(buses: usize, first_seed: u64, seconds: f64) -> Result
                     .map_err(|e| e.to_string())?,
             );
         }
-        let until = BusTime((seconds * 1e9) as u64);
+        let until = BusTime::from_nanos((seconds * 1e9) as u64);
         for r in join_all(hubs.iter().map(|h| h.send(RunUntil(until)))).await {
             r.map_err(|e| e.to_string())?.map_err(|e| e.to_string())?;
         }

@@ -23,7 +23,7 @@ use crate::run::parse_duration;
 use crate::stop::Stop;
 use actix::prelude::*;
 use bus::engine::{ControllerConfig, Filter, NodeId};
-use bus::time::BusTime;
+use bus::time::{BusDuration, BusTime};
 use bus::tracefile::{self, ErrorFrames, Record};
 use bus_runtime::hub::{Attach, GetSnapshot, RunUntil, SubmitAt, runtime};
 use protocol::ident::Address;
@@ -171,7 +171,7 @@ pub async fn play(
 ) -> anyhow::Result<()> {
     for due in schedule.by_ref() {
         let due = due?;
-        let at = start + due.offset;
+        let at = start + BusDuration::from_nanos(due.offset);
         if end.is_some_and(|e| at >= e) {
             break;
         }
@@ -268,7 +268,7 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
     let system = System::with_tokio_rt(move || runtime(fast).expect("a tokio runtime"));
     let result = system.block_on(async move {
         let mut stop = Stop::new()?;
-        let mut running = harvester::begin(&h, trace).await?;
+        let mut running = harvester::begin(&h, !fast, trace).await?;
         let _bridge = match &iface {
             Some(name) => Some(
                 bus_runtime::backend::socketcan::bridge(running.hub.clone(), name)
@@ -294,7 +294,7 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
             }
         }
         if interrupted.is_none() {
-            let last = schedule.end().map_or(start, |e| start + e);
+            let last = schedule.end().map_or(start, |e| start + BusDuration::from_nanos(e));
             let until = end.unwrap_or(last.after(TAIL));
             tokio::select! {
                 r = running.run_until(until) => r?,

@@ -25,7 +25,7 @@
 
 use crate::BadInput;
 use bus::Frame;
-use bus::time::BusTime;
+use bus::time::Stamp;
 use bus::tracefile::{Entry, Record};
 use protocol::ident::{Address, AppId};
 use std::collections::BTreeSet;
@@ -79,7 +79,7 @@ fn skipped(frame: &Frame, skip: &BTreeSet<Address>) -> bool {
 pub struct Survey {
     counts: Counts,
     /// The time of the first record.
-    first: BusTime,
+    first: Stamp,
     /// The offset of the last record (never decreasing: the largest offset so far).
     last: u64,
     /// The offset of the last frame sent in a pass.
@@ -99,7 +99,7 @@ impl Survey {
                 s.first = r.at;
             }
             s.counts.read += 1;
-            s.last = s.last.max(r.at - s.first);
+            s.last = s.last.max(r.at.since(s.first).as_nanos());
             match r.entry {
                 Entry::Error(_) => s.counts.error_frames += 1,
                 Entry::Frame(f) if skipped(&f, skip) => s.counts.skipped += 1,
@@ -246,7 +246,7 @@ impl Iterator for Schedule {
                 }
             };
             // Never backwards: a record out of order goes out right after the one before it.
-            self.last = self.last.max(record.at - self.survey.first);
+            self.last = self.last.max(record.at.since(self.survey.first).as_nanos());
             let Entry::Frame(frame) = record.entry else {
                 continue;
             };
@@ -281,7 +281,7 @@ mod tests {
             Entry::Frame(parse_frame(text).unwrap())
         };
         Record {
-            at: BusTime::from_micros(at_us),
+            at: Stamp(at_us * 1_000),
             line: 0,
             entry,
         }

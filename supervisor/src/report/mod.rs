@@ -227,12 +227,12 @@ mod tests {
             verdicts: vec![Verdict {
                 expectation: "the run completes".into(),
                 passed: false,
-                at: Some(BusTime(500_000_000)),
+                at: Some(BusTime::from_nanos(500_000_000)),
                 observed: "interrupted (Ctrl-C)".into(),
             }],
             seed: 3,
             events: vec![SupervisorEvent {
-                at: BusTime(400_000_000),
+                at: BusTime::from_nanos(400_000_000),
                 node: "D3".into(),
                 what: "crashed: <boom> & gone".into(),
             }],

@@ -33,9 +33,10 @@ const REDRAW: &str = "\r\x1b[K";
 /// The time between plain lines for a run that ends at `end`: [`PLAIN_EVERY`], or the run's
 /// length over [`PLAIN_LINES`] rounded up to a multiple of it.
 pub fn plain_period(end: Option<BusTime>) -> BusTime {
-    let every = PLAIN_EVERY.as_nanos();
-    let share = end.map_or(0, |e| e.as_nanos().div_ceil(PLAIN_LINES));
-    BusTime(share.div_ceil(every).max(1) * every)
+    let share = end.map_or(0, |e| e.as_ticks().div_ceil(PLAIN_LINES));
+    BusTime::from_ticks(share)
+        .ceil_to(PLAIN_EVERY.elapsed())
+        .max(PLAIN_EVERY)
 }
 
 /// The width of the terminal on stderr (the whole line must stay left of its last column,
@@ -77,7 +78,7 @@ impl Console<std::io::Stderr> {
         }
         match end {
             Some(end) if fast => {
-                let bar = ProgressBar::new(end.as_nanos() / 1_000_000_000);
+                let bar = ProgressBar::new(end.as_secs());
                 bar.set_style(
                     ProgressStyle::with_template("{wide_bar} {pos}/{len} s virtual, {elapsed} wall\n{msg}")
                         .unwrap_or_else(|_| ProgressStyle::default_bar()),
@@ -126,7 +127,7 @@ impl<W: Write> Console<W> {
                 *drawn = true;
             }
             Mode::Bar { bar, width } => {
-                bar.set_position(s.at.as_nanos() / 1_000_000_000);
+                bar.set_position(s.at.as_secs());
                 bar.set_message(s.fit(width().saturating_sub(1)));
             }
             Mode::Plain { every, next, end } => {
@@ -135,7 +136,7 @@ impl<W: Write> Console<W> {
                     let _ = self.out.flush();
                 }
                 if s.at >= *next {
-                    *next = BusTime((s.at.as_nanos() / every.as_nanos() + 1) * every.as_nanos());
+                    *next = s.at.next_multiple_of(every.elapsed());
                 }
             }
         }

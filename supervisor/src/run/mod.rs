@@ -11,7 +11,7 @@ use crate::exit::Ended;
 use crate::harvester::{self, Harvester};
 use crate::stop::Stop;
 use actix::prelude::*;
-use bus::time::BusTime;
+use bus::time::{BusDuration, BusTime};
 use bus_runtime::hub::{GetSnapshot, RunUntil, Snapshot, runtime};
 use console::Console;
 use std::path::PathBuf;
@@ -148,7 +148,7 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
     let system = System::with_tokio_rt(move || runtime(fast).expect("a tokio runtime"));
     let result = system.block_on(async move {
         let mut stop = Stop::new()?;
-        let mut running = harvester::begin(&h, trace).await?;
+        let mut running = harvester::begin(&h, !fast, trace).await?;
         let mut reported = 0;
         let bridge = match &iface {
             Some(name) => {
@@ -169,7 +169,7 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
             None => None,
         };
         // Progress, the live summary and Ctrl-C are looked at once a second of bus time.
-        let step = BusTime::from_millis(1000);
+        let step = BusDuration::from_secs(1);
         if tui {
             crate::tui::live(&mut running, &machine, fast, end).await?;
             for e in &running.events {
@@ -182,7 +182,7 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
         // The live display had its own loop; this one shows the summary instead.
         if !tui {
             loop {
-                let next = BusTime((t.as_nanos() / step.as_nanos() + 1) * step.as_nanos());
+                let next = t.next_multiple_of(step);
                 let next = end.map_or(next, |e| next.min(e));
                 tokio::select! {
                     r = running.run_until(next) => { r?; t = running.now(); }

@@ -7,7 +7,7 @@
 //! - [`Summary::wrap`]: every field, on as many lines of at most a given width as it takes.
 
 use crate::harvester::Running;
-use bus::time::BusTime;
+use bus::time::{BusDuration, BusTime};
 use bus_runtime::hub::Snapshot;
 
 /// What the summary says, as numbers.
@@ -65,7 +65,7 @@ impl Summary {
             at: s.now,
             frames: s.stats.frames,
             load: s.stats.total_load(),
-            load_1s: s.stats.window_load(1_000_000_000),
+            load_1s: s.stats.window_load(BusDuration::from_secs(1)),
             error_frames: s.stats.error_frames,
             not_active: s
                 .nodes

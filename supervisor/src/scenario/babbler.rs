@@ -9,7 +9,7 @@ use actix::prelude::*;
 use bus::Frame;
 use bus::engine::{ControllerConfig, Filter, NodeId};
 use bus::node::NodeLogic;
-use bus::time::BusTime;
+use bus::time::{BusDuration, BusTime};
 use bus_runtime::hub::{Attach, Control, Replace};
 use bus_runtime::node::NodeActor;
 
@@ -27,7 +27,7 @@ impl NodeLogic for Babbler {
     fn handle_frame(&mut self, _: BusTime, _: &Frame) {}
     fn handle_timeout(&mut self, now: BusTime) {
         self.owed = BABBLER_QUEUE;
-        self.next = now + 1_000_000;
+        self.next = now + BusDuration::from_millis(1);
     }
     fn poll_transmit(&mut self) -> Option<Frame> {
         // Frames beyond the queue are refused by the controller: no harm, it tries again.

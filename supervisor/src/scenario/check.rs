@@ -5,7 +5,7 @@ use super::states::{Seen, Timeline};
 use super::{Expect, Scenario};
 use crate::harvester::Running;
 use bus::fault::ErrorState;
-use bus::time::BusTime;
+use bus::time::{BusDuration, BusTime};
 use bus_runtime::hub::Snapshot;
 use serde::Serialize;
 
@@ -53,7 +53,7 @@ fn one(e: &Expect, r: &Running, snap: &Snapshot, books: &Books) -> Verdict {
         } => {
             let raised = matches!(e, Expect::AlarmRaised { .. });
             let from = BusTime::from_secs_f64(*after_s);
-            let to = from + within_ms * 1_000_000;
+            let to = from + BusDuration::from_millis(*within_ms);
             let times: Vec<BusTime> = display
                 .alarms
                 .iter()
@@ -63,7 +63,7 @@ fn one(e: &Expect, r: &Running, snap: &Snapshot, books: &Books) -> Verdict {
                 .collect();
             match times.first() {
                 Some(&t) => {
-                    let delay = (t - from) as f64 / 1e6;
+                    let delay = (t - from).as_nanos() as f64 / 1e6;
                     verdict(
                         e,
                         t <= to,
@@ -123,7 +123,7 @@ fn one(e: &Expect, r: &Running, snap: &Snapshot, books: &Books) -> Verdict {
             within_ms,
         } => {
             let from = BusTime::from_secs_f64(*after_s);
-            let to = from + within_ms * 1_000_000;
+            let to = from + BusDuration::from_millis(*within_ms);
             let history = r.node(node).and_then(|id| snap.stats.nodes.get(id.index()));
             let hit = history.and_then(|h| {
                 h.counters
@@ -142,7 +142,7 @@ fn one(e: &Expect, r: &Running, snap: &Snapshot, books: &Books) -> Verdict {
                     e,
                     t <= to,
                     Some(t),
-                    format!("{state:?} after {:.3} ms", (t - from) as f64 / 1e6),
+                    format!("{state:?} after {:.3} ms", (t - from).as_nanos() as f64 / 1e6),
                 ),
                 None if now_state == Some(*state)
                     && *state == ErrorState::Active

@@ -15,7 +15,7 @@ use super::{Loaded, trace_count};
 use crate::harvester::{self, Running, SupervisorEvent};
 use crate::stop::{Signal, Stop};
 use actix::prelude::*;
-use bus::time::BusTime;
+use bus::time::{BusDuration, BusTime};
 use bus_runtime::hub::{GetErrorCounters, GetSnapshot, RunUntil, Snapshot, runtime};
 use std::cell::RefCell;
 use std::collections::BTreeMap;
@@ -119,7 +119,7 @@ async fn play(
     let (s, h) = (&l.scenario, &l.harvester);
     let mut p = Playing {
         stop: Stop::new()?,
-        running: harvester::begin(h, trace).await?,
+        running: harvester::begin(h, false, trace).await?,
         series: Series::default(),
         interrupted: None,
     };
@@ -152,7 +152,7 @@ async fn play(
         }
     }
     while p.running.now() < end && p.interrupted.is_none() {
-        let next = (p.running.now() + 1_000_000_000).min(end);
+        let next = (p.running.now() + BusDuration::from_secs(1)).min(end);
         p.run_to(next).await?;
         progress(p.running.now().as_secs_f64());
     }

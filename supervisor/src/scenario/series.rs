@@ -10,11 +10,11 @@
 //! bus already stops at every 10 ms for supervision, so a run gives the same verdicts whether
 //! anyone looks at its series or not.
 
-use bus::time::BusTime;
+use bus::time::{BusDuration, BusTime};
 use bus_runtime::hub::Snapshot;
 
 /// Sampling period.
-pub const SAMPLE_NS: u64 = 1_000_000_000;
+pub const SAMPLE: BusDuration = BusDuration::from_secs(1);
 /// Most samples kept before the resolution halves.
 pub const MAX_SAMPLES: usize = 4096;
 
@@ -75,18 +75,18 @@ pub struct Series {
     /// Bus time the run reached, s.
     pub end_s: f64,
     next: Option<BusTime>,
-    /// Sampling period, ns: [`SAMPLE_NS`] times a power of two (0 before the first halving).
-    period_ns: u64,
+    /// Sampling period: [`SAMPLE`] times a power of two (zero before the first halving).
+    period: BusDuration,
 }
 
 fn ceil_to_sample(t: BusTime) -> BusTime {
-    BusTime(t.as_nanos().div_ceil(SAMPLE_NS) * SAMPLE_NS)
+    t.ceil_to(SAMPLE)
 }
 
 impl Series {
-    /// The present sampling period, ns.
-    pub fn period_ns(&self) -> u64 {
-        self.period_ns.max(SAMPLE_NS)
+    /// The present sampling period.
+    pub fn period(&self) -> BusDuration {
+        self.period.max(SAMPLE)
     }
 
     /// The next sampling time, given that the bus is at `now`.
@@ -115,10 +115,9 @@ impl Series {
                 i += 1;
                 i % 2 == 1
             });
-            self.period_ns = self.period_ns() * 2;
+            self.period = self.period() * 2;
         }
-        let period = self.period_ns();
-        self.next = Some(BusTime((now.as_nanos() / period + 1) * period));
+        self.next = Some(now.next_multiple_of(self.period()));
     }
 
     /// Takes the hub's histories from the final snapshot.
@@ -181,11 +180,11 @@ mod tests {
         let mut series = Series::default();
         let mut now = start;
         for &target in targets {
-            let target = BusTime(target).max(now);
+            let target = BusTime::from_nanos(target).max(now);
             loop {
                 let stop = series.next_stop(now, target);
                 if stop > now {
-                    now = stop + overshoot;
+                    now = stop + bus::time::BusDuration::from_nanos(overshoot);
                 }
                 if series.is_due(now) {
                     series.record(now, Sample::default());
@@ -202,7 +201,7 @@ mod tests {
             .collect()
     }
 
-    const S: u64 = SAMPLE_NS;
+    const S: u64 = 1_000_000_000; // one sample period, ns
 
     #[test]
     fn one_sample_per_whole_second_after_start_up() {
@@ -210,7 +209,7 @@ mod tests {
         // 10 s, which the loop reaches in 1 s steps.
         let mut targets = vec![5 * S, 5 * S, 7 * S + S / 4];
         targets.extend((8..=10).map(|k| k * S));
-        let times = drive(BusTime(S / 2), &targets, 0);
+        let times = drive(BusTime::from_nanos(S / 2), &targets, 0);
         let expected: Vec<u64> = (1..=10).map(|k| k * S).collect();
         assert_eq!(times, expected, "10 s run: 10 samples");
     }
@@ -218,14 +217,14 @@ mod tests {
     #[test]
     fn a_run_that_ends_between_seconds_and_a_start_on_a_second() {
         // Start-up ends exactly at 2 s: that second is sampled too; the end at 4.5 s is not.
-        let times = drive(BusTime(2 * S), &[4 * S + S / 2], 0);
+        let times = drive(BusTime::from_nanos(2 * S), &[4 * S + S / 2], 0);
         assert_eq!(times, vec![2 * S, 3 * S, 4 * S]);
     }
 
     #[test]
     fn a_long_run_halves_its_resolution_and_keeps_its_memory_bounded() {
         let run = 3 * MAX_SAMPLES as u64 + 5;
-        let times = drive(BusTime(0), &[run * S], 0);
+        let times = drive(BusTime::from_nanos(0), &[run * S], 0);
         assert!(times.len() <= MAX_SAMPLES, "{} samples", times.len());
         assert!(times.len() > MAX_SAMPLES / 2, "{} samples", times.len());
         // Still in time order, from the start to near the end, on whole seconds.
@@ -239,7 +238,7 @@ mod tests {
 
     #[test]
     fn a_bus_that_stops_late_still_gives_one_sample_per_second() {
-        let times = drive(BusTime(0), &[3 * S + 1000], 10);
+        let times = drive(BusTime::from_nanos(0), &[3 * S + 1000], 10);
         assert_eq!(times, vec![0, S + 10, 2 * S + 10, 3 * S + 10]);
     }
 }

@@ -199,13 +199,13 @@ mod tests {
     fn history(points: &[(u64, u16, u16, ErrorState)]) -> Spans {
         let mut h = Spans::default();
         for &(ms, tec, rec, s) in points {
-            h.push(BusTime(ms * 1_000_000), tec, rec, s);
+            h.push(BusTime::from_millis(ms), tec, rec, s);
         }
         h
     }
 
     fn ms(ms: u64) -> BusTime {
-        BusTime(ms * 1_000_000)
+        BusTime::from_millis(ms)
     }
 
     /// E0 error passive at 5.1 s, bus off for 6 ms at 7.2 s, active again at 12 s.

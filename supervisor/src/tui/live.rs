@@ -8,7 +8,7 @@
 use super::{Clock, RateMeter, Sources, View, draw, quits};
 use crate::BadInput;
 use crate::harvester::Running;
-use bus::time::BusTime;
+use bus::time::{BusDuration, BusTime};
 use bus_runtime::hub::GetSnapshot;
 use ratatui::DefaultTerminal;
 use ratatui::crossterm::event::{self, Event};
@@ -80,11 +80,11 @@ pub async fn live(
     let clock = if fast { Clock::Virtual } else { Clock::RealTime };
     let mut rates = RateMeter::default();
     let mut last_draw: Option<Instant> = None;
-    let step = if fast { FAST_STEP_MS } else { STEP_MS } * 1_000_000;
+    let step = BusDuration::from_millis(if fast { FAST_STEP_MS } else { STEP_MS });
     let mut stop = crate::stop::Stop::new()?;
     while end.is_none_or(|e| running.now() < e) {
         let t = running.now();
-        let next = BusTime((t.as_nanos() / step + 1) * step);
+        let next = t.next_multiple_of(step);
         let next = end.map_or(next, |e| next.min(e));
         tokio::select! {
             r = running.run_until(next) => r?,

@@ -2,17 +2,17 @@
 //!
 //! Contract: [`RateMeter::update`] is given each snapshot the display shows, in time order;
 //! [`RateMeter::rate`] then divides the frames counted since the oldest kept snapshot (the
-//! newest one at least [`WINDOW_NS`] old) by the bus time between them. Until two snapshots
+//! newest one at least [`WINDOW`] old) by the bus time between them. Until two snapshots
 //! span some time, it falls back to the mean period over the whole run. No clock is read: the
 //! window is bus time, so a fast run and a real-time one show the same rates.
 
 use bus::engine::stats::IdStats;
-use bus::time::BusTime;
+use bus::time::{BusDuration, BusTime};
 use bus_runtime::hub::Snapshot;
 use std::collections::{HashMap, VecDeque};
 
 /// The span of bus time rates are measured over, at least.
-pub const WINDOW_NS: u64 = 1_000_000_000;
+pub const WINDOW: BusDuration = BusDuration::from_secs(1);
 /// Most snapshots kept: refreshes far more often than the window would otherwise pile up.
 const MAX_SAMPLES: usize = 64;
 
@@ -38,7 +38,7 @@ impl RateMeter {
             .collect();
         self.samples.push_back((now, counts));
         // Keep the newest sample that is at least a window old, and everything after it.
-        while self.samples.len() >= 2 && now - self.samples[1].0 >= WINDOW_NS {
+        while self.samples.len() >= 2 && now - self.samples[1].0 >= WINDOW {
             self.samples.pop_front();
         }
         while self.samples.len() > MAX_SAMPLES {
@@ -54,7 +54,7 @@ impl RateMeter {
             // An identifier missing from the older counts had sent nothing yet.
             let before = old.get(&id).copied().unwrap_or(0);
             let after = new.get(&id).copied().unwrap_or(stats.count);
-            return after.saturating_sub(before) as f64 * 1e9 / (*t1 - *t0) as f64;
+            return after.saturating_sub(before) as f64 / (*t1 - *t0).as_secs_f64();
         }
         stats.mean_period_ns().map_or(0.0, |p| 1e9 / p)
     }

@@ -227,7 +227,8 @@ fn crowded_view() -> View {
     let many = NodeId(2);
     for k in 0..300u32 {
         let frame = Frame::extended(0x1000_0000 + k, &[k as u8, 1, 2, 3, 4, 5, 6, 7]).unwrap();
-        bus.submit(many, frame, BusTime(u64::from(k))).unwrap();
+        bus.submit(many, frame, BusTime::from_nanos(u64::from(k)))
+            .unwrap();
     }
     bus.run_until(BusTime::from_millis(1000));
     let nodes = (0..40)

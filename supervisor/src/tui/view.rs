@@ -10,7 +10,7 @@ use crate::harvester::SupervisorEvent;
 use bus::Frame;
 use bus::fault::ErrorState;
 use bus::filter::{CAN_EFF_FLAG, CAN_EFF_MASK, CAN_RTR_FLAG, CAN_SFF_MASK};
-use bus::time::BusTime;
+use bus::time::{BusDuration, BusTime};
 use bus_runtime::hub::Snapshot;
 use nodes::monitor::Display;
 use nodes::plant::{Plant, ROWS};
@@ -388,7 +388,7 @@ fn bus(snapshot: &Snapshot, rates: &RateMeter, events: &[SupervisorEvent]) -> Bu
         .collect();
     BusView {
         load: st.total_load(),
-        load_1s: st.window_load(1_000_000_000),
+        load_1s: st.window_load(BusDuration::from_secs(1)),
         frames: st.frames,
         error_frames: st.error_frames,
         overruns: st.overruns,

@@ -17,11 +17,11 @@
 //!   `unsubscribe` ends it. Subscribing again to an identifier replaces its subscription.
 //! - Each table holds at most [`MAX_OPS`] entries: more are refused.
 
-use bus::time::BusTime;
+use bus::time::{BusDuration, BusTime};
 use bus::{Frame, Id};
 
-/// The shortest cyclic interval, nanoseconds.
-pub const MIN_INTERVAL: u64 = 1_000_000;
+/// The shortest cyclic interval.
+pub const MIN_INTERVAL: BusDuration = BusDuration::from_millis(1);
 /// Most cyclic jobs, and most subscriptions, per client.
 pub const MAX_OPS: usize = 256;
 
@@ -29,7 +29,7 @@ pub const MAX_OPS: usize = 256;
 struct TxJob {
     frame: Frame,
     /// Nanoseconds; 0 for none.
-    interval: u64,
+    interval: BusDuration,
     /// The next cyclic send.
     next: Option<BusTime>,
     /// To be sent at the next wake, which starts its timer.
@@ -39,7 +39,7 @@ struct TxJob {
 #[derive(Debug)]
 struct RxOp {
     id: Id,
-    throttle: u64,
+    throttle: BusDuration,
     /// `None` for `subscribe`.
     mask: Option<[u8; 8]>,
     /// The last frame passed (held or sent), and when it ended.
@@ -67,9 +67,9 @@ fn data8(frame: &Frame) -> [u8; 8] {
 
 impl Bcm {
     /// `add`; false when the table is full.
-    pub fn add(&mut self, interval: u64, frame: Frame) -> bool {
-        let interval = if interval == 0 {
-            0
+    pub fn add(&mut self, interval: BusDuration, frame: Frame) -> bool {
+        let interval = if interval == BusDuration::ZERO {
+            BusDuration::ZERO
         } else {
             interval.max(MIN_INTERVAL)
         };
@@ -106,7 +106,7 @@ impl Bcm {
     }
 
     /// `subscribe` (no mask) or `filter`; false when the table is full.
-    pub fn subscribe(&mut self, id: Id, throttle: u64, mask: Option<[u8; 8]>) -> bool {
+    pub fn subscribe(&mut self, id: Id, throttle: BusDuration, mask: Option<[u8; 8]>) -> bool {
         let op = RxOp {
             id,
             throttle,
@@ -152,7 +152,7 @@ impl Bcm {
             if j.announce || due {
                 j.announce = false;
                 send.push(j.frame);
-                j.next = (j.interval > 0).then(|| now + j.interval);
+                j.next = (j.interval > BusDuration::ZERO).then(|| now + j.interval);
             }
         }
         for o in &mut self.rx {
@@ -189,7 +189,7 @@ impl Bcm {
         }
         o.last = Some((at, *frame));
         o.held = true;
-        if o.throttle == 0 {
+        if o.throttle == BusDuration::ZERO {
             o.held = false;
             return (Some((at, *frame)), None);
         }
@@ -197,7 +197,7 @@ impl Bcm {
             return (None, None);
         }
         if let Some(sent) = o.last_sent
-            && at.as_nanos().saturating_sub(sent.as_nanos()) < o.throttle
+            && at - sent < o.throttle
         {
             // A second frame within the interval: held until the interval ends.
             o.timer = Some(sent + o.throttle);
@@ -235,7 +235,7 @@ mod tests {
     #[test]
     fn a_job_sends_at_once_then_every_interval_until_deleted() {
         let mut b = Bcm::default();
-        assert!(b.add(20_000_000, f("123#42424242")));
+        assert!(b.add(BusDuration::from_nanos(20_000_000), f("123#42424242")));
         assert!(b.wants_wake());
         assert_eq!(run(&mut b, ms(5)).0, [f("123#42424242")]);
         assert_eq!(b.deadline(), Some(ms(25)));
@@ -253,12 +253,12 @@ mod tests {
     #[test]
     fn add_again_restarts_and_zero_sends_once_and_short_intervals_are_floored() {
         let mut b = Bcm::default();
-        b.add(10_000_000, f("123#01"));
+        b.add(BusDuration::from_nanos(10_000_000), f("123#01"));
         run(&mut b, ms(0));
-        b.add(0, f("123#02"));
+        b.add(BusDuration::ZERO, f("123#02"));
         assert_eq!(run(&mut b, ms(3)).0, [f("123#02")]);
         assert_eq!(b.deadline(), None);
-        b.add(10_000, f("00000123#03"));
+        b.add(BusDuration::from_nanos(10_000), f("00000123#03"));
         run(&mut b, ms(4));
         assert_eq!(b.deadline(), Some(ms(5)), "10 us runs at 1 ms");
         // A standard and an extended identifier are different jobs.
@@ -269,7 +269,7 @@ mod tests {
     #[test]
     fn subscriptions_throttle_as_the_kernel_does() {
         let mut b = Bcm::default();
-        b.subscribe(f("123#").id(), 100_000_000, None);
+        b.subscribe(f("123#").id(), BusDuration::from_nanos(100_000_000), None);
         let x = |n: u8| f(&format!("123#{n:02X}"));
         // The first frame goes out at once; those within 100 ms are held; the latest goes out
         // when the interval ends.
@@ -296,7 +296,11 @@ mod tests {
     #[test]
     fn filters_pass_changes_under_the_mask() {
         let mut b = Bcm::default();
-        b.subscribe(f("123#").id(), 0, Some([0xFF, 0, 0xF8, 0, 0, 0, 0, 0]));
+        b.subscribe(
+            f("123#").id(),
+            BusDuration::ZERO,
+            Some([0xFF, 0, 0xF8, 0, 0, 0, 0, 0]),
+        );
         let first = f("123#0011220000000000");
         assert_eq!(b.frame0(ms(0), &first), Some((ms(0), first)));
         assert_eq!(
@@ -323,11 +327,14 @@ mod tests {
         let mut b = Bcm::default();
         for i in 0..MAX_OPS as u16 {
             let frame = Frame::new_data(bus::standard_id(i).unwrap(), &[]).unwrap();
-            assert!(b.add(0, frame));
-            assert!(b.subscribe(frame.id(), 0, None));
+            assert!(b.add(BusDuration::ZERO, frame));
+            assert!(b.subscribe(frame.id(), BusDuration::ZERO, None));
         }
-        assert!(!b.add(0, f("7FF#")));
-        assert!(!b.subscribe(f("7FF#").id(), 0, None));
-        assert!(b.add(5_000_000, f("000#01")), "replacing is not adding");
+        assert!(!b.add(BusDuration::ZERO, f("7FF#")));
+        assert!(!b.subscribe(f("7FF#").id(), BusDuration::ZERO, None));
+        assert!(
+            b.add(BusDuration::from_nanos(5_000_000), f("000#01")),
+            "replacing is not adding"
+        );
     }
 }

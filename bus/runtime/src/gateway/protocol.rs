@@ -18,7 +18,7 @@
 //! answers nothing to it, as socketcand answers nothing to a bad `send`.
 
 use super::scan::{Conv, element_length, scan};
-use bus::time::BusTime;
+use bus::time::{BusDuration, Stamp};
 use bus::{ExtendedId, Frame, Id, StandardId};
 use core::fmt::Write;
 
@@ -49,11 +49,10 @@ pub enum Command {
     Echo,
     /// `< send ID LEN B0 ... >`.
     Send(Frame),
-    /// `< add SECS USECS ID LEN B0 ... >`: send now and every interval (nanoseconds; 0 sends
-    /// once).
+    /// `< add SECS USECS ID LEN B0 ... >`: send now and every interval (0 sends once).
     Add {
-        /// Nanoseconds.
-        interval: u64,
+        /// The interval.
+        interval: BusDuration,
         /// The frame.
         frame: Frame,
     },
@@ -61,18 +60,17 @@ pub enum Command {
     Update(Frame),
     /// `< delete ID >`.
     Delete(Id),
-    /// `< subscribe SECS USECS ID >`: every frame of `id`, at most one per `throttle`
-    /// nanoseconds (0: all).
+    /// `< subscribe SECS USECS ID >`: every frame of `id`, at most one per `throttle` (0: all).
     Subscribe {
-        /// Nanoseconds.
-        throttle: u64,
+        /// The throttle interval.
+        throttle: BusDuration,
         /// The identifier.
         id: Id,
     },
     /// `< filter SECS USECS ID LEN M0 ... >`: frames of `id` whose bits under the mask changed.
     Filter {
-        /// Nanoseconds.
-        throttle: u64,
+        /// The throttle interval.
+        throttle: BusDuration,
         /// The identifier.
         id: Id,
         /// The mask, zeros past LEN.
@@ -263,11 +261,12 @@ fn ident(raw: u64, chars: usize) -> Result<Id, Malformed> {
 }
 
 /// `SECS USECS` as the kernel's broadcast manager takes them: microseconds below a second,
-/// seconds up to [`MAX_INTERVAL_SECS`]. Nanoseconds.
-fn interval(v: &[u64]) -> Result<u64, Malformed> {
+/// seconds up to [`MAX_INTERVAL_SECS`]. One longer than the bus clock spans (about 61 days)
+/// saturates at [`BusDuration::MAX`]: it never comes round in a run.
+fn interval(v: &[u64]) -> Result<BusDuration, Malformed> {
     match v {
         [secs, usecs, ..] if *secs <= MAX_INTERVAL_SECS && *usecs < 1_000_000 => {
-            Ok(secs * 1_000_000_000 + usecs * 1000)
+            Ok(BusDuration::from_secs(*secs) + BusDuration::from_micros(*usecs))
         }
         [_, _, ..] => Err(bad("interval out of range")),
         _ => Err(bad("usage SECS USECS ...")),
@@ -341,7 +340,7 @@ fn id_text(s: &mut String, id: Id) {
 /// `< frame ID SECS.USECS DATA >` for a frame that ended at `at` (bus time already stamped with
 /// the hub's [`bus::time::Epoch`], as socketcand gives the kernel's wall-clock time), as
 /// socketcand writes it in raw mode: DATA contiguous upper-case hex.
-pub fn frame_message(at: BusTime, frame: &Frame) -> String {
+pub fn frame_message(at: Stamp, frame: &Frame) -> String {
     let mut s = String::with_capacity(48);
     s.push_str("< frame ");
     id_text(&mut s, frame.id());
@@ -355,7 +354,7 @@ pub fn frame_message(at: BusTime, frame: &Frame) -> String {
 
 /// `< frame ID SECS.USECS B0 B1 ...  >` as socketcand writes it in BCM mode: each byte followed
 /// by a space, then ` >`.
-pub fn bcm_frame_message(at: BusTime, frame: &Frame) -> String {
+pub fn bcm_frame_message(at: Stamp, frame: &Frame) -> String {
     let mut s = String::with_capacity(56);
     s.push_str("< frame ");
     id_text(&mut s, frame.id());
@@ -478,14 +477,14 @@ mod tests {
             (
                 "< add 1 0 123 8 11 22 33 44 55 66 77 88 >",
                 Some(Command::Add {
-                    interval: 1_000_000_000,
+                    interval: BusDuration::from_secs(1),
                     frame: frame("123#1122334455667788"),
                 }),
             ),
             (
                 "< add 0 20000 123 4 42 42 42 42 >",
                 Some(Command::Add {
-                    interval: 20_000_000,
+                    interval: BusDuration::from_millis(20),
                     frame: frame("123#42424242"),
                 }),
             ),
@@ -494,7 +493,7 @@ mod tests {
             (
                 "< add 34560000 999999 12345678 0 >",
                 Some(Command::Add {
-                    interval: 34_560_000_999_999_000,
+                    interval: BusDuration::MAX, // 400 days: beyond the bus clock
                     frame: frame("12345678#"),
                 }),
             ),
@@ -509,14 +508,14 @@ mod tests {
             (
                 "< subscribe 0 0 123 >",
                 Some(Command::Subscribe {
-                    throttle: 0,
+                    throttle: BusDuration::ZERO,
                     id: id("123"),
                 }),
             ),
             (
                 "< subscribe 1 500000 1ABCDEF0 >",
                 Some(Command::Subscribe {
-                    throttle: 1_500_000_000,
+                    throttle: BusDuration::from_millis(1500),
                     id: id("1ABCDEF0"),
                 }),
             ),
@@ -524,7 +523,7 @@ mod tests {
             (
                 "< filter 1 500000 123 8 FF 00 F8 00 00 00 00 00 >",
                 Some(Command::Filter {
-                    throttle: 1_500_000_000,
+                    throttle: BusDuration::from_millis(1500),
                     id: id("123"),
                     mask: [0xFF, 0, 0xF8, 0, 0, 0, 0, 0],
                 }),
@@ -532,7 +531,7 @@ mod tests {
             (
                 "< filter 0 0 123 1 FF >",
                 Some(Command::Filter {
-                    throttle: 0,
+                    throttle: BusDuration::ZERO,
                     id: id("123"),
                     mask: [0xFF, 0, 0, 0, 0, 0, 0, 0],
                 }),
@@ -609,19 +608,16 @@ mod tests {
     fn frames_are_written_as_socketcand_does() {
         let f = frame("0601F5D0#200D0002FFBFFF00");
         assert_eq!(
-            frame_message(BusTime(1_500_000_000), &f),
+            frame_message(Stamp(1_500_000_000), &f),
             "< frame 0601F5D0 1.500000 200D0002FFBFFF00 >"
         );
+        assert_eq!(frame_message(Stamp(0), &frame("123#")), "< frame 123 0.000000  >");
         assert_eq!(
-            frame_message(BusTime(0), &frame("123#")),
-            "< frame 123 0.000000  >"
-        );
-        assert_eq!(
-            bcm_frame_message(BusTime(23_424_242_000), &frame("123#1A220344")),
+            bcm_frame_message(Stamp(23_424_242_000), &frame("123#1A220344")),
             "< frame 123 23.424242 1A 22 03 44  >"
         );
         assert_eq!(
-            bcm_frame_message(BusTime(0), &frame("00000005#")),
+            bcm_frame_message(Stamp(0), &frame("00000005#")),
             "< frame 00000005 0.000000  >"
         );
     }

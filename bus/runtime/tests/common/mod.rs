@@ -11,10 +11,10 @@ use bus_runtime::node::NodeActor;
 use std::time::Duration;
 
 /// A hub with a node `ticker` that sends `frame` every `period_us` from time 0, and a silent
-/// `listener` that acknowledges every frame. Must run inside an actor system.
+/// `listener` that acknowledges every frame, paced (real time). Must run inside an actor system.
 #[allow(dead_code)] // not every test file builds a bus
 pub async fn hub_with_ticker(frame: &str, period_us: u64) -> Addr<Hub> {
-    hub_with_ticker_at(HubConfig::default(), frame, period_us).await
+    hub_with_ticker_at(HubConfig::new(true), frame, period_us).await
 }
 
 /// The same bus, built from `config` (its epoch, say).
@@ -37,7 +37,7 @@ pub async fn hub_with_ticker_at(config: HubConfig, frame: &str, period_us: u64) 
 /// Sends `frame` every `period` nanoseconds, the first time at `next`.
 pub struct Periodic {
     pub frame: Frame,
-    pub period: u64,
+    pub period: bus::time::BusDuration,
     pub next: BusTime,
     pub due: bool,
 }
@@ -53,7 +53,7 @@ impl Periodic {
     pub fn every_us(text: &str, period_us: u64, phase_us: u64) -> Periodic {
         Periodic {
             frame: parse_frame(text).unwrap(),
-            period: period_us * 1000,
+            period: bus::time::BusDuration::from_micros(period_us),
             next: BusTime::from_micros(phase_us),
             due: false,
         }
