@@ -19,7 +19,11 @@ pub fn run_on_this_thread(h: &Harvester, count: usize, first: u64, seconds: f64)
         for i in 0..count as u64 {
             let mut h = h.clone();
             h.config.seed = h.config.seed.wrapping_add(first + i);
-            running.push(harvester::start(&h, None).await.map_err(|e| format!("{e:#}"))?);
+            running.push(
+                harvester::start(&h, Vec::new())
+                    .await
+                    .map_err(|e| format!("{e:#}"))?,
+            );
         }
         // Round robin in slices of bus time, one harvester at a time: each one's working set
         // (plant, scripts, queues) stays in the core's cache for a whole slice instead of being

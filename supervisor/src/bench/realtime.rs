@@ -141,7 +141,9 @@ pub fn measure(h: &Harvester, seconds: f64) -> Result<Measurement, String> {
     let h = h.clone();
     let started = Instant::now();
     let (jitter, snap) = system.block_on(async move {
-        let mut running = harvester::start(&h, None).await.map_err(|e| format!("{e:#}"))?;
+        let mut running = harvester::start(&h, Vec::new())
+            .await
+            .map_err(|e| format!("{e:#}"))?;
         // Large enough for minutes of traffic: the observer must not be the one losing frames.
         let (tx, mut rx) = tokio::sync::mpsc::channel::<Observed>(65_536);
         running.hub.send(Subscribe(tx)).await.map_err(|e| e.to_string())?;
