@@ -220,8 +220,8 @@ impl Books {
         }
     }
 
-    /// Every completed frame is a frame line of the trace, and the trace has nothing else but
-    /// error frames (None when the trace was not counted).
+    /// The trace holds as many frame records as frames completed on the bus (None when the trace
+    /// was not counted).
     pub fn trace_complete(&self) -> Option<bool> {
         self.trace.map(|t| t.frames == self.frames)
     }
