@@ -57,8 +57,8 @@ pub struct HubConfig {
     /// When paced: how far bus time may fall behind its schedule before it slips instead of
     /// catching up ([`bus::pacing`]; [`bus::pacing::OVERRUN_THRESHOLD`] by default).
     pub overrun_threshold: Duration,
-    /// Where bus time zero lies on the wall clock in the trace's timestamps and the gateway's
-    /// frames ([`Epoch`]): by default the wall clock when the config is made if paced, else
+    /// Where bus time zero lies on the wall clock for the gateway's frames ([`GetEpoch`]; a
+    /// trace sink is given its epoch by whoever makes it, the same one in harvemu) ([`Epoch`]): by default the wall clock when the config is made if paced, else
     /// [`Epoch::FIXED`]. Bus time itself starts at zero either way.
     pub epoch: Epoch,
 }
