@@ -4,7 +4,8 @@
 
 use actix::prelude::*;
 use bus::Frame;
-use bus::time::BusTime;
+use bus::time::{BusTime, Epoch};
+use bus::trace::{CandumpWriter, Sink};
 use bus_runtime::hub::{GetSnapshot, RunUntil, Snapshot, runtime};
 use std::cell::RefCell;
 use std::io::Write;
@@ -24,6 +25,12 @@ impl Write for Shared {
     fn flush(&mut self) -> std::io::Result<()> {
         Ok(())
     }
+}
+
+/// The trace as a candump log into `out`, stamped as the hub of `h` stamps it: with its epoch,
+/// else the fixed one of virtual time.
+pub fn candump(out: Shared, h: &Harvester) -> Box<dyn Sink> {
+    Box::new(CandumpWriter::new(out, h.epoch.unwrap_or(Epoch::FIXED)))
 }
 
 /// The repository's root.
@@ -76,7 +83,7 @@ pub fn run_virtual<T: 'static>(
     let trace = Shared::default();
     let t = trace.clone();
     let result = System::with_tokio_rt(|| runtime(true).expect("runtime")).block_on(async move {
-        let running = harvester::start(&h, false, Some(Box::new(t)))
+        let running = harvester::start(&h, false, vec![candump(t, &h)])
             .await
             .expect("the harvester starts");
         setup(&running);
@@ -103,7 +110,8 @@ pub fn traffic_of(
     let trace = Shared::default();
     let t = trace.clone();
     System::with_tokio_rt(|| runtime(true).expect("runtime")).block_on(async move {
-        let running = harvester::start(&default_harvester(), false, Some(Box::new(t)))
+        let h = default_harvester();
+        let running = harvester::start(&h, false, vec![candump(t, &h)])
             .await
             .expect("the harvester starts");
         script(&running).await;

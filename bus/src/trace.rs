@@ -1,7 +1,11 @@
 //! The bus as a candump log: `(secs.usecs) harv0 0601F5D0#200D0002FFBFFF00`.
 //!
+//! The hub hands the trace to its [`Sink`]s as typed [`Record`]s ([`Record::of_event`]): a frame
+//! from the bus, or an error frame from one controller. Sinks format them ([`CandumpWriter`],
+//! `tracefile::AscWriter`) or count them; nothing parses trace text back.
+//!
 //! Times are bus time stamped with an [`Epoch`] (seconds since 1970, as `candump -l` writes
-//! them); the line writers take the time to write, [`event_line`] stamps it itself.
+//! them); the line writers take the time to write, [`CandumpWriter`] stamps it itself.
 //!
 //! Error frames are written in SocketCAN's error-frame encoding (`include/uapi/linux/can/error.h`):
 //! the identifier is `CAN_ERR_FLAG` with class bits, the 8 data bytes carry the details. Frames
@@ -17,8 +21,9 @@ use crate::candump::write_frame;
 use crate::engine::{BusError, Event, NodeId};
 use crate::fault::ErrorState;
 use crate::filter::CAN_ERR_FLAG;
-use crate::time::{Epoch, Stamp};
+use crate::time::{BusTime, Epoch, Stamp};
 use core::fmt::Write;
+use std::io;
 
 /// Error classes (can_id bits) and data bytes of linux/can/error.h.
 pub mod err {
@@ -187,42 +192,137 @@ fn error_frame_text(out: &mut String, e: &ErrorFrame) {
     out.push('\n');
 }
 
-/// Appends the log line an engine event gives, if any, its time stamped with `epoch`: frames at
-/// their end-of-frame time on `iface`; a controller's error frames (bus errors at the first bit of its flag, overload flags,
-/// state changes, overruns) on `iface.NAME`, with `name` giving each controller's name.
-pub fn event_line<'a>(
-    out: &mut String,
-    epoch: Epoch,
-    iface: &str,
-    name: impl Fn(NodeId) -> &'a str,
-    event: &Event,
-) {
-    match event {
-        Event::Frame { end, frame, .. } => frame_line(out, epoch.stamp(*end), iface, frame),
-        Event::BusError { node, at, .. }
-        | Event::Overload { node, at }
-        | Event::State { node, at, .. }
-        | Event::Warning { node, at, .. }
-        | Event::Restarted { node, at }
-        | Event::Overrun { node, at } => {
-            if let Some(e) = error_frame(event) {
-                let _ = write!(out, "({}) {iface}.", epoch.stamp(*at));
-                // A name is one word on the line, as an interface name would be.
-                out.extend(
-                    name(*node)
-                        .chars()
-                        .map(|c| if c.is_ascii_graphic() { c } else { '_' }),
-                );
-                out.push(' ');
-                error_frame_text(out, &e);
-            }
+/// Who reports a [`Record`]: the bus (a frame, on the bus's interface) or one controller (what it
+/// detected, on its own interface).
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub enum Source<'a> {
+    /// The bus itself: a frame that completed.
+    Bus,
+    /// A controller, with its name as the trace writes it (`D2` in `harv0.D2`).
+    Controller {
+        /// Its place on the bus.
+        node: NodeId,
+        /// Its name.
+        name: &'a str,
+    },
+}
+
+/// What a [`Record`] holds.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub enum Kind {
+    /// A data or remote frame.
+    Frame(Frame),
+    /// A controller's error frame in SocketCAN's encoding.
+    Error(ErrorFrame),
+}
+
+/// One entry of the trace, typed: what a candump log line carries, before it is formatted. The
+/// hub hands these to its [`Sink`]s; nothing parses trace text back.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub struct Record<'a> {
+    /// Bus time (not stamped with an epoch): a frame's end of frame, the first bit of a
+    /// controller's error or overload flag, or the moment of its state change or overrun.
+    pub at: BusTime,
+    /// The bus's interface name (`harv0`).
+    pub bus: &'a str,
+    /// The bus or the controller that reports it.
+    pub source: Source<'a>,
+    /// The frame or error frame.
+    pub kind: Kind,
+}
+
+impl<'a> Record<'a> {
+    /// The record an engine event gives, if any: frames at their end-of-frame time from the bus;
+    /// a controller's error frames (bus errors at the first bit of its flag, overload flags,
+    /// state changes, overruns) from that controller, with `name` giving each controller's name.
+    pub fn of_event(bus: &'a str, name: impl Fn(NodeId) -> &'a str, event: &Event) -> Option<Record<'a>> {
+        match event {
+            Event::Frame { end, frame, .. } => Some(Record {
+                at: *end,
+                bus,
+                source: Source::Bus,
+                kind: Kind::Frame(*frame),
+            }),
+            Event::BusError { node, at, .. }
+            | Event::Overload { node, at }
+            | Event::State { node, at, .. }
+            | Event::Warning { node, at, .. }
+            | Event::Restarted { node, at }
+            | Event::Overrun { node, at } => error_frame(event).map(|e| Record {
+                at: *at,
+                bus,
+                source: Source::Controller {
+                    node: *node,
+                    name: name(*node),
+                },
+                kind: Kind::Error(e),
+            }),
+            _ => None,
         }
-        _ => {}
+    }
+}
+
+/// Where the hub's trace goes: a file format, a count, a view. Records arrive in time order.
+///
+/// A sink whose `record` or `flush` fails is given nothing more; the hub keeps the first error
+/// to report it (`Snapshot::trace_error` in `bus-runtime`).
+pub trait Sink {
+    /// Takes one record.
+    fn record(&mut self, r: &Record<'_>) -> io::Result<()>;
+    /// Passes on what is buffered.
+    fn flush(&mut self) -> io::Result<()>;
+}
+
+/// Writes records as candump log lines, times stamped with an [`Epoch`].
+pub struct CandumpWriter<W: io::Write> {
+    inner: W,
+    epoch: Epoch,
+    line: String,
+}
+
+impl<W: io::Write> CandumpWriter<W> {
+    /// Writes to `inner`, each time stamped with `epoch`.
+    pub fn new(inner: W, epoch: Epoch) -> CandumpWriter<W> {
+        CandumpWriter {
+            inner,
+            epoch,
+            line: String::with_capacity(128),
+        }
+    }
+}
+
+impl<W: io::Write> Sink for CandumpWriter<W> {
+    fn record(&mut self, r: &Record<'_>) -> io::Result<()> {
+        self.line.clear();
+        record_line(&mut self.line, self.epoch, r);
+        self.inner.write_all(self.line.as_bytes())
+    }
+    fn flush(&mut self) -> io::Result<()> {
+        self.inner.flush()
+    }
+}
+
+/// Appends the candump log line of a record, its time stamped with `epoch`: a frame on the
+/// bus's interface, a controller's error frame on `bus.NAME`.
+pub fn record_line(out: &mut String, epoch: Epoch, r: &Record<'_>) {
+    let _ = write!(out, "({}) {}", epoch.stamp(r.at), r.bus);
+    if let Source::Controller { name, .. } = r.source {
+        out.push('.');
+        // A name is one word on the line, as an interface name would be.
+        out.extend(name.chars().map(|c| if c.is_ascii_graphic() { c } else { '_' }));
+    }
+    out.push(' ');
+    match &r.kind {
+        Kind::Frame(frame) => {
+            write_frame(out, frame);
+            out.push('\n');
+        }
+        Kind::Error(e) => error_frame_text(out, e),
     }
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::candump::parse_frame;
     use crate::engine::Location;
@@ -250,14 +350,18 @@ mod tests {
             tec: 8,
             rec: 0,
         };
-        let mut out = String::new();
-        event_line(&mut out, Epoch::UNIX, "harv0", |_| "E0", &ack);
+        let line = |epoch, event: &Event| {
+            let mut out = String::new();
+            let r = Record::of_event("harv0", |_| "E0", event).unwrap();
+            record_line(&mut out, epoch, &r);
+            out
+        };
+        let out = line(Epoch::UNIX, &ack);
         // CAN_ERR_FLAG | PROT 0x8 | ACK 0x20 | BUSERROR 0x80 | CNT 0x200; data[2] TX, data[3] ACK
         // slot, data[6] TEC.
         assert_eq!(out, "(0.001000) harv0.E0 200002A8#0000801900000800\n");
-        out.clear();
         // The same event a day after 1970 began: only the time moves.
-        event_line(&mut out, Epoch::from_secs(86_400), "harv0", |_| "E0", &ack);
+        let out = line(Epoch::from_secs(86_400), &ack);
         assert_eq!(out, "(86400.001000) harv0.E0 200002A8#0000801900000800\n");
         // A receiver's stuff error in the data field, a CRC error, a form error in EOF.
         let seen = |error, location| {
@@ -319,5 +423,100 @@ mod tests {
             })
             .is_none()
         );
+    }
+
+    /// The records of docs/TRACES.md's example, 2024-01-01T00:00:00Z being the epoch.
+    pub(crate) fn example() -> Vec<Record<'static>> {
+        let at = |us: u64| BusTime::from_micros(us);
+        let ext = crate::extended_id(0x0200_F5E0).unwrap();
+        let data = [0x10, 0x78, 0x00, 0xF4, 0x01, 0x00, 0x00];
+        let ack = ErrorFrame {
+            can_id: CAN_ERR_FLAG | 0x2A8,
+            data: [0, 0, 0x80, 0x19, 0, 0, 0x08, 0],
+        };
+        vec![
+            Record {
+                at: at(551_520),
+                bus: "harv0",
+                source: Source::Bus,
+                kind: Kind::Frame(Frame::new_data(ext, &data).unwrap()),
+            },
+            Record {
+                at: at(600_000),
+                bus: "harv0",
+                source: Source::Bus,
+                kind: Kind::Frame(Frame::new_remote(crate::standard_id(0x123).unwrap(), 4).unwrap()),
+            },
+            Record {
+                at: at(700_000),
+                bus: "harv0",
+                source: Source::Controller {
+                    node: NodeId(3),
+                    name: "E0",
+                },
+                kind: Kind::Error(ack),
+            },
+        ]
+    }
+
+    #[test]
+    fn the_candump_writer_writes_the_lines_of_the_format() {
+        let mut file = Vec::new();
+        let mut w = CandumpWriter::new(&mut file, Epoch::from_secs(1_704_067_200));
+        for r in example() {
+            w.record(&r).unwrap();
+        }
+        // A controller whose name has a space in it still makes one word of an interface.
+        let mut odd = example()[2];
+        odd.source = Source::Controller {
+            node: NodeId(4),
+            name: "left door",
+        };
+        odd.at = BusTime::from_nanos(1_000_000_001_999);
+        w.record(&odd).unwrap();
+        w.flush().unwrap();
+        assert_eq!(
+            String::from_utf8(file).unwrap(),
+            "(1704067200.551520) harv0 0200F5E0#107800F4010000\n\
+             (1704067200.600000) harv0 123#R4\n\
+             (1704067200.700000) harv0.E0 200002A8#0000801900000800\n\
+             (1704068200.000001) harv0.left_door 200002A8#0000801900000800\n"
+        );
+    }
+
+    #[test]
+    fn events_become_records_from_the_bus_or_from_their_controller() {
+        let frame = Frame::new_data(crate::standard_id(0x7FF).unwrap(), &[1]).unwrap();
+        let done = Event::Frame {
+            node: NodeId(2),
+            start: BusTime::from_nanos(10),
+            end: BusTime::from_nanos(99),
+            frame,
+            bits: 50,
+        };
+        let r = Record::of_event("can0", |_| "X", &done).unwrap();
+        assert_eq!(
+            (r.at, r.bus, r.source, r.kind),
+            (BusTime::from_nanos(99), "can0", Source::Bus, Kind::Frame(frame))
+        );
+        let names = ["A", "B", "C"];
+        let over = Event::Overload {
+            node: NodeId(1),
+            at: BusTime::from_nanos(7),
+        };
+        let r = Record::of_event("can0", |n| names[n.index()], &over).unwrap();
+        assert_eq!(
+            r.source,
+            Source::Controller {
+                node: NodeId(1),
+                name: "B"
+            }
+        );
+        assert_eq!(r.at, BusTime::from_nanos(7));
+        let delivered = Event::Delivered {
+            node: NodeId(0),
+            at: BusTime::from_nanos(0),
+        };
+        assert!(Record::of_event("can0", |_| "X", &delivered).is_none());
     }
 }

@@ -8,6 +8,7 @@ use bus::bits::BitRate;
 use bus::engine::{BusConfig, ControllerConfig, Filter, NodeId};
 use bus::filter::SocketCanFilterSet;
 use bus::time::{BusDuration, BusTime};
+use bus::trace::Sink;
 use bus_runtime::hub::{Attach, GetCrashed, Hub, HubConfig, Replace, RunUntil};
 use bus_runtime::node::{Crash, NodeActor};
 use nodes::monitor::{DisplayHandle, Monitor, MonitorConfig};
@@ -17,7 +18,6 @@ use nodes::{Error, Problem};
 use protocol::ident::Address;
 use serde::Deserialize;
 use std::cell::RefCell;
-use std::io::Write;
 use std::path::Path;
 use std::rc::Rc;
 use std::time::Duration;
@@ -370,16 +370,17 @@ fn build(
 /// Builds the harvester on a new hub and runs it through start-up: the monitor from time 0, the
 /// field nodes from the time relay on. Must run inside an actix system. `paced`: in real time
 /// (else virtual time, as fast as the nodes answer; see [`HubConfig::paced`]).
-pub async fn start(h: &Harvester, paced: bool, trace: Option<Box<dyn Write>>) -> anyhow::Result<Running> {
-    let mut running = begin(h, paced, trace).await?;
+pub async fn start(h: &Harvester, paced: bool, sinks: Vec<Box<dyn Sink>>) -> anyhow::Result<Running> {
+    let mut running = begin(h, paced, sinks).await?;
     running.run_until(h.relay()).await?;
     Ok(running)
 }
 
-/// Builds the harvester on a new hub at time 0 with the monitor attached; the field nodes are
+/// Builds the harvester on a new hub at time 0 with the monitor attached, its trace going to
+/// `sinks`; the field nodes are
 /// attached when [`Running::run_until`] reaches the time relay. Start-up is thus an ordinary
 /// stretch of the run, which a caller can stop at any moment (a huge time relay, a signal).
-pub async fn begin(h: &Harvester, paced: bool, trace: Option<Box<dyn Write>>) -> anyhow::Result<Running> {
+pub async fn begin(h: &Harvester, paced: bool, sinks: Vec<Box<dyn Sink>>) -> anyhow::Result<Running> {
     let c = &h.config;
     let bitrate = BitRate::new(c.bitrate).ok_or_else(|| BadInput(format!("bit rate {}", c.bitrate)))?;
     let mut hub_config = HubConfig {
@@ -393,7 +394,7 @@ pub async fn begin(h: &Harvester, paced: bool, trace: Option<Box<dyn Write>>) ->
     if let Some(epoch) = h.epoch {
         hub_config.epoch = epoch;
     }
-    let hub = Hub::new(hub_config, trace)?.start();
+    let hub = Hub::new(hub_config, sinks)?.start();
     let plant: PlantHandle = Rc::new(RefCell::new(Plant::new(c.plant.clone(), c.seed)));
     let display: Option<DisplayHandle> = c.monitor.enabled.then(DisplayHandle::default);
     let mut running = Running {

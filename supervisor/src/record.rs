@@ -1,14 +1,15 @@
 //! `--record FILE`: where the hub's trace goes.
 //!
-//! Contract: a file whose name ends in `.asc` (any case) gets Vector ASC, any other file the
-//! candump log the hub writes. [`create`] gives the hub its writer ([`Feed`]) and the caller the
+//! Contract: a file whose name ends in `.asc` (any case) gets Vector ASC, any other file a
+//! candump log, both written from the hub's trace records ([`bus::trace`]). [`create`] gives the
+//! hub its sink ([`Feed`]) and the caller the
 //! [`Trace`], which [`Trace::finish`] ends once the run is over: for ASC a comment line when the
 //! run was interrupted, then the `End TriggerBlock` footer; then the file is put in place whole
 //! ([`crate::output`]: a regular file is replaced only by a complete trace, a stream ends on a
 //! whole line). The first write that fails stops the trace; `finish` reports it, naming the file.
 //! A file that cannot be created is an [`crate::OutputFailed`] naming it.
 //!
-//! Timestamps: the hub writes bus time stamped with the run's [`Epoch`] ([`epoch`] picks it:
+//! Timestamps: a candump log has bus time stamped with the run's [`Epoch`] ([`epoch`] picks it:
 //! `--start-time`, else the wall clock at the start of a real-time run, else
 //! [`Epoch::FIXED`]); an ASC file is dated at that epoch and its times count from it.
 
@@ -16,6 +17,7 @@ use crate::OutputFailed;
 use crate::output::{Output, failed};
 use crate::stop::Signal;
 use bus::time::Epoch;
+use bus::trace::{CandumpWriter, Record, Sink};
 use bus::tracefile::AscWriter;
 use std::cell::RefCell;
 use std::io::{self, Write};
@@ -27,7 +29,7 @@ pub fn is_asc(path: &Path) -> bool {
     path.extension().is_some_and(|e| e.eq_ignore_ascii_case("asc"))
 }
 
-/// The output, shared by the ASC converter and the end of the trace.
+/// The output, shared by the format's writer and the end of the trace.
 #[derive(Clone)]
 struct Shared(Rc<RefCell<Output>>);
 
@@ -41,7 +43,7 @@ impl Write for Shared {
 }
 
 enum Format {
-    Log,
+    Log(CandumpWriter<Shared>),
     Asc(AscWriter<Shared>),
 }
 
@@ -53,7 +55,7 @@ struct State {
     error: Option<String>,
 }
 
-/// The writer the hub writes candump lines to.
+/// The sink the hub hands its records to.
 pub struct Feed(Rc<RefCell<State>>);
 
 impl Feed {
@@ -70,17 +72,17 @@ impl Feed {
     }
 }
 
-impl Write for Feed {
-    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+impl Sink for Feed {
+    fn record(&mut self, r: &Record<'_>) -> io::Result<()> {
         self.guard(|s| match s.format.as_mut() {
-            Some(Format::Log) => s.out.as_mut().map_or(Ok(buf.len()), |o| o.write(buf)),
-            Some(Format::Asc(a)) => a.write(buf),
+            Some(Format::Log(c)) => c.record(r),
+            Some(Format::Asc(a)) => a.record(r),
             None => Err(io::Error::other("the trace has ended")),
         })
     }
     fn flush(&mut self) -> io::Result<()> {
         self.guard(|s| match s.format.as_mut() {
-            Some(Format::Log) => s.out.as_mut().map_or(Ok(()), |o| o.flush()),
+            Some(Format::Log(c)) => c.flush(),
             Some(Format::Asc(a)) => a.flush(),
             None => Ok(()),
         })
@@ -106,14 +108,14 @@ pub fn parse_start_time(text: &str) -> Result<Epoch, String> {
 }
 
 /// Starts the trace file at `path`, in the format its name asks for, for a run whose trace is
-/// stamped with `epoch`: the hub's writer and the trace to finish.
-pub fn create(path: &Path, epoch: Epoch) -> Result<(Box<dyn Write>, Trace), OutputFailed> {
+/// stamped with `epoch`: the hub's sink and the trace to finish.
+pub fn create(path: &Path, epoch: Epoch) -> Result<(Box<dyn Sink>, Trace), OutputFailed> {
     let out = Shared(Rc::new(RefCell::new(Output::create(path)?)));
     let format = if is_asc(path) {
         let asc = AscWriter::new(out.clone(), epoch).map_err(|e| failed("write", path, &e))?;
         Format::Asc(asc)
     } else {
-        Format::Log
+        Format::Log(CandumpWriter::new(out.clone(), epoch))
     };
     let state = Rc::new(RefCell::new(State {
         format: Some(format),
@@ -127,8 +129,8 @@ pub fn create(path: &Path, epoch: Epoch) -> Result<(Box<dyn Write>, Trace), Outp
     Ok((Box::new(Feed(state)), trace))
 }
 
-/// The hub's writer and the trace to finish, when there is a trace.
-pub type Recording = (Option<Box<dyn Write>>, Option<Trace>);
+/// The hub's sink and the trace to finish, when there is a trace.
+pub type Recording = (Option<Box<dyn Sink>>, Option<Trace>);
 
 /// [`create`] for an optional `--record`.
 pub fn create_opt(path: Option<&PathBuf>, epoch: Epoch) -> Result<Recording, OutputFailed> {
@@ -156,7 +158,10 @@ impl Trace {
         let Some(mut out) = out else {
             return Ok(());
         };
-        if let Some(Format::Asc(mut asc)) = format {
+        // The format's writer holds the output too: it is done with before the output is.
+        if let Some(Format::Log(mut log)) = format {
+            log.flush().map_err(|e| failed("write", &self.path, &e))?;
+        } else if let Some(Format::Asc(mut asc)) = format {
             let mut end = || -> io::Result<()> {
                 asc.flush()?;
                 if let Some(sig) = interrupted {
@@ -201,8 +206,14 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("t.asc");
         let (mut feed, trace) = create(&path, Epoch::UNIX).unwrap();
-        feed.write_all(b"(0000000001.000100) harv0 0601F5D0#200D0002FFBFFF00\n")
-            .unwrap();
+        let frame = bus::candump::parse_frame("0601F5D0#200D0002FFBFFF00").unwrap();
+        let record = Record {
+            at: bus::time::BusTime::from_millis(1000),
+            bus: "harv0",
+            source: bus::trace::Source::Bus,
+            kind: bus::trace::Kind::Frame(frame),
+        };
+        feed.record(&record).unwrap();
         assert!(!path.exists(), "not there before it is complete");
         trace.finish(Some(Signal::Term)).unwrap();
         let text = std::fs::read_to_string(&path).unwrap();
@@ -213,6 +224,6 @@ mod tests {
             "{text}"
         );
         assert!(text.contains("0601F5D0x"), "{text}");
-        assert!(feed.write_all(b"late\n").is_err(), "nothing after the end");
+        assert!(feed.record(&record).is_err(), "nothing after the end");
     }
 }

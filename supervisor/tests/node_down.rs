@@ -42,7 +42,7 @@ fn a_node_down_by_itself_is_exit_4_and_an_injected_crash_is_not() {
     h.config.restart.max_restarts = 0;
     let system = System::with_tokio_rt(|| runtime(true).expect("a tokio runtime"));
     let (down, events) = system.block_on(async move {
-        let mut running = harvester::start(&h, false, None).await.unwrap();
+        let mut running = harvester::start(&h, false, Vec::new()).await.unwrap();
         let d3 = running.node("D3").unwrap();
         let faulty = NodeActor::new("D3", Box::new(Faulty)).start();
         running

@@ -137,48 +137,85 @@ fn python_can_reads_what_harvemu_writes() {
 }
 
 #[test]
-fn python_can_reads_error_frames_and_remote_frames_harvemu_writes() {
+fn a_candump_log_and_an_asc_file_of_the_same_records_agree_frame_by_frame() {
+    use bus::trace::{CandumpWriter, ErrorFrame, Kind, Record, Sink, Source};
     require_python_can();
     let d = dir();
-    // A candump log with a bus error frame (as the hub writes it) and remote frames, converted to
-    // ASC by the same writer `--record FILE.asc` uses.
-    let log = "(0.500000) harv0 0300A0F5#0101\n\
-               (0.600000) harv0 200002A8#0000801900000800\n\
-               (0.700000) harv0 7FF#R8\n\
-               (0.800000) harv0 00000005#R\n";
-    let asc_path = d.join("errors.asc");
+    // Frames, remote frames and a controller's bus error, as the hub hands them to its sinks,
+    // written by the two writers `--record` uses.
+    let data = |id: u32, bytes: &[u8]| {
+        Kind::Frame(bus::Frame::new_data(bus::extended_id(id).unwrap(), bytes).unwrap())
+    };
+    let base_remote = Kind::Frame(bus::Frame::new_remote(bus::standard_id(0x7FF).unwrap(), 8).unwrap());
+    let ext_remote = Kind::Frame(bus::Frame::new_remote(bus::extended_id(5).unwrap(), 0).unwrap());
+    let ack = Kind::Error(ErrorFrame {
+        can_id: 0x2000_02A8,
+        data: [0, 0, 0x80, 0x19, 0, 0, 0x08, 0],
+    });
+    let e0 = Source::Controller {
+        node: bus::engine::NodeId(0),
+        name: "E0",
+    };
+    let records = [
+        (500_000, Source::Bus, data(0x0300_A0F5, &[1, 1])),
+        (600_000, e0, ack),
+        (700_000, Source::Bus, base_remote),
+        (800_000, Source::Bus, ext_remote),
+        (
+            900_001,
+            Source::Bus,
+            data(0x1FFF_FFFF, &[0xF8, 0xF9, 0xFA, 0xFB, 0xFC, 0xFD, 0xFE, 0xFF]),
+        ),
+    ];
+    let (log_path, asc_path) = (d.join("records.log"), d.join("records.asc"));
     {
-        use std::io::Write;
-        let file = std::fs::File::create(&asc_path).unwrap();
-        let mut w = bus::tracefile::AscWriter::new(file, bus::time::Epoch::UNIX).unwrap();
-        w.write_all(log.as_bytes()).unwrap();
-        w.finish().unwrap();
+        let epoch = bus::time::Epoch::from_secs(1_704_067_200);
+        let mut log = CandumpWriter::new(std::fs::File::create(&log_path).unwrap(), epoch);
+        let mut asc =
+            bus::tracefile::AscWriter::new(std::fs::File::create(&asc_path).unwrap(), epoch).unwrap();
+        for (us, source, kind) in records {
+            let r = Record {
+                at: bus::time::BusTime::from_micros(us),
+                bus: "harv0",
+                source,
+                kind,
+            };
+            log.record(&r).unwrap();
+            asc.record(&r).unwrap();
+        }
+        log.flush().unwrap();
+        asc.finish().unwrap();
     }
-    let log_path = d.join("errors.log");
-    std::fs::write(&log_path, log).unwrap();
-    for path in [&log_path, &asc_path] {
-        let got = python(DUMP, path);
-        let shape: Vec<(u64, bool, bool, u64)> = got
-            .iter()
-            .map(|m| {
-                (
-                    m["t_us"].as_u64().unwrap(),
-                    m["error"].as_bool().unwrap(),
-                    m["remote"].as_bool().unwrap(),
-                    m["dlc"].as_u64().unwrap(),
-                )
-            })
-            .collect();
-        assert_eq!(
-            shape[1..3],
-            [(600_000, true, false, 0), (700_000, false, true, 8)],
-            "{path:?}"
-        );
-        assert_eq!(shape[3], (800_000, false, true, 0), "{path:?}");
-        assert_eq!(
-            (got[3]["id"].as_u64(), got[3]["ext"].as_bool()),
-            (Some(5), Some(true))
-        );
+    // What the candump format and python-can make of these records, written out by hand.
+    let at = |us: u64| 1_704_067_200_000_000 + us;
+    let frame = |us, id: u32, ext, remote, dlc: u64, data: &str| {
+        serde_json::json!({"t_us": at(us), "error": false, "id": id, "ext": ext,
+                           "remote": remote, "dlc": dlc, "data": data})
+    };
+    let want = [
+        frame(500_000, 0x0300_A0F5, true, false, 2, "0101"),
+        frame(700_000, 0x7FF, false, true, 8, ""),
+        frame(800_000, 5, true, true, 0, ""),
+        frame(900_001, 0x1FFF_FFFF, true, false, 8, "f8f9fafbfcfdfeff"),
+    ];
+    let log = python(DUMP, &log_path);
+    let asc = python(DUMP, &asc_path);
+    assert_eq!(log.len(), 5, "{log:?}");
+    assert_eq!(asc.len(), 5, "{asc:?}");
+    for (i, (l, a)) in log.iter().zip(&asc).enumerate() {
+        if i == 1 {
+            // The bus error: python-can keeps its time and that it is an error frame.
+            for m in [l, a] {
+                assert_eq!(
+                    (m["t_us"].as_u64(), m["error"].as_bool()),
+                    (Some(at(600_000)), Some(true))
+                );
+            }
+        } else {
+            let w = &want[if i == 0 { 0 } else { i - 1 }];
+            assert_eq!(l, w, "candump log, message {i}");
+            assert_eq!(a, w, "ASC, message {i}");
+        }
     }
 }
 

@@ -20,7 +20,7 @@ fn watch(
     mut each: impl FnMut(BusTime, &mut Plant, &Display) -> bool + 'static,
 ) {
     System::with_tokio_rt(|| runtime(true).unwrap()).block_on(async move {
-        let running = harvester::start(&h, false, None).await.unwrap();
+        let running = harvester::start(&h, false, Vec::new()).await.unwrap();
         let display = running.display.clone().expect("the monitor is on");
         let mut t = h.relay();
         while t < BusTime::from_secs(until_s) {

@@ -6,7 +6,7 @@ use actix::prelude::*;
 use bus::time::BusTime;
 use bus::tracefile::{self, ErrorFrames};
 use bus_runtime::hub::{RunUntil, runtime};
-use harvemu_e2e::{Line, Shared, default_harvester, parse_trace};
+use harvemu_e2e::{Line, Shared, candump, default_harvester, parse_trace};
 use nodes::monitor::Display;
 use protocol::ident::Address;
 use supervisor::harvester::{self, Harvester};
@@ -26,7 +26,7 @@ fn run(h: Harvester, trace: Option<&str>, until: BusTime) -> (Vec<Line>, Display
         Schedule::from_records(records, &skip, Passes::Times(1))
     });
     let (display, played) = System::with_tokio_rt(|| runtime(true).expect("runtime")).block_on(async move {
-        let mut running = harvester::start(&h, false, Some(Box::new(o)))
+        let mut running = harvester::start(&h, false, vec![candump(o, &h)])
             .await
             .expect("starts");
         let mut played = Played::default();
@@ -81,7 +81,7 @@ fn a_replayed_flow_sensor_drives_the_monitor_as_the_real_one_did() {
     let o = out.clone();
     let h = default_harvester();
     let original_display = System::with_tokio_rt(|| runtime(true).unwrap()).block_on(async move {
-        let running = harvester::start(&h, false, Some(Box::new(o))).await.unwrap();
+        let running = harvester::start(&h, false, vec![candump(o, &h)]).await.unwrap();
         running.hub.send(RunUntil(until)).await.unwrap().unwrap();
         running.display.as_ref().unwrap().borrow().clone()
     });

@@ -4,7 +4,7 @@
 
 use bus::fault::ErrorState;
 use clap::Parser;
-use harvemu_e2e::{Shared, default_harvester, parse_trace, root};
+use harvemu_e2e::{Shared, candump, default_harvester, parse_trace, root};
 use std::collections::{BTreeMap, BTreeSet};
 use supervisor::BadInput;
 use supervisor::scenario::{self, Action, RandomFault, Target, random};
@@ -46,7 +46,7 @@ fn a_short_soak_with_dense_random_faults_balances_its_books() {
     std::fs::write(&file, SCENARIO.replace("CONFIG", &config.display().to_string())).unwrap();
     let loaded = scenario::load(&file, Some(77)).unwrap();
     let trace = Shared::default();
-    let outcome = scenario::run(&loaded, Some(Box::new(trace.clone())), |_| {}).unwrap();
+    let outcome = scenario::run(&loaded, Some(candump(trace.clone(), &loaded.harvester)), |_| {}).unwrap();
     std::fs::remove_dir_all(&dir).unwrap();
     for v in &outcome.verdicts {
         println!("{} {} -> {}", v.passed, v.expectation, v.observed);

@@ -31,13 +31,13 @@
 use crate::Error;
 use crate::node::{Answer, Reply, Wake};
 use actix::prelude::*;
+use bus::Frame;
 use bus::engine::{Bus, BusConfig, ControllerConfig, ControllerCounters, Event, NodeId, Rule, RuleId, Stats};
 use bus::fault::ErrorState;
 use bus::node::{ControllerEvent, Report};
 use bus::pacing::{Overruns, Pace, Pacer};
 use bus::time::{BusDuration, BusTime, Epoch};
-use bus::{Frame, trace};
-use std::io::Write;
+use bus::trace::{Record, Sink};
 use std::time::Duration;
 use tokio::sync::oneshot;
 
@@ -58,8 +58,8 @@ pub struct HubConfig {
     /// When paced: how far bus time may fall behind its schedule before it slips instead of
     /// catching up ([`bus::pacing`]; [`bus::pacing::OVERRUN_THRESHOLD`] by default).
     pub overrun_threshold: Duration,
-    /// Where bus time zero lies on the wall clock in the trace's timestamps and the gateway's
-    /// frames ([`Epoch`]): by default the wall clock when the config is made if paced, else
+    /// Where bus time zero lies on the wall clock for the gateway's frames ([`GetEpoch`]; a
+    /// trace sink is given its epoch by whoever makes it, the same one in harvemu) ([`Epoch`]): by default the wall clock when the config is made if paced, else
     /// [`Epoch::FIXED`]. Bus time itself starts at zero either way.
     pub epoch: Epoch,
 }
@@ -179,12 +179,24 @@ pub struct Hub {
     armed: u64,
     stop_at: Option<BusTime>,
     on_stop: Vec<oneshot::Sender<BusTime>>,
-    trace: Option<Box<dyn Write>>,
+    /// Where the trace goes; a sink that failed is dropped.
+    sinks: Vec<Box<dyn Sink>>,
+    /// The first error of a sink.
     trace_error: Option<String>,
-    line: String,
     scratch: Vec<Event>,
     wakes: u64,
     observers: Vec<Observer>,
+}
+
+/// False when a sink failed: it is given nothing more, and the first error is kept.
+fn kept(result: std::io::Result<()>, error: &mut Option<String>) -> bool {
+    match result {
+        Ok(()) => true,
+        Err(e) => {
+            error.get_or_insert_with(|| e.to_string());
+            false
+        }
+    }
 }
 
 /// A frame as an observer of the bus sees it.
@@ -204,8 +216,8 @@ struct Observer {
 }
 
 impl Hub {
-    /// A hub with no nodes; `trace` receives the candump log when given.
-    pub fn new(config: HubConfig, trace: Option<Box<dyn Write>>) -> Result<Hub, Error> {
+    /// A hub with no nodes; each of `sinks` receives the trace's records ([`bus::trace`]).
+    pub fn new(config: HubConfig, sinks: Vec<Box<dyn Sink>>) -> Result<Hub, Error> {
         Ok(Hub {
             bus: Bus::new(config.bus)?,
             iface: config.iface,
@@ -225,9 +237,8 @@ impl Hub {
             armed: 0,
             stop_at: None,
             on_stop: Vec::new(),
-            trace,
+            sinks,
             trace_error: None,
-            line: String::with_capacity(256),
             scratch: Vec::with_capacity(64),
             wakes: 0,
             observers: Vec::new(),
@@ -361,20 +372,16 @@ impl Hub {
         let mut due: Option<BusTime> = None;
         self.scratch.extend(self.bus.take_events());
         for event in self.scratch.drain(..) {
-            if let Some(out) = self.trace.as_mut() {
-                self.line.clear();
+            if !self.sinks.is_empty() {
                 let controllers = self.bus.controllers();
                 let name = |n: NodeId| {
                     controllers
                         .get(n.index())
                         .map_or("?", |c| c.config().name.as_str())
                 };
-                trace::event_line(&mut self.line, self.epoch, &self.iface, name, &event);
-                if !self.line.is_empty()
-                    && let Err(e) = out.write_all(self.line.as_bytes())
-                {
-                    self.trace_error = Some(e.to_string());
-                    self.trace = None;
+                if let Some(record) = Record::of_event(&self.iface, name, &event) {
+                    let error = &mut self.trace_error;
+                    self.sinks.retain_mut(|s| kept(s.record(&record), error));
                 }
             }
             if let Event::Frame { end, node, frame, .. } = event {
@@ -504,14 +511,15 @@ impl Hub {
         false
     }
 
+    fn flush_sinks(&mut self) {
+        let error = &mut self.trace_error;
+        self.sinks.retain_mut(|s| kept(s.flush(), error));
+    }
+
     fn finish(&mut self, at: BusTime) {
         self.now = self.now.max(at);
         self.bus.advance_stats(at);
-        if let Some(out) = self.trace.as_mut()
-            && let Err(e) = out.flush()
-        {
-            self.trace_error = Some(e.to_string());
-        }
+        self.flush_sinks();
         self.paused = true;
         self.stop_at = None;
         for tx in self.on_stop.drain(..) {
@@ -555,9 +563,7 @@ impl Actor for Hub {
     }
 
     fn stopped(&mut self, _ctx: &mut Context<Self>) {
-        if let Some(out) = self.trace.as_mut() {
-            let _ = out.flush();
-        }
+        self.flush_sinks();
     }
 }
 
@@ -628,6 +634,23 @@ impl Handler<RunUntil> for Hub {
         self.paused = false;
         self.pump(ctx);
         Box::pin(async move { rx.await.map_err(|_| Error::HubStopped) })
+    }
+}
+
+/// Brings the trace up to date: the bus stops at the present bus time (a run in progress ends
+/// there, and its [`RunUntil`] answers with it) and every sink is flushed. Answers with that
+/// time. A caller sends it before it reads the end of the trace: a file to finish, a count, a
+/// snapshot's `trace_error`.
+#[derive(Message)]
+#[rtype(result = "Result<BusTime, Error>")]
+pub struct FlushTrace;
+
+impl Handler<FlushTrace> for Hub {
+    type Result = ResponseFuture<Result<BusTime, Error>>;
+    fn handle(&mut self, _: FlushTrace, ctx: &mut Context<Self>) -> Self::Result {
+        // Stopping at the present flushes (`finish`), once the nodes woken, if any, have answered.
+        let present = self.now.max(self.bus.committed());
+        self.handle(RunUntil(present), ctx)
     }
 }
 

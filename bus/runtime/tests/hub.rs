@@ -6,7 +6,8 @@ use actix::prelude::*;
 use bus::candump::parse_frame;
 use bus::engine::{BitPosition, BusConfig, ControllerConfig, Effect, Rule, Schedule, SeenBy, Target};
 use bus::node::NodeLogic;
-use bus::time::BusTime;
+use bus::time::{BusTime, Epoch};
+use bus::trace::{CandumpWriter, Sink};
 use bus::{Frame, bits};
 use bus_runtime::hub::{Attach, Control, GetSnapshot, Hub, HubConfig, RunUntil, runtime};
 use bus_runtime::node::NodeActor;
@@ -81,6 +82,11 @@ fn stamp(ns: u64) -> bus::time::Stamp {
     bus::time::Stamp(NEW_YEAR_2024_NS + ns)
 }
 
+/// The hub's trace as a candump log into `t` (these hubs run in virtual time: the fixed epoch).
+fn candump(t: Shared) -> Vec<Box<dyn Sink>> {
+    vec![Box::new(CandumpWriter::new(t, Epoch::FIXED))]
+}
+
 fn lines(trace: &Shared) -> Vec<String> {
     String::from_utf8(trace.0.borrow().clone())
         .unwrap()
@@ -94,9 +100,7 @@ fn periodic_frames_start_exactly_on_their_deadlines() {
     let trace = Shared::default();
     let t = trace.clone();
     in_virtual_time(async move {
-        let hub = Hub::new(HubConfig::new(false), Some(Box::new(t)))
-            .unwrap()
-            .start();
+        let hub = Hub::new(HubConfig::new(false), candump(t)).unwrap().start();
         attach(
             &hub,
             "a",
@@ -139,9 +143,7 @@ fn reaction_time_delays_the_reply() {
     let trace = Shared::default();
     let t = trace.clone();
     in_virtual_time(async move {
-        let hub = Hub::new(HubConfig::new(false), Some(Box::new(t)))
-            .unwrap()
-            .start();
+        let hub = Hub::new(HubConfig::new(false), candump(t)).unwrap().start();
         attach(&hub, "a", Box::new(Periodic::new("123#01", 10, 0)), 0).await;
         attach(
             &hub,
@@ -174,7 +176,7 @@ fn reaction_time_delays_the_reply() {
 #[test]
 fn a_hung_node_overruns_and_resumes() {
     let snap = in_virtual_time(async move {
-        let hub = Hub::new(HubConfig::new(false), None).unwrap().start();
+        let hub = Hub::new(HubConfig::new(false), Vec::new()).unwrap().start();
         attach(
             &hub,
             "a",
@@ -238,7 +240,7 @@ fn run_with(seed: u64, rules: Vec<Rule>) -> Vec<u8> {
             },
             ..HubConfig::new(false)
         };
-        let hub = Hub::new(config, Some(Box::new(t))).unwrap().start();
+        let hub = Hub::new(config, candump(t)).unwrap().start();
         for (i, period) in [(0u8, 10u64), (1, 20), (2, 50), (3, 7)] {
             let text = format!("06{:02X}F5D{i}#0102030405060708", i);
             attach(
@@ -345,7 +347,7 @@ fn same_seed_same_trace_byte_for_byte() {
 fn real_time_paces_the_bus() {
     let started = std::time::Instant::now();
     let snap = System::with_tokio_rt(|| runtime(false).unwrap()).block_on(async {
-        let hub = Hub::new(HubConfig::new(true), None).unwrap().start();
+        let hub = Hub::new(HubConfig::new(true), Vec::new()).unwrap().start();
         attach(&hub, "a", Box::new(Periodic::new("123#01", 20, 0)), 0).await;
         attach(
             &hub,
@@ -382,7 +384,7 @@ fn pacing_follows_the_config_not_the_runtime() {
     ] {
         let started = std::time::Instant::now();
         let snap = System::with_tokio_rt(move || runtime(virtual_runtime).unwrap()).block_on(async move {
-            let hub = Hub::new(HubConfig::new(paced), None).unwrap().start();
+            let hub = Hub::new(HubConfig::new(paced), Vec::new()).unwrap().start();
             attach(&hub, "a", Box::new(Periodic::new("123#01", 20, 0)), 0).await;
             hub.send(RunUntil(until)).await.unwrap().unwrap();
             hub.send(GetSnapshot).await.unwrap()
@@ -430,7 +432,7 @@ impl NodeLogic for Stall {
 fn a_stall_slips_bus_time_instead_of_bursting() {
     let started = std::time::Instant::now();
     let snap = System::with_tokio_rt(|| runtime(false).unwrap()).block_on(async {
-        let hub = Hub::new(HubConfig::new(true), None).unwrap().start();
+        let hub = Hub::new(HubConfig::new(true), Vec::new()).unwrap().start();
         attach(&hub, "a", Box::new(Periodic::new("123#01", 10, 0)), 0).await;
         let stall = Stall {
             at: BusTime::from_millis(100),
@@ -460,9 +462,7 @@ fn three_nodes_contend_and_win_in_identifier_order() {
     let trace = Shared::default();
     let t = trace.clone();
     in_virtual_time(async move {
-        let hub = Hub::new(HubConfig::new(false), Some(Box::new(t)))
-            .unwrap()
-            .start();
+        let hub = Hub::new(HubConfig::new(false), candump(t)).unwrap().start();
         // All three deadlines at 1 ms: frame lengths 151, 142 and 74 bits (docs/CAN.md, test vectors).
         attach(
             &hub,

@@ -1,49 +1,39 @@
-//! An ASC file fed with candump log lines.
+//! An ASC file written from the hub's typed trace records.
 //!
-//! The hub writes its trace as candump log lines into any `Write`; recording ASC instead is this
-//! `Write` in between, which turns each complete line into its ASC line as it arrives. So the
-//! hub, the harvester assembly and every caller stay unaware of the format, and both formats come
-//! from the same events.
-//!
-//! Contract: the header, dated at the measurement's epoch, is written on creation, each candump line becomes one ASC line (frames,
-//! and `ErrorFrame` for SocketCAN error frames, whose class bits ASC cannot carry), `flush`
-//! flushes the file, and the end of the measurement is written by [`AscWriter::finish`] or, at
-//! the latest, when the writer is dropped (an interrupted run still gives a complete file). A line
-//! that is not a candump log line is an `InvalidData` error, and nothing of it is written.
+//! Contract: the header, dated at the measurement's epoch, is written on creation; each record
+//! becomes one ASC line at its bus time (frames on channel 1, and `ErrorFrame` for a
+//! controller's error frame, whose class bits and interface ASC cannot carry); `flush` flushes
+//! the file; the end of the measurement is written by [`AscWriter::finish`] or, at the latest,
+//! when the writer is dropped (an interrupted run still gives a complete file). After `finish`
+//! records are refused.
 
-use super::Entry;
 use super::asc;
-use super::candump_log::parse_line;
 use crate::time::Epoch;
+use crate::trace::{Kind, Record, Sink};
 use std::io::{self, Write};
 
-/// Writes ASC to `W` from candump log lines.
+/// Writes ASC to `W` from trace records.
 pub struct AscWriter<W: Write> {
     inner: W,
-    pending: Vec<u8>,
     out: String,
     finished: bool,
-    epoch: Epoch,
 }
 
 impl<W: Write> AscWriter<W> {
-    /// Starts a measurement that began at `epoch` and writes its header, dated `epoch`. The
-    /// candump lines fed to it carry times stamped with the same epoch (as the hub writes them);
-    /// ASC times are relative to the start, so each is written less the epoch.
+    /// Starts a measurement that began at `epoch` and writes its header, dated `epoch`. ASC
+    /// times are relative to the start: a record's bus time is written as it is.
     pub fn new(mut inner: W, epoch: Epoch) -> io::Result<AscWriter<W>> {
         let mut out = String::with_capacity(256);
         asc::header(&mut out, epoch.system_time());
         inner.write_all(out.as_bytes())?;
         Ok(AscWriter {
             inner,
-            pending: Vec::with_capacity(256),
             out,
             finished: false,
-            epoch,
         })
     }
 
-    /// Writes the end of the measurement and flushes; later writes are refused.
+    /// Writes the end of the measurement and flushes; later records are refused.
     pub fn finish(&mut self) -> io::Result<()> {
         if !self.finished {
             self.finished = true;
@@ -53,36 +43,19 @@ impl<W: Write> AscWriter<W> {
         }
         self.inner.flush()
     }
-
-    fn convert(&mut self, line: &[u8]) -> io::Result<()> {
-        let invalid = |m: String| io::Error::new(io::ErrorKind::InvalidData, m);
-        let text = std::str::from_utf8(line).map_err(|e| invalid(e.to_string()))?;
-        let text = text.trim();
-        if text.is_empty() {
-            return Ok(());
-        }
-        let (at, entry) = parse_line(text).map_err(invalid)?;
-        let at = self.epoch.unstamp(at);
-        self.out.clear();
-        match entry {
-            Entry::Frame(frame) => asc::frame_line(&mut self.out, at, 1, &frame),
-            Entry::Error(_) => asc::error_line(&mut self.out, at, 1),
-        }
-        self.inner.write_all(self.out.as_bytes())
-    }
 }
 
-impl<W: Write> Write for AscWriter<W> {
-    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+impl<W: Write> Sink for AscWriter<W> {
+    fn record(&mut self, r: &Record<'_>) -> io::Result<()> {
         if self.finished {
             return Err(io::Error::other("the ASC measurement has ended"));
         }
-        self.pending.extend_from_slice(buf);
-        while let Some(end) = self.pending.iter().position(|&b| b == b'\n') {
-            let line: Vec<u8> = self.pending.drain(..=end).collect();
-            self.convert(&line)?;
+        self.out.clear();
+        match &r.kind {
+            Kind::Frame(frame) => asc::frame_line(&mut self.out, r.at, 1, frame),
+            Kind::Error(_) => asc::error_line(&mut self.out, r.at, 1),
         }
-        Ok(buf.len())
+        self.inner.write_all(self.out.as_bytes())
     }
 
     fn flush(&mut self) -> io::Result<()> {

@@ -21,8 +21,8 @@
 //!   log is seconds since 1970, an ASC time is seconds since the start of the measurement); no
 //!   floating point is involved. An ASC file whose header says `timestamps relative` has each
 //!   time relative to the previous timestamped line's; the reader gives the accumulated times.
-//! - [`asc`] formats ASC lines; [`AscWriter`] turns the candump log that the hub writes into an
-//!   ASC file as it is written.
+//! - [`asc`] formats ASC lines; [`AscWriter`] is a trace sink ([`crate::trace::Sink`]) that
+//!   writes the hub's records as an ASC file.
 
 pub mod asc;
 mod candump_log;

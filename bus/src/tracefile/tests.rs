@@ -1,7 +1,7 @@
 use super::*;
 use crate::candump::parse_frame;
 use crate::time::BusTime;
-use crate::trace::{err, frame_line};
+use crate::trace::err;
 use proptest::prelude::*;
 use std::time::{Duration, UNIX_EPOCH};
 
@@ -304,47 +304,48 @@ fn asc_header_and_lines() {
 }
 
 #[test]
-fn the_asc_writer_converts_candump_lines_and_ends_the_file_when_dropped() {
+fn the_asc_writer_writes_the_lines_of_the_format_and_ends_the_file_when_dropped() {
+    // docs/TRACES.md's example: 2024-01-01T00:00:00Z was a Monday; ASC times count from it.
     let mut file = Vec::new();
     {
-        let mut w = AscWriter::new(&mut file, crate::time::Epoch::UNIX).unwrap();
-        // Lines may arrive in pieces.
-        w.write_all(b"(0.500000) harv0 0300A0F5#01").unwrap();
-        w.write_all(b"01\n(0.600000) harv0 200002A8#0000801900000800\n")
-            .unwrap();
-        let e = w.write_all(b"nonsense\n").unwrap_err();
-        assert_eq!(e.kind(), std::io::ErrorKind::InvalidData);
+        let mut w = AscWriter::new(&mut file, crate::time::Epoch::from_secs(1_704_067_200)).unwrap();
+        for r in crate::trace::tests::example() {
+            w.record(&r).unwrap();
+        }
     }
-    let text = String::from_utf8(file).unwrap();
-    assert!(text.ends_with(
-        "   0.500000 1  0300A0F5x       Rx   d 2 01 01\n   0.600000 1  ErrorFrame\nEnd TriggerBlock\n"
-    ));
-    assert_eq!(text.matches("End TriggerBlock").count(), 1);
+    assert_eq!(
+        String::from_utf8(file).unwrap(),
+        "date Mon Jan 01 12:00:00.000 am 2024\n\
+         base hex  timestamps absolute\n\
+         internal events logged\n\
+         // version 9.0.0\n\
+         Begin Triggerblock Mon Jan 01 12:00:00.000 am 2024\n\
+         \x20  0.000000 Start of measurement\n\
+         \x20  0.551520 1  0200F5E0x       Rx   d 7 10 78 00 F4 01 00 00\n\
+         \x20  0.600000 1  123             Rx   r 4\n\
+         \x20  0.700000 1  ErrorFrame\n\
+         End TriggerBlock\n"
+    );
 }
 
 #[test]
-fn the_asc_writer_dates_its_header_at_the_epoch_and_writes_times_from_it() {
-    // 2024-01-01T00:00:00Z was a Monday; a line at the epoch plus 1.25 s is 1.25 s into the
-    // measurement.
-    let epoch = crate::time::Epoch::from_secs(1_704_067_200);
+fn the_asc_writer_refuses_records_once_finished() {
     let mut file = Vec::new();
-    {
-        let mut w = AscWriter::new(&mut file, epoch).unwrap();
-        w.write_all(b"(1704067201.250000) harv0 123#01\n").unwrap();
-        w.finish().unwrap();
-    }
-    let text = String::from_utf8(file).unwrap();
-    assert!(
-        text.starts_with("date Mon Jan 01 12:00:00.000 am 2024\n"),
-        "{text}"
-    );
-    assert!(
-        text.contains("\n   1.250000 1  123             Rx   d 1 01\n"),
-        "{text}"
+    let mut w = AscWriter::new(&mut file, crate::time::Epoch::UNIX).unwrap();
+    w.finish().unwrap();
+    let r = crate::trace::tests::example()[0];
+    assert!(w.record(&r).is_err());
+    drop(w);
+    assert_eq!(
+        String::from_utf8(file)
+            .unwrap()
+            .matches("End TriggerBlock")
+            .count(),
+        1
     );
 }
 
-use std::io::Write;
+use crate::trace::{CandumpWriter, Kind, Sink, Source};
 
 /// The candump log line of a frame, written here independently of `bus::trace`.
 fn reference_line(at_us: u64, id: u32, extended: bool, remote: Option<u8>, data: &[u8]) -> String {
@@ -381,34 +382,49 @@ fn spec() -> impl Strategy<Value = Spec> {
         })
 }
 
+fn spec_frame(id: u32, extended: bool, remote: Option<u8>, data: &[u8]) -> Frame {
+    let id: crate::Id = if extended {
+        crate::extended_id(id).unwrap().into()
+    } else {
+        crate::standard_id(id as u16).unwrap().into()
+    };
+    match remote {
+        Some(dlc) => Frame::new_remote(id, dlc.into()).unwrap(),
+        None => Frame::new_data(id, data).unwrap(),
+    }
+}
+
 proptest! {
-    /// candump -> ASC -> candump gives the same text back, and the ASC reader sees the same
-    /// frames the candump reader sees.
+    /// The same records written as a candump log and as ASC: the log is the text the format
+    /// prescribes, and reading both back gives the same frames at the same times.
     #[test]
-    fn candump_to_asc_and_back(specs in prop::collection::vec(spec(), 0..40)) {
+    fn candump_and_asc_from_the_same_records_agree(specs in prop::collection::vec(spec(), 0..40)) {
         let mut at = 0u64;
-        let mut candump = String::new();
-        for (gap, id, extended, remote, data) in &specs {
-            at += gap;
-            candump.push_str(&reference_line(at, *id, *extended, *remote, data));
-        }
-        let mut asc = Vec::new();
+        let mut want = String::new();
+        let (mut log, mut asc) = (Vec::new(), Vec::new());
         {
-            let mut w = AscWriter::new(&mut asc, crate::time::Epoch::UNIX).unwrap();
-            w.write_all(candump.as_bytes()).unwrap();
-            w.finish().unwrap();
-        }
-        let asc = String::from_utf8(asc).unwrap();
-        let from_asc = read_str(&asc, ErrorFrames::Keep).unwrap();
-        let from_candump = read_str(&candump, ErrorFrames::Keep).unwrap();
-        prop_assert_eq!(frames(&from_asc), frames(&from_candump));
-        prop_assert_eq!(from_asc.len(), specs.len());
-        let mut back = String::new();
-        for r in &from_asc {
-            if let Entry::Frame(f) = r.entry {
-                frame_line(&mut back, r.at, "harv0", &f);
+            let mut c = CandumpWriter::new(&mut log, crate::time::Epoch::UNIX);
+            let mut a = AscWriter::new(&mut asc, crate::time::Epoch::UNIX).unwrap();
+            for (gap, id, extended, remote, data) in &specs {
+                // Records are exact to the nanosecond; both formats keep microseconds.
+                at += gap;
+                want.push_str(&reference_line(at / 1_000, *id, *extended, *remote, data));
+                let r = crate::trace::Record {
+                    at: BusTime::from_nanos(at),
+                    bus: "harv0",
+                    source: Source::Bus,
+                    kind: Kind::Frame(spec_frame(*id, *extended, *remote, data)),
+                };
+                c.record(&r).unwrap();
+                a.record(&r).unwrap();
             }
+            a.finish().unwrap();
         }
-        prop_assert_eq!(back, candump);
+        let log = String::from_utf8(log).unwrap();
+        prop_assert_eq!(&log, &want);
+        let from_asc = read_str(&String::from_utf8(asc).unwrap(), ErrorFrames::Keep).unwrap();
+        let from_log = read_str(&log, ErrorFrames::Keep).unwrap();
+        prop_assert_eq!(frames(&from_asc), frames(&from_log));
+        prop_assert_eq!(from_asc.len(), specs.len());
     }
 }

@@ -20,7 +20,7 @@ pub fn run_on_this_thread(h: &Harvester, count: usize, first: u64, seconds: f64)
             let mut h = h.clone();
             h.config.seed = h.config.seed.wrapping_add(first + i);
             running.push(
-                harvester::start(&h, false, None)
+                harvester::start(&h, false, Vec::new())
                     .await
                     .map_err(|e| format!("{e:#}"))?,
             );

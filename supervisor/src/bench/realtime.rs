@@ -141,7 +141,7 @@ pub fn measure(h: &Harvester, seconds: f64) -> Result<Measurement, String> {
     let h = h.clone();
     let started = Instant::now();
     let (jitter, snap) = system.block_on(async move {
-        let mut running = harvester::start(&h, true, None)
+        let mut running = harvester::start(&h, true, Vec::new())
             .await
             .map_err(|e| format!("{e:#}"))?;
         // Large enough for minutes of traffic: the observer must not be the one losing frames.

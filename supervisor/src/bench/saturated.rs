@@ -63,7 +63,7 @@ async fn saturated_bus(seed: u64) -> anyhow::Result<Addr<Hub>> {
         },
         ..HubConfig::new(false)
     };
-    let hub = Hub::new(config, None)?.start();
+    let hub = Hub::new(config, Vec::new())?.start();
     let addresses: Vec<Address> = Address::all().collect();
     for (i, &me) in addresses.iter().enumerate() {
         let to = addresses[(i + 1) % addresses.len()];

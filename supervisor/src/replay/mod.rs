@@ -25,7 +25,7 @@ use actix::prelude::*;
 use bus::engine::{ControllerConfig, Filter, NodeId};
 use bus::time::{BusDuration, BusTime};
 use bus::tracefile::{self, ErrorFrames, Record};
-use bus_runtime::hub::{Attach, GetSnapshot, RunUntil, SubmitAt, runtime};
+use bus_runtime::hub::{Attach, FlushTrace, GetSnapshot, SubmitAt, runtime};
 use protocol::ident::Address;
 use schedule::{Passes, Schedule, Source, Survey};
 use std::collections::BTreeSet;
@@ -268,7 +268,7 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
     let system = System::with_tokio_rt(move || runtime(fast).expect("a tokio runtime"));
     let result = system.block_on(async move {
         let mut stop = Stop::new()?;
-        let mut running = harvester::begin(&h, !fast, trace).await?;
+        let mut running = harvester::begin(&h, !fast, trace.into_iter().collect()).await?;
         let _bridge = match &iface {
             Some(name) => Some(
                 bus_runtime::backend::socketcan::bridge(running.hub.clone(), name)
@@ -304,9 +304,7 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
         if let Some(s) = interrupted {
             eprintln!("\nharvemu: interrupted by {}", s.describe());
         }
-        // Pausing the hub at the present flushes the trace.
-        let now = running.hub.send(GetSnapshot).await?.now;
-        let _ = running.hub.send(RunUntil(now)).await;
+        let _ = running.hub.send(FlushTrace).await;
         let snap = running.hub.send(GetSnapshot).await?;
         eprintln!("{}", crate::run::summary(&snap, &running));
         eprintln!(

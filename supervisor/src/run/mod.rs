@@ -12,7 +12,7 @@ use crate::harvester::{self, Harvester};
 use crate::stop::Stop;
 use actix::prelude::*;
 use bus::time::{BusDuration, BusTime};
-use bus_runtime::hub::{GetSnapshot, RunUntil, Snapshot, runtime};
+use bus_runtime::hub::{FlushTrace, GetSnapshot, Snapshot, runtime};
 use console::Console;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -148,7 +148,7 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
     let system = System::with_tokio_rt(move || runtime(fast).expect("a tokio runtime"));
     let result = system.block_on(async move {
         let mut stop = Stop::new()?;
-        let mut running = harvester::begin(&h, !fast, trace).await?;
+        let mut running = harvester::begin(&h, !fast, trace.into_iter().collect()).await?;
         let mut reported = 0;
         let bridge = match &iface {
             Some(name) => {
@@ -203,9 +203,7 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
             }
         }
         let interrupted = interrupted.or(crate::stop::received());
-        // Pausing the hub at the present flushes the trace.
-        let now = running.hub.send(GetSnapshot).await?.now;
-        let _ = running.hub.send(RunUntil(now)).await;
+        let _ = running.hub.send(FlushTrace).await;
         let snap = running.hub.send(GetSnapshot).await?;
         console.finish(&Summary::of(&snap, &running), interrupted);
         if let Some(b) = &bridge {

@@ -5,19 +5,17 @@
 //! run (no I/O, nothing recomputed from frames). A frame addressed to the monitor that completed
 //! on the bus is counted in exactly one reason; [`MonitorBooks::checks`] states each identity
 //! between two layers (bus, controller, hub, monitor logic) and whether it holds, so an imbalance
-//! says where frames went missing. [`TraceTally`] counts a candump log's lines independently of
-//! the engine, for the check that every completed frame is in the trace.
+//! says where frames went missing. [`TraceTally`] counts the records the hub hands its trace
+//! sinks, apart from the engine's statistics, for the check that every completed frame is in the
+//! trace.
 
 use bus::engine::{ControllerCounters, NodeId};
+use bus::filter::kernel_can_id;
+use bus::trace::{Kind, Record};
 use bus_runtime::hub::{Handover, Snapshot};
 use nodes::monitor::FrameTally;
 use protocol::ident::Address;
 use serde::Serialize;
-
-/// `CAN_EFF_FLAG` of a kernel can_id.
-const EFF: u32 = 0x8000_0000;
-/// `CAN_ERR_FLAG`.
-const ERR: u32 = 0x2000_0000;
 
 /// True when a kernel can_id (extended flag included) is a harvester identifier whose
 /// destination byte is the monitor's.
@@ -218,63 +216,35 @@ impl Books {
         }
     }
 
-    /// Every completed frame is a frame line of the trace, and the trace has nothing else but
-    /// error frames (None when the trace was not counted).
+    /// The trace holds as many frame records as frames completed on the bus (None when the trace
+    /// was not counted).
     pub fn trace_complete(&self) -> Option<bool> {
-        self.trace.map(|t| t.frames == self.frames && t.other == 0)
+        self.trace.map(|t| t.frames == self.frames)
     }
 }
 
-/// A candump log's lines, counted as they stream by.
+/// The trace's records, counted as the hub hands them over.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct TraceTally {
     /// Data and remote frames.
     pub frames: u64,
     /// Of those, addressed to the monitor.
     pub to_monitor: u64,
-    /// Error frames (`CAN_ERR_FLAG` in the identifier).
+    /// Error frames (each controller's, as it reported them).
     pub error_frames: u64,
-    /// Lines that are neither.
-    pub other: u64,
 }
 
 impl TraceTally {
-    /// Counts one line (without its newline): `(secs.usecs) iface ID#DATA`.
-    pub fn line(&mut self, line: &str) {
-        match classify(line) {
-            Some(Line::Frame(id)) => {
+    /// Counts one record.
+    pub fn record(&mut self, r: &Record<'_>) {
+        match &r.kind {
+            Kind::Frame(frame) => {
                 self.frames += 1;
-                self.to_monitor += u64::from(to_monitor(id));
+                self.to_monitor += u64::from(to_monitor(kernel_can_id(frame)));
             }
-            Some(Line::Error) => self.error_frames += 1,
-            None => self.other += 1,
+            Kind::Error(_) => self.error_frames += 1,
         }
     }
-}
-
-enum Line {
-    /// A frame, with its kernel can_id.
-    Frame(u32),
-    Error,
-}
-
-/// Reads a candump line by the format's own rules (not by the writer's code): 3 hex digits for a
-/// base identifier, 8 for an extended one, then `R` or up to 8 bytes in hex.
-fn classify(line: &str) -> Option<Line> {
-    let rest = line.strip_prefix('(')?;
-    let (_time, rest) = rest.split_once(") ")?;
-    let (_iface, frame) = rest.split_once(' ')?;
-    let (id, data) = frame.split_once('#')?;
-    let raw = u32::from_str_radix(id, 16).ok()?;
-    let can_id = match id.len() {
-        3 if raw <= 0x7FF => raw,
-        8 if raw & ERR != 0 => return Some(Line::Error),
-        8 if raw <= 0x1FFF_FFFF => raw | EFF,
-        _ => return None,
-    };
-    let remote = data.starts_with('R');
-    let hex_ok = data.len() % 2 == 0 && data.len() <= 16 && data.bytes().all(|b| b.is_ascii_hexdigit());
-    (remote || hex_ok).then_some(Line::Frame(can_id))
 }
 
 #[cfg(test)]

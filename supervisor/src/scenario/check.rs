@@ -364,8 +364,8 @@ fn one(e: &Expect, r: &Running, snap: &Snapshot, books: &Books) -> Verdict {
                 ok,
                 Some(snap.now),
                 format!(
-                    "{} frame(s) on the bus, {} frame line(s) in the trace ({} error frame(s), {} other line(s))",
-                    books.frames, t.frames, t.error_frames, t.other
+                    "{} frame(s) on the bus, {} frame(s) in the trace ({} error frame(s))",
+                    books.frames, t.frames, t.error_frames
                 ),
             ),
             _ => verdict(e, false, None, "the trace was not counted".into()),

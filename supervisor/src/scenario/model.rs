@@ -304,7 +304,7 @@ pub enum Expect {
     /// Every frame addressed to the monitor that completed on the bus was processed by its main
     /// loop or lost for a counted reason, and the counts add up exactly.
     FramesAccounted,
-    /// Every frame that completed on the bus is a frame line of the trace.
+    /// Every frame that completed on the bus is a frame record of the trace.
     TraceComplete,
     /// A node is never in `state` from `from_s` to `to_s` (both included), not even for a moment.
     NodeStateNever {

@@ -16,10 +16,10 @@ use crate::harvester::{self, Running, SupervisorEvent};
 use crate::stop::{Signal, Stop};
 use actix::prelude::*;
 use bus::time::{BusDuration, BusTime};
-use bus_runtime::hub::{GetErrorCounters, GetSnapshot, RunUntil, Snapshot, runtime};
+use bus::trace::Sink;
+use bus_runtime::hub::{FlushTrace, GetErrorCounters, GetSnapshot, Snapshot, runtime};
 use std::cell::RefCell;
 use std::collections::BTreeMap;
-use std::io::Write;
 use std::rc::Rc;
 
 /// What a scenario run produced.
@@ -89,22 +89,22 @@ fn schedule(s: &Scenario) -> Vec<(BusTime, usize, Todo)> {
 }
 
 /// Runs a loaded scenario in virtual time. `progress` is called with bus seconds reached.
-pub fn run(l: &Loaded, trace: Option<Box<dyn Write>>, progress: impl FnMut(f64)) -> anyhow::Result<Outcome> {
+pub fn run(l: &Loaded, trace: Option<Box<dyn Sink>>, progress: impl FnMut(f64)) -> anyhow::Result<Outcome> {
     let started = std::time::Instant::now();
-    // Counting the trace costs a line per frame: only when it is written anyway or checked.
+    // Counting the trace costs a record per frame: only when it is written anyway or checked.
     let count_trace = trace.is_some()
         || l.scenario
             .expect
             .iter()
             .any(|e| matches!(e, Expect::TraceComplete));
-    let (trace, tally) = if count_trace {
-        let (w, tally) = trace_count::CountingWriter::new(trace);
-        (Some(Box::new(w) as Box<dyn Write>), Some(tally))
-    } else {
-        (trace, None)
-    };
+    let mut sinks: Vec<Box<dyn Sink>> = trace.into_iter().collect();
+    let tally = count_trace.then(|| {
+        let (counting, tally) = trace_count::Counting::new();
+        sinks.push(Box::new(counting));
+        tally
+    });
     let system = System::with_tokio_rt(|| runtime(true).expect("a tokio runtime"));
-    let mut outcome = system.block_on(play(l, trace, tally, progress))?;
+    let mut outcome = system.block_on(play(l, sinks, tally, progress))?;
     outcome.wall_seconds = started.elapsed().as_secs_f64();
     Ok(outcome)
 }
@@ -112,14 +112,14 @@ pub fn run(l: &Loaded, trace: Option<Box<dyn Write>>, progress: impl FnMut(f64))
 /// The run itself, inside the actix system; the outcome's wall time is left at zero.
 async fn play(
     l: &Loaded,
-    trace: Option<Box<dyn Write>>,
+    sinks: Vec<Box<dyn Sink>>,
     tally: Option<Rc<RefCell<TraceTally>>>,
     mut progress: impl FnMut(f64),
 ) -> anyhow::Result<Outcome> {
     let (s, h) = (&l.scenario, &l.harvester);
     let mut p = Playing {
         stop: Stop::new()?,
-        running: harvester::begin(h, false, trace).await?,
+        running: harvester::begin(h, false, sinks).await?,
         series: Series::default(),
         interrupted: None,
     };
@@ -162,9 +162,7 @@ async fn play(
         interrupted,
         ..
     } = p;
-    // Pausing the hub at the present flushes the trace.
-    let now = running.hub.send(GetSnapshot).await?.now;
-    running.hub.send(RunUntil(now)).await??;
+    running.hub.send(FlushTrace).await??;
     let snap = running.hub.send(GetSnapshot).await?;
     let monitor = running
         .node("F5")

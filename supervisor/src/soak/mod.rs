@@ -146,10 +146,7 @@ fn report(l: &scenario::Loaded, o: &scenario::Outcome, rss: &memory::Samples, ho
     let b = &o.books;
     out += &format!("bus: {} frames, {} error frames", b.frames, b.error_frames);
     if let Some(t) = b.trace {
-        out += &format!(
-            "; trace: {} frame lines, {} error-frame lines, {} other",
-            t.frames, t.error_frames, t.other
-        );
+        out += &format!("; trace: {} frames, {} error frames", t.frames, t.error_frames);
     }
     out.push('\n');
     if let Some(m) = &b.monitor {

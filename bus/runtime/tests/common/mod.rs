@@ -20,7 +20,7 @@ pub async fn hub_with_ticker(frame: &str, period_us: u64) -> Addr<Hub> {
 /// The same bus, built from `config` (its epoch, say).
 #[allow(dead_code)] // not every test file builds a bus
 pub async fn hub_with_ticker_at(config: HubConfig, frame: &str, period_us: u64) -> Addr<Hub> {
-    let hub = Hub::new(config, None).unwrap().start();
+    let hub = Hub::new(config, Vec::new()).unwrap().start();
     let ticker = NodeActor::new("ticker", Box::new(Periodic::every_us(frame, period_us, 0))).start();
     for (name, node) in [("ticker", Some(ticker.recipient())), ("listener", None)] {
         hub.send(Attach {

@@ -120,30 +120,36 @@ fn destinations_are_read_from_the_identifier() {
 }
 
 #[test]
-fn trace_lines_are_told_apart() {
+fn trace_records_are_told_apart() {
+    use bus::trace::{ErrorFrame, Kind, Record, Source};
+    let frame = |text: &str| Kind::Frame(bus::candump::parse_frame(text).unwrap());
     let mut t = TraceTally::default();
-    for line in [
-        "(0000000001.000100) harv0 0601F5D0#200D0002FFBFFF00",
-        "(0000000001.000200) harv0 0601A0D0#",
-        "(0000000001.000300) harv0 123#DEADBEEF",
-        "(0000000001.000400) harv0 0000F5EE#R",
-        "(0000000001.000500) harv0 20000088#0000800000000800",
-        "(0000000001.000600) harv0 20000004#0001000000000000",
-        "(0000000001.000700) harv0 800#00",
-        "(0000000001.000800) harv0 0601F5D0#0",
-        "(0000000001.000900) harv0 0601F5D0#001122334455667788",
-        "garbage",
-        "",
+    for kind in [
+        frame("0601F5D0#200D0002FFBFFF00"),
+        frame("0601A0D0#"),
+        frame("123#DEADBEEF"),
+        // A remote frame to the monitor still counts as one to it.
+        frame("0000F5EE#R"),
+        // A base identifier has no destination byte, whatever its bits.
+        frame("0F5#01"),
+        Kind::Error(ErrorFrame {
+            can_id: 0x2000_0088,
+            data: [0, 0, 0x80, 0, 0, 0, 8, 0],
+        }),
     ] {
-        t.line(line);
+        t.record(&Record {
+            at: bus::time::BusTime::ZERO,
+            bus: "harv0",
+            source: Source::Bus,
+            kind,
+        });
     }
     assert_eq!(
         t,
         TraceTally {
-            frames: 4,
+            frames: 5,
             to_monitor: 2,
-            error_frames: 2,
-            other: 5,
+            error_frames: 1,
         }
     );
 }
