@@ -6,7 +6,7 @@
 #![no_main]
 
 use bus::Error;
-use bus::time::Stamp;
+use bus::time::{BusTime, Stamp};
 use bus::tracefile::{self, Entry, ErrorFrames, Format, LineError, Lines, Reader, Record};
 use libfuzzer_sys::fuzz_target;
 use std::io::BufReader;
@@ -80,8 +80,12 @@ fn write_back(format: Format, records: &[Record]) {
         match (format, &r.entry) {
             (Format::Candump, Entry::Frame(f)) => bus::trace::frame_line(&mut out, r.at, "can0", f),
             (Format::Candump, Entry::Error(Some(e))) => bus::trace::error_line(&mut out, r.at, "can0", e),
-            (Format::Asc, Entry::Frame(f)) => tracefile::asc::frame_line(&mut out, r.at, 1, f),
-            (Format::Asc, Entry::Error(None)) => tracefile::asc::error_line(&mut out, r.at, 1),
+            (Format::Asc, Entry::Frame(f)) => {
+                tracefile::asc::frame_line(&mut out, BusTime::from_nanos(r.at.0), 1, f)
+            }
+            (Format::Asc, Entry::Error(None)) => {
+                tracefile::asc::error_line(&mut out, BusTime::from_nanos(r.at.0), 1)
+            }
             (format, entry) => panic!("{format:?} gave {entry:?}"),
         }
     }
