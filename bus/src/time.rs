@@ -465,10 +465,6 @@ impl Epoch {
         let us = t.duration_since(UNIX_EPOCH).map_or(0, |d| d.as_micros());
         Epoch(u64::try_from(us).unwrap_or(u64::MAX / 1_000))
     }
-    /// The wall clock now.
-    pub fn now() -> Epoch {
-        Epoch::from_system_time(SystemTime::now())
-    }
     /// Whole seconds since 1970.
     pub const fn from_secs(s: u64) -> Epoch {
         Epoch(s.saturating_mul(1_000_000))

@@ -83,7 +83,12 @@ impl HubConfig {
 /// `candump -l` stamps with the wall clock; [`Epoch::FIXED`] in virtual time, so that traces are
 /// reproducible.
 pub fn default_epoch(paced: bool) -> Epoch {
-    if paced { Epoch::now() } else { Epoch::FIXED }
+    if paced {
+        // The runtime reads the wall clock; the core only converts it.
+        Epoch::from_system_time(std::time::SystemTime::now())
+    } else {
+        Epoch::FIXED
+    }
 }
 
 struct Slot {
