@@ -131,6 +131,57 @@ fn unstuffed_head(frame: &Frame) -> (u128, u32) {
     (v, n)
 }
 
+/// Where a node sending `own` loses arbitration to `winner`: the first bit after SOF at which
+/// `own` is recessive and `winner` dominant, numbered from 0 at the first identifier bit (the
+/// SJA1000's ALC numbering: SRR, IDE and RTR count as bits of the arbitration field). `None`
+/// when `own` does not lose to `winner` before their arbitration fields end.
+pub fn arbitration_lost_at(own: &Frame, winner: &Frame) -> Option<u16> {
+    let (a, la) = unstuffed_head(own);
+    let (b, lb) = unstuffed_head(winner);
+    // SOF, then at most 32 arbitration bits and the IDE/r0 that can still decide base against
+    // extended.
+    let span = la.min(lb).min(34);
+    (1..span)
+        .find_map(|i| {
+            let bit_a = (a >> (la - 1 - i)) & 1;
+            let bit_b = (b >> (lb - 1 - i)) & 1;
+            match (bit_a, bit_b) {
+                (1, 0) => Some(Some((i - 1) as u16)),
+                (0, 1) => Some(None),
+                _ => None,
+            }
+        })
+        .flatten()
+}
+
+/// The position on the wire (stuff bits counted, SOF = 0) of the bit at unstuffed position
+/// `index` (SOF = 0) of `frame`'s head (SOF to the end of the data field).
+pub fn stuffed_position(frame: &Frame, index: u32) -> u32 {
+    let (head, len) = unstuffed_head(frame);
+    let mut position = 0;
+    let mut run = 0;
+    let mut last = 2u128;
+    for i in 0..=index.min(len.saturating_sub(1)) {
+        if run == 5 {
+            // A stuff bit of the other level goes out first and starts a run of one.
+            position += 1;
+            last ^= 1;
+            run = 1;
+        }
+        let bit = (head >> (len - 1 - i)) & 1;
+        if bit == last {
+            run += 1;
+        } else {
+            last = bit;
+            run = 1;
+        }
+        if i < index {
+            position += 1;
+        }
+    }
+    position
+}
+
 /// CRC-15 of a right-aligned bit string. With init 0 leading zero bits leave the register
 /// untouched, so left-padding to whole bytes lets the table-driven `crc` crate do the work.
 fn crc15(bits: u128, len: u32) -> u16 {

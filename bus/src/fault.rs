@@ -454,6 +454,18 @@ impl FaultConfinement {
         self.recovery_run = 0;
     }
 
+    /// The host writes the counters (the SJA1000's TXERR and RXERR in reset mode): TEC 256 or
+    /// more puts the node bus off with no recovery counted yet; a TEC below 256 written while
+    /// bus off ends bus off. Values are clamped to 256 (TEC) and 255 (REC).
+    pub fn set_counters(&mut self, tec: u16, rec: u16) -> Changes {
+        self.observe(|fc| {
+            fc.tec = tec.min(BUS_OFF_LIMIT);
+            fc.rec = rec.min(255);
+            fc.recovery_seen = 0;
+            fc.recovery_run = 0;
+        })
+    }
+
     /// A controller reset: error active, both counters 0, recovery forgotten. The warning limit
     /// is configuration and is kept.
     pub fn reset(&mut self) -> Changes {

@@ -9,7 +9,7 @@
 //! time, passed in.
 
 use crate::Frame;
-use crate::engine::Received;
+use crate::engine::{BusError, Location, Received};
 use crate::fault::ErrorState;
 use crate::time::BusTime;
 
@@ -26,6 +26,56 @@ pub enum ControllerEvent {
     Overrun,
     /// Its error state changed.
     State(ErrorState),
+    /// Its error counters changed (only to a logic that asks for every event:
+    /// [`NodeLogic::wants_every_event`]).
+    Counters {
+        /// Transmit error counter (256 and above while bus off).
+        tec: u16,
+        /// Receive error counter.
+        rec: u16,
+    },
+    /// It detected a bus error (only to a logic that asks for every event).
+    BusError {
+        /// What it detected.
+        error: BusError,
+        /// It was transmitting.
+        transmitting: bool,
+        /// Where in the frame.
+        location: Location,
+    },
+    /// It lost arbitration at this bit of the arbitration field, 0 being the first identifier
+    /// bit (only to a logic that asks for every event).
+    ArbitrationLost(u16),
+}
+
+/// What a node asks of its controller, for a logic that models its controller's registers
+/// (firmware): [`NodeLogic::poll_command`]. Commands act at the wake's time, in order.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub enum ControllerCommand {
+    /// Queue this frame, as [`NodeLogic::poll_transmit`] does.
+    Transmit(Frame),
+    /// Join the bus (a controller leaving reset mode); `listen_only` acknowledges nothing.
+    Online {
+        /// Listen-only mode: it sends neither frames nor acknowledgements.
+        listen_only: bool,
+    },
+    /// Leave the bus (reset mode): it neither sends nor receives, and frames not yet started
+    /// are dropped.
+    Offline,
+    /// Drop the frames not yet started.
+    Abort,
+    /// Set the error counters (the host writes them in reset mode).
+    SetCounters {
+        /// Transmit error counter; 256 and above is bus off.
+        tec: u16,
+        /// Receive error counter.
+        rec: u16,
+    },
+    /// Start counting the recessive bits that end bus off (the host cleared reset mode).
+    Recover,
+    /// Whether its bit timing lets it sample the bus's frames: a controller that cannot
+    /// destroys what it cannot read with error flags and acknowledges nothing.
+    Tuned(bool),
 }
 
 /// The behaviour of one node, without I/O.
@@ -40,6 +90,16 @@ pub trait NodeLogic {
     }
     /// The next frame to hand to the controller, if any.
     fn poll_transmit(&mut self) -> Option<Frame>;
+    /// The next command for the controller, if any; drained before `poll_transmit`.
+    fn poll_command(&mut self) -> Option<ControllerCommand> {
+        None
+    }
+    /// True when the logic models its controller's registers and must hear of every change as
+    /// it happens: counters, bus errors, lost arbitration, and sent or aborted frames wake it at
+    /// their time (others hear of them with their next wake).
+    fn wants_every_event(&self) -> bool {
+        false
+    }
     /// When `handle_timeout` is next due.
     fn poll_timeout(&self) -> Option<BusTime>;
     /// True when `handle_frame` only stores frames for `handle_timeout` to work through (a
@@ -98,6 +158,8 @@ pub struct Refused(pub String);
 /// A node's answer to a wake.
 #[derive(Debug, Default, PartialEq)]
 pub struct Report {
+    /// Commands for the controller, at the wake's time, before `transmit`.
+    pub commands: Vec<ControllerCommand>,
     /// Frames to submit, at the wake's time.
     pub transmit: Vec<Frame>,
     /// Next deadline.
@@ -106,6 +168,8 @@ pub struct Report {
     pub crashed: Option<String>,
     /// [`NodeLogic::frames_can_wait`], as of this wake.
     pub frames_can_wait: bool,
+    /// [`NodeLogic::wants_every_event`], as of this wake.
+    pub every_event: bool,
     /// How many of the wake's frames reached [`NodeLogic::handle_frame`]: all of them, unless
     /// the logic crashed first (the hub counts the rest as lost).
     pub frames_handled: u64,
@@ -161,6 +225,13 @@ pub fn drive_counted(
             logic.handle_event(t, e);
         }
     }
+    let mut commands = Vec::new();
+    while commands.len() < MAX_TRANSMIT_PER_WAKE {
+        match logic.poll_command() {
+            Some(c) => commands.push(c),
+            None => break,
+        }
+    }
     let mut transmit = Vec::new();
     while transmit.len() < MAX_TRANSMIT_PER_WAKE {
         match logic.poll_transmit() {
@@ -169,10 +240,12 @@ pub fn drive_counted(
         }
     }
     Report {
+        commands,
         transmit,
         next_timeout: logic.poll_timeout(),
         crashed: None,
         frames_can_wait: logic.frames_can_wait(),
+        every_event: logic.wants_every_event(),
         frames_handled: *handled,
     }
 }

@@ -28,6 +28,8 @@
 //! A hung node (fault injection) is never woken, so its FIFO fills and overruns as a real one
 //! would.
 
+mod commands;
+
 use crate::Error;
 use crate::node::{Answer, Reply, Wake};
 use actix::prelude::*;
@@ -108,6 +110,10 @@ struct Slot {
     handover: Handover,
     hung: bool,
     crashed: Option<String>,
+    /// The logic hears of every controller event as it happens ([`Report::every_event`]).
+    every_event: bool,
+    /// What its logic set on its controller (register-level nodes).
+    switches: commands::Switches,
 }
 
 impl Slot {
@@ -191,6 +197,9 @@ pub struct Hub {
     scratch: Vec<Event>,
     wakes: u64,
     observers: Vec<Observer>,
+    /// How many slots hear of every event (register-level nodes): none, usually, and then
+    /// nothing is spent on them.
+    register_level: usize,
 }
 
 /// False when a sink failed: it is given nothing more, and the first error is kept.
@@ -247,6 +256,7 @@ impl Hub {
             scratch: Vec::with_capacity(64),
             wakes: 0,
             observers: Vec::new(),
+            register_level: 0,
         })
     }
 
@@ -375,8 +385,9 @@ impl Hub {
     /// earliest due time among the nodes that got inputs.
     fn dispatch(&mut self) -> Option<BusTime> {
         let mut due: Option<BusTime> = None;
-        self.scratch.extend(self.bus.take_events());
-        for event in self.scratch.drain(..) {
+        let mut scratch = std::mem::take(&mut self.scratch);
+        scratch.extend(self.bus.take_events());
+        for event in scratch.drain(..) {
             if !self.sinks.is_empty() {
                 let controllers = self.bus.controllers();
                 let name = |n: NodeId| {
@@ -401,15 +412,47 @@ impl Hub {
                         Err(tokio::sync::mpsc::error::TrySendError::Closed(_)) => false,
                     });
             }
+            if self.register_level > 0 {
+                self.counters_of(&event);
+                // Counters wake register-level nodes (at most a handful): keep `due` whole.
+                if let Some(d) = self
+                    .slots
+                    .iter()
+                    .filter(|s| s.every_event)
+                    .filter_map(Slot::due)
+                    .min()
+                {
+                    due = Some(due.map_or(d, |x| x.min(d)));
+                }
+            }
+            let every = |n: NodeId| self.slots.get(n.index()).is_some_and(|s| s.every_event);
             let (node, at, input, wakes) = match event {
                 Event::Delivered { node, at } => (node, at, None, true),
                 Event::Overrun { node, at } => (node, at, Some(ControllerEvent::Overrun), true),
                 Event::State { node, at, to, .. } => (node, at, Some(ControllerEvent::State(to)), true),
                 Event::TxDone { node, at, frame, .. } => {
-                    (node, at, Some(ControllerEvent::Sent(frame)), false)
+                    (node, at, Some(ControllerEvent::Sent(frame)), every(node))
                 }
                 Event::TxAborted { node, at, frame, .. } => {
-                    (node, at, Some(ControllerEvent::Aborted(frame)), false)
+                    (node, at, Some(ControllerEvent::Aborted(frame)), every(node))
+                }
+                Event::BusError {
+                    node,
+                    at,
+                    error,
+                    transmitting,
+                    location,
+                    ..
+                } if every(node) => {
+                    let e = ControllerEvent::BusError {
+                        error,
+                        transmitting,
+                        location,
+                    };
+                    (node, at, Some(e), true)
+                }
+                Event::ArbitrationLost { node, at, bit } if every(node) => {
+                    (node, at, Some(ControllerEvent::ArbitrationLost(bit)), true)
                 }
                 _ => continue,
             };
@@ -420,6 +463,7 @@ impl Hub {
                 }
             }
         }
+        self.scratch = scratch;
         due
     }
 
@@ -497,12 +541,15 @@ impl Hub {
             self.slots[i].crashed = Some(message);
             return true;
         }
+        if report.every_event != self.slots[i].every_event {
+            self.slots[i].every_event = report.every_event;
+            self.register_level = self.slots.iter().filter(|s| s.every_event).count();
+        }
+        for command in report.commands {
+            self.apply(i, command, now);
+        }
         for frame in report.transmit {
-            match self.bus.submit(NodeId(i as u16), frame, now) {
-                Ok(Some(_)) => {}
-                Ok(None) => self.slots[i].input(now, Some(ControllerEvent::Refused(frame)), false),
-                Err(e) => tracing::error!(error = %e, "submit failed"),
-            }
+            self.submit_for(i, frame, now);
         }
         // A deadline the logic left in the past would wake it at the same instant for ever.
         self.slots[i].next_timeout = report.next_timeout.map(|t| {
@@ -514,6 +561,43 @@ impl Hub {
         });
         self.slots[i].frames_can_wait = report.frames_can_wait;
         false
+    }
+
+    /// Queues a frame of slot `i`'s logic; a full queue is told back as refused.
+    fn submit_for(&mut self, i: usize, frame: Frame, now: BusTime) {
+        match self.bus.submit(NodeId(i as u16), frame, now) {
+            Ok(Some(_)) => {}
+            Ok(None) => self.slots[i].input(now, Some(ControllerEvent::Refused(frame)), false),
+            Err(e) => tracing::error!(error = %e, "submit failed"),
+        }
+    }
+
+    /// Tells register-level nodes of the counters an event changed: the values the event
+    /// carries where it has them, else the controller's as the event leaves them (a frame
+    /// that went through, a reset).
+    fn counters_of(&mut self, event: &Event) {
+        match *event {
+            Event::BusError {
+                node, at, tec, rec, ..
+            }
+            | Event::State {
+                node, at, tec, rec, ..
+            }
+            | Event::Warning {
+                node, at, tec, rec, ..
+            } => self.counters_to(node.index(), at, tec, rec),
+            Event::TxDone { node, at, .. } | Event::Restarted { node, at } => {
+                self.counters_now(node.index(), at)
+            }
+            Event::Frame { end, .. } => {
+                for i in 0..self.slots.len() {
+                    if self.slots[i].every_event {
+                        self.counters_now(i, end);
+                    }
+                }
+            }
+            _ => {}
+        }
     }
 
     fn flush_sinks(&mut self) {
@@ -618,6 +702,8 @@ impl Handler<Attach> for Hub {
             handover: Handover::default(),
             hung: false,
             crashed: None,
+            every_event: false,
+            switches: commands::Switches::default(),
         });
         self.pump(ctx);
         MessageResult(id)

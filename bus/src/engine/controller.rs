@@ -60,6 +60,20 @@ pub struct ControllerConfig {
     pub tx_queue_len: usize,
     /// Error warning limit (SJA1000 EWLR), 96 by default.
     pub warning_limit: u8,
+    /// How it leaves bus off.
+    pub recovery: Recovery,
+}
+
+/// How a controller leaves bus off.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum Recovery {
+    /// It starts counting the 128 sequences of 11 recessive bits at once (the default of CAN
+    /// controllers set to restart by themselves, and of SocketCAN's `restart-ms`).
+    #[default]
+    Automatic,
+    /// It waits for its host to ask ([`crate::engine::Bus::request_recovery`]), as the SJA1000
+    /// does: it enters reset mode at bus off and counts only after the host clears it.
+    OnRequest,
 }
 
 impl Default for ControllerConfig {
@@ -70,6 +84,7 @@ impl Default for ControllerConfig {
             rx_fifo_bytes: SJA1000_FIFO_BYTES,
             tx_queue_len: 16,
             warning_limit: crate::fault::DEFAULT_WARNING_LIMIT,
+            recovery: Recovery::Automatic,
         }
     }
 }
@@ -173,6 +188,8 @@ pub struct Controller {
     pub(crate) mac_at: BusTime,
     /// Start of the recessive run this (bus-off) controller is counting towards recovery.
     pub(crate) recessive_since: BusTime,
+    /// Its host asked it to recover from bus off ([`Recovery::OnRequest`]).
+    pub(crate) recovery_requested: bool,
     pub(crate) counters: ControllerCounters,
 }
 
@@ -192,6 +209,7 @@ impl Controller {
             mac: super::wire::Mac::default(),
             mac_at: BusTime::ZERO,
             recessive_since: BusTime::ZERO,
+            recovery_requested: false,
             counters: ControllerCounters::default(),
         }
     }
@@ -236,6 +254,12 @@ impl Controller {
     /// Takes part in bus traffic: connected and not bus off.
     pub(crate) fn on_bus(&self) -> bool {
         self.connected && self.fault.state() != crate::fault::ErrorState::BusOff
+    }
+
+    /// Bus off and counting recessive bits towards recovery.
+    pub(crate) fn counts_recovery(&self) -> bool {
+        self.fault.state() == crate::fault::ErrorState::BusOff
+            && (self.config.recovery == Recovery::Automatic || self.recovery_requested)
     }
 
     /// Stores a received frame; false (and the overrun recorded) when it does not fit.

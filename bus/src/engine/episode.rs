@@ -121,7 +121,7 @@ impl Bus {
         let n = self.controllers.len();
         // Bus-off controllers have been counting an idle bus since `recessive_since`.
         for c in &mut self.controllers {
-            if c.connected && c.fault.state() == ErrorState::BusOff {
+            if c.connected && c.counts_recovery() {
                 let bits = (sof.max(c.recessive_since) - c.recessive_since) / bit;
                 c.fault.recessive_bits(bits.min(u64::from(u32::MAX)) as u32);
             }
@@ -188,7 +188,9 @@ impl Bus {
                     }
                 }
                 if c.fault.state() == ErrorState::BusOff {
-                    self.count_recovery(i, sampled, next, &mut tally.events);
+                    if c.counts_recovery() {
+                        self.count_recovery(i, sampled, next, &mut tally.events);
+                    }
                     continue;
                 }
                 let detected = self.controllers[i].mac.sample(drives[i], sampled);
@@ -316,7 +318,14 @@ impl Bus {
         let bit = self.bit;
         match detected {
             Detected::Nothing | Detected::Sof => {}
-            Detected::LostArbitration => self.controllers[i].counters.arbitration_lost += 1,
+            Detected::LostArbitration(at_bit) => {
+                self.controllers[i].counters.arbitration_lost += 1;
+                events.push(Event::ArbitrationLost {
+                    node,
+                    at: next,
+                    bit: at_bit,
+                });
+            }
             Detected::Error(found) => {
                 let c = &mut self.controllers[i];
                 let error = BusError::of(found.kind);
@@ -523,6 +532,7 @@ impl Bus {
             // A bus-off controller has no influence on the bus: it stops at once, and drops the
             // frame it was sending.
             c.recessive_since = at;
+            c.recovery_requested = false;
             if c.mac.tx_role
                 && let Some(p) = c.tx.pop_front()
             {

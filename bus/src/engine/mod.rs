@@ -45,7 +45,7 @@ pub mod stats;
 mod wire;
 
 pub use controller::{
-    Controller, ControllerConfig, ControllerCounters, Filter, NodeId, Received, SJA1000_FIFO_BYTES,
+    Controller, ControllerConfig, ControllerCounters, Filter, NodeId, Received, Recovery, SJA1000_FIFO_BYTES,
     fifo_bytes,
 };
 pub use inject::{BitPosition, Decision, Effect, Injector, Rule, RuleId, Schedule, SeenBy, Target};
@@ -199,6 +199,16 @@ pub enum Event {
         /// REC after counting the error.
         rec: u16,
     },
+    /// A controller lost arbitration (one event per loser and attempt).
+    ArbitrationLost {
+        /// The controller.
+        node: NodeId,
+        /// The bit time after the one it lost at.
+        at: BusTime,
+        /// The bit of the arbitration field it lost at: 0 is the first identifier bit, as the
+        /// SJA1000's arbitration lost capture (ALC) numbers them; SRR, IDE and RTR count too.
+        bit: u16,
+    },
     /// A controller sends an overload flag from `at`.
     Overload {
         /// The controller.
@@ -294,6 +304,7 @@ impl Event {
             | Event::Restarted { at, .. }
             | Event::Warning { at, .. }
             | Event::BusError { at, .. }
+            | Event::ArbitrationLost { at, .. }
             | Event::Overload { at, .. } => at,
         }
     }
@@ -487,6 +498,50 @@ impl Bus {
         Ok(())
     }
 
+    /// The host of a bus-off controller set to [`Recovery::OnRequest`] asks it to recover: it
+    /// counts recessive bits from `at`. Nothing happens for a controller that is not bus off or
+    /// already counting.
+    pub fn request_recovery(&mut self, node: NodeId, at: BusTime) -> Result<(), Error> {
+        let at = at.max(self.committed);
+        let c = self.get_mut(node)?;
+        if c.fault.state() == ErrorState::BusOff && !c.counts_recovery() {
+            c.recovery_requested = true;
+            c.fault.dominant_bit();
+            c.recessive_since = c.recessive_since.max(at);
+        }
+        Ok(())
+    }
+
+    /// Drops the frames a node's controller has not started sending (a transmission already
+    /// on the bus is committed and finishes): each becomes an [`Event::TxAborted`] at `at`.
+    pub fn abort(&mut self, node: NodeId, at: BusTime) -> Result<(), Error> {
+        let at = at.max(self.committed);
+        let c = self.get_mut(node)?;
+        let dropped: Vec<Pending> = c.tx.drain(..).collect();
+        c.counters.tx_aborted += dropped.len() as u64;
+        for p in dropped {
+            self.events.push(Event::TxAborted {
+                node,
+                at,
+                token: p.token,
+                frame: p.frame,
+            });
+        }
+        Ok(())
+    }
+
+    /// The host writes a controller's error counters ([`crate::fault::FaultConfinement::set_counters`]),
+    /// e.g. the SJA1000's TXERR and RXERR in reset mode.
+    pub fn set_counters(&mut self, node: NodeId, tec: u16, rec: u16, at: BusTime) -> Result<(), Error> {
+        let at = at.max(self.committed);
+        let c = self.get_mut(node)?;
+        let changes = c.fault.set_counters(tec, rec);
+        c.recovery_requested = false;
+        c.recessive_since = at;
+        self.note(node, at, changes);
+        Ok(())
+    }
+
     /// Takes the events committed so far.
     pub fn take_events(&mut self) -> std::vec::Drain<'_, Event> {
         self.events.drain(..)
@@ -506,7 +561,7 @@ impl Bus {
         self.controllers
             .iter()
             .enumerate()
-            .filter(|(_, c)| c.fault.state() == ErrorState::BusOff)
+            .filter(|(_, c)| c.counts_recovery())
             .map(|(i, c)| {
                 let at = c.recessive_since + u64::from(c.fault.recovery_bits_remaining()) * self.bit;
                 (at, i)
@@ -562,6 +617,7 @@ impl Bus {
         let bits = c.fault.recovery_bits_remaining();
         let changes = c.fault.recessive_bits(bits);
         c.recessive_since = at;
+        c.recovery_requested = false;
         // Back on the bus from here: an idle bus, and nothing sent before the recovery.
         c.ready_at = c.ready_at.max(at);
         c.mac = wire::Mac::default();
@@ -617,7 +673,7 @@ impl Bus {
     fn break_recessive_runs(&mut self, sof: BusTime, resume: BusTime) {
         let bit_ns = self.bit;
         for c in &mut self.controllers {
-            if c.connected && c.fault.state() == ErrorState::BusOff {
+            if c.connected && c.counts_recovery() {
                 let bits = (sof - c.recessive_since) / bit_ns;
                 c.fault.recessive_bits(bits as u32);
                 c.fault.dominant_bit();
@@ -691,6 +747,7 @@ impl Bus {
             .any(|(i, c)| c.acks && c.on_bus() && !(starters.contains(&i) && sends_it(c)));
         if decision.is_none() && !disturbed && !clash && acked && all_idle {
             // Starters sending another frame lose arbitration; the rest go out together.
+            let mut lost_at = Vec::new();
             let mut k = 0;
             while k < starters.len() {
                 let c = &mut self.controllers[starters[k]];
@@ -698,9 +755,22 @@ impl Bus {
                     k += 1;
                 } else {
                     c.counters.arbitration_lost += 1;
+                    let own = c.tx.front().map(|p| p.frame);
+                    let lost = own
+                        .and_then(|f| bits::arbitration_lost_at(&f, &frame))
+                        .unwrap_or(0);
+                    // Both sent the same bits up to there, stuff bits included.
+                    let wire = bits::stuffed_position(&frame, u32::from(lost) + 1);
+                    lost_at.push(Event::ArbitrationLost {
+                        node: NodeId(starters[k] as u16),
+                        at: sof + u64::from(wire + 1) * bit,
+                        bit: lost,
+                    });
                     starters.swap_remove(k);
                 }
             }
+            lost_at.sort_by_key(Event::at);
+            self.events.extend(lost_at);
             if self.carried {
                 // Whatever was left (a suspend, the last intermission bit) ends with this frame.
                 for c in &mut self.controllers {
@@ -866,5 +936,7 @@ fn positions(frame: &Frame, effect: Effect, first: u16) -> Vec<u16> {
     }
 }
 
+#[cfg(test)]
+mod host_tests;
 #[cfg(test)]
 mod tests;

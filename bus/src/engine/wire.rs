@@ -328,8 +328,9 @@ pub(crate) enum Detected {
     Nothing,
     /// A start of frame from another controller: it is now a receiver.
     Sof,
-    /// It lost arbitration and is now a receiver.
-    LostArbitration,
+    /// It lost arbitration at this bit of the arbitration field (0 = the first identifier bit,
+    /// the numbering of the SJA1000's ALC register) and is now a receiver.
+    LostArbitration(u16),
     /// An error in a frame or a delimiter: its error flag starts at the next bit.
     Error(Found),
     /// A CRC error: its flag starts at the next bit (the one after the ACK delimiter).
@@ -683,7 +684,9 @@ impl Mac {
                     self.transmitter = false;
                     self.tx_role = false;
                     self.dec.feed(bit);
-                    return Detected::LostArbitration;
+                    return Detected::LostArbitration(
+                        u16::try_from(index.saturating_sub(1)).unwrap_or(u16::MAX),
+                    );
                 }
                 return self.signal_error(Found {
                     kind: crate::fault::TxErrorKind::Bit,
