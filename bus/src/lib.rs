@@ -19,6 +19,8 @@
 //! - [`tracefile`] reads candump logs and Vector ASC traces, and writes ASC.
 //! - [`pacing`] decides when a real-time hub commits bus time, and the overrun policy (bus time
 //!   slips after a stall instead of bursting); it is given the wall clock, it does not read it.
+//! - [`sja1000`] is the SJA1000 stand-alone CAN controller at register level (BasicCAN and
+//!   PeliCAN), sans-IO: a CPU reads and writes its registers, the bus answers its actions.
 //! - [`text::quote`] cuts input quoted in error messages to a few dozen characters.
 //!
 //! Nothing here does I/O, reads a clock, runs an async runtime or an actor, or panics on input;
@@ -37,6 +39,7 @@ pub mod filter;
 mod frame;
 pub mod node;
 pub mod pacing;
+pub mod sja1000;
 pub mod text;
 pub mod time;
 pub mod trace;
