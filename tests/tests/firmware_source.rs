@@ -217,8 +217,8 @@ fn the_lab_frame_on_the_bus() {
     let encoded = bits::encode(&frame);
     // Worked out by hand (SOF, 11-bit identifier, RTR, IDE, r0, DLC, 64 data bits: 83 bits; the
     // CRC-15 with polynomial 4599H over them; a stuff bit after every 5 equal bits): CRC 6366H,
-    // 2 stuff bits (after the identifier's five closing 1s and in the CRC), 100 bits from SOF to
-    // the last CRC bit.
+    // 2 stuff bits (after the identifier's five closing 1s, and where the last 1 of E5H runs into
+    // the four leading 1s of F6H), 100 bits from SOF to the last CRC bit.
     let expected = "0101110111110000100010101010101110111100110011010100111001011111\
                     001101001011100011000110001101100110";
     assert_eq!(encoded.stuffed.to_string(), expected);
