@@ -1,0 +1,126 @@
+//! Interrupt sources, priorities and entry (Intel MCS-51 User's Manual, "Interrupts").
+//!
+//! Sources in polling order within a level: IE0 (vector 03h), TF0 (0Bh), IE1 (13h), TF1 (1Bh),
+//! RI or TI (23h). Each source is low or high priority by its IP bit; a high-priority request
+//! interrupts a low-priority handler, nothing interrupts a high-priority one, and a request is
+//! not taken while a handler of its own level runs. No interrupt is taken right after RETI or a
+//! write to IE or IP (the next instruction runs first). The hardware call takes 2 machine cycles
+//! and clears IE0/IE1 (edge mode only) and TF0/TF1, never RI/TI.
+
+use super::{Cpu, IE, IP, SCON, TCON};
+use crate::Error;
+
+/// (TCON or SCON mask, IE enable bit, vector)
+const SOURCES: [(u8, u8, u16); 5] = [
+    (0x02, 0x01, 0x03), // IE0
+    (0x20, 0x02, 0x0B), // TF0
+    (0x08, 0x04, 0x13), // IE1
+    (0x80, 0x08, 0x1B), // TF1
+    (0x03, 0x10, 0x23), // RI | TI (in SCON)
+];
+
+impl Cpu {
+    /// The requests that are pending and enabled, as IE bits (EA ignored).
+    fn requests(&self) -> u8 {
+        let tcon = self.sfr[(TCON - 0x80) as usize];
+        let scon = self.sfr[(SCON - 0x80) as usize];
+        let mut r = 0;
+        for (i, &(mask, _, _)) in SOURCES.iter().enumerate() {
+            let flags = if i == 4 { scon } else { tcon };
+            if flags & mask != 0 {
+                r |= 1 << i;
+            }
+        }
+        r & self.sfr[(IE - 0x80) as usize]
+    }
+
+    /// Whether an interrupt would be taken at the next poll (used by idle skipping).
+    pub(crate) fn interrupt_possible(&self) -> bool {
+        self.sfr[(IE - 0x80) as usize] & 0x80 != 0
+    }
+
+    /// Enters the highest-priority pending interrupt, if one may be taken now.
+    pub(crate) fn poll_interrupt(&mut self) -> Result<Option<u16>, Error> {
+        let ie = self.sfr[(IE - 0x80) as usize];
+        if ie & 0x80 == 0 || self.inhibit {
+            self.inhibit = false;
+            return Ok(None);
+        }
+        let req = self.requests();
+        if req == 0 {
+            return Ok(None);
+        }
+        let ip = self.sfr[(IP - 0x80) as usize];
+        let (level, chosen) = if req & ip != 0 && self.in_service & 2 == 0 {
+            (2, req & ip)
+        } else if req & !ip != 0 && self.in_service == 0 {
+            (1, req & !ip)
+        } else {
+            return Ok(None);
+        };
+        let index = chosen.trailing_zeros() as usize;
+        let vector = SOURCES[index].2;
+        self.op_pc = self.pc;
+        let [lo, hi] = self.pc.to_le_bytes();
+        self.push(lo)?;
+        self.push(hi)?;
+        let tcon = &mut self.sfr[(TCON - 0x80) as usize];
+        match index {
+            0 if *tcon & 0x01 != 0 => *tcon &= !0x02,
+            2 if *tcon & 0x04 != 0 => *tcon &= !0x08,
+            1 => *tcon &= !0x20,
+            3 => *tcon &= !0x80,
+            _ => {}
+        }
+        self.in_service |= level;
+        self.pc = vector;
+        self.cycles += 2;
+        self.tick(2);
+        Ok(Some(vector))
+    }
+
+    /// RETI: the highest level in service ends.
+    pub(crate) fn end_of_interrupt(&mut self) {
+        if self.in_service & 2 != 0 {
+            self.in_service &= !2;
+        } else {
+            self.in_service = 0;
+        }
+        self.inhibit = true;
+    }
+
+    /// Level mode (ITx = 0): IEx follows the inverted INTx pin, it is not latched.
+    pub(crate) fn sync_ext_ints(&mut self) {
+        let pins = self.pins(3);
+        let tcon = &mut self.sfr[(TCON - 0x80) as usize];
+        for (it, ie, pin) in [(0x01, 0x02, 0x04), (0x04, 0x08, 0x08)] {
+            if *tcon & it == 0 {
+                if pins & pin == 0 {
+                    *tcon |= ie;
+                } else {
+                    *tcon &= !ie;
+                }
+            }
+        }
+    }
+
+    /// P3 pins changed (latch write or external level): INT edges and counter edges.
+    pub(crate) fn p3_changed(&mut self, before: u8) {
+        let after = self.pins(3);
+        let falling = before & !after;
+        let tcon = &mut self.sfr[(TCON - 0x80) as usize];
+        if falling & 0x04 != 0 && *tcon & 0x01 != 0 {
+            *tcon |= 0x02;
+        }
+        if falling & 0x08 != 0 && *tcon & 0x04 != 0 {
+            *tcon |= 0x08;
+        }
+        if falling & 0x10 != 0 {
+            self.edges[0] += 1;
+        }
+        if falling & 0x20 != 0 {
+            self.edges[1] += 1;
+        }
+        self.sync_ext_ints();
+    }
+}
