@@ -5,6 +5,7 @@
 //! interrupts a low-priority handler, nothing interrupts a high-priority one, and a request is
 //! not taken while a handler of its own level runs. No interrupt is taken right after RETI or a
 //! write to IE or IP (the next instruction runs first). The hardware call takes 2 machine cycles
+//! (settable: s51 takes 1, see [`Cpu::set_interrupt_entry_cycles`])
 //! and clears IE0/IE1 (edge mode only) and TF0/TF1, never RI/TI.
 
 use super::{Cpu, IE, IP, SCON, TCON};
@@ -74,8 +75,8 @@ impl Cpu {
         }
         self.in_service |= level;
         self.pc = vector;
-        self.cycles += 2;
-        self.tick(2);
+        self.cycles += self.entry_cycles as u64;
+        self.tick(self.entry_cycles as u32);
         Ok(Some(vector))
     }
 

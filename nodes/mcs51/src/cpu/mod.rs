@@ -65,7 +65,7 @@ pub enum XAccess {
 /// What one [`Cpu::step`] did.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Step {
-    /// Machine cycles taken (1, 2 or 4; 2 for an interrupt entry).
+    /// Machine cycles taken (1, 2 or 4; 2 for an interrupt entry unless set otherwise).
     pub cycles: u8,
     /// The MOVX access of the instruction, if it was one.
     pub xdata: Option<XAccess>,
@@ -131,6 +131,7 @@ pub struct Cpu {
     pub(crate) edges: [u32; 2],
     pub(crate) xaccess: Option<XAccess>,
     pub(crate) fault: Option<u16>,
+    pub(crate) entry_cycles: u8,
 }
 
 impl Cpu {
@@ -159,6 +160,7 @@ impl Cpu {
             edges: [0; 2],
             xaccess: None,
             fault: None,
+            entry_cycles: 2,
         };
         cpu.reset();
         cpu
@@ -183,6 +185,12 @@ impl Cpu {
     /// Sets the program counter (an entry point other than 0000h).
     pub fn set_pc(&mut self, pc: u16) {
         self.pc = pc;
+    }
+
+    /// Machine cycles of the hardware call that enters an interrupt: 2 by the Intel manual
+    /// (the default); s51 (uCsim 0.6) takes 1, and tests that compare with it set 1.
+    pub fn set_interrupt_entry_cycles(&mut self, cycles: u8) {
+        self.entry_cycles = cycles;
     }
 
     /// Program counter.

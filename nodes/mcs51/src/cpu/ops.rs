@@ -35,6 +35,24 @@ const CYCLES: [u8; 256] = {
     t
 };
 
+/// Conditional jumps test their operand in their last cycle: all their cycles pass first.
+const TESTS_LATE: [bool; 256] = {
+    let mut t = [false; 256];
+    let ops = [0x20, 0x30, 0x40, 0x50, 0x60, 0x70, 0xB4, 0xB5, 0xB6, 0xB7, 0xD5];
+    let mut i = 0;
+    while i < ops.len() {
+        t[ops[i]] = true;
+        i += 1;
+    }
+    let mut r = 0;
+    while r < 8 {
+        t[0xB8 + r] = true;
+        t[0xD8 + r] = true;
+        r += 1;
+    }
+    t
+};
+
 const CY: u8 = 0x80;
 const AC: u8 = 0x40;
 const OV: u8 = 0x04;
@@ -189,6 +207,13 @@ impl Cpu {
     pub(crate) fn execute(&mut self, x: &mut dyn Xdata) -> Result<u8, Error> {
         self.op_pc = self.pc;
         let op = self.fetch();
+        let n = CYCLES[op as usize];
+        self.cycles += n as u64;
+        // The first machine cycle passes before the instruction's effect (a timer started by
+        // SETB TRx does not count that instruction's cycle), the others after it; conditional
+        // jumps test after all their cycles. This is where s51 places them too.
+        let before = if TESTS_LATE[op as usize] { n } else { 1 };
+        self.tick(before as u32);
         match op {
             0x00 => {}
             0x01 | 0x21 | 0x41 | 0x61 | 0x81 | 0xA1 | 0xC1 | 0xE1 => {
@@ -547,9 +572,9 @@ impl Cpu {
                 self.iram[r] = self.a();
             }
         }
-        let n = CYCLES[op as usize];
-        self.cycles += n as u64;
-        self.tick(n as u32);
+        if n > before {
+            self.tick((n - before) as u32);
+        }
         Ok(n)
     }
 

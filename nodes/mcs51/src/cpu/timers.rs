@@ -2,8 +2,8 @@
 //!
 //! Timers advance in closed form by whole instructions (n machine cycles at once), which is
 //! exact for everything the program can observe between instructions. Modes (Intel MCS-51 User's
-//! Manual, "Timer/Counters"): 0 = 13 bits (TH and the low 5 bits of TL; TL's upper 3 bits are
-//! left alone), 1 = 16 bits, 2 = TL with auto-reload from TH, 3 = timer 0 as two 8-bit timers
+//! Manual, "Timer/Counters"): 0 = 13 bits (TH and the low 5 bits of TL; the manual calls TL's
+//! upper 3 bits indeterminate, they read 0 here as in s51), 1 = 16 bits, 2 = TL with auto-reload from TH, 3 = timer 0 as two 8-bit timers
 //! (TL0 with TR0/TF0, TH0 counting cycles with TR1/TF1) while timer 1 in mode 3 stops. While
 //! timer 0 is in mode 3, timer 1 runs whenever it is not in mode 3 and sets no flag (it can still
 //! clock the serial port).
@@ -80,7 +80,7 @@ impl Cpu {
         match mode {
             0 => {
                 let (v, ov) = count(h << 5 | (l & 0x1F), inc, 13);
-                self.w(tl, (l as u8 & 0xE0) | (v as u8 & 0x1F));
+                self.w(tl, v as u8 & 0x1F);
                 self.w(th, (v >> 5) as u8);
                 ov
             }
