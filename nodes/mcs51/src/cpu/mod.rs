@@ -132,6 +132,7 @@ pub struct Cpu {
     pub(crate) xaccess: Option<XAccess>,
     pub(crate) fault: Option<u16>,
     pub(crate) entry_cycles: u8,
+    pub(crate) skipped: u64,
 }
 
 impl Cpu {
@@ -161,6 +162,7 @@ impl Cpu {
             xaccess: None,
             fault: None,
             entry_cycles: 2,
+            skipped: 0,
         };
         cpu.reset();
         cpu
@@ -201,6 +203,12 @@ impl Cpu {
     /// Machine cycles since the core was made.
     pub fn cycles(&self) -> u64 {
         self.cycles
+    }
+
+    /// Machine cycles that [`Cpu::run`] passed in closed form in DJNZ delay loops (included
+    /// in [`Cpu::cycles`]).
+    pub fn skipped_cycles(&self) -> u64 {
+        self.skipped
     }
 
     /// Internal RAM 00h–FFh (the upper half is zero on the 80C51).

@@ -207,6 +207,7 @@ impl Cpu {
             self.pc = self.pc.wrapping_add(len);
         }
         self.cycles += 2 * k as u64;
+        self.skipped += 2 * k as u64;
         self.tick(2 * k);
         self.inhibit = false;
         true
