@@ -45,10 +45,8 @@ fn direct(a: u8) -> String {
 }
 
 fn bit(b: u8) -> String {
-    if b >= 0x80 {
-        if let Some(name) = sfr_name(b & 0xF8) {
-            return format!("{name}.{}", b & 7);
-        }
+    if let Some(name) = sfr_name(b & 0xF8).filter(|_| b >= 0x80) {
+        return format!("{name}.{}", b & 7);
     }
     hex(b as u32, 2)
 }

@@ -11,27 +11,21 @@
 use super::{Cpu, IE, IP, SCON, TCON};
 use crate::Error;
 
-/// (TCON or SCON mask, IE enable bit, vector)
-const SOURCES: [(u8, u8, u16); 5] = [
-    (0x02, 0x01, 0x03), // IE0
-    (0x20, 0x02, 0x0B), // TF0
-    (0x08, 0x04, 0x13), // IE1
-    (0x80, 0x08, 0x1B), // TF1
-    (0x03, 0x10, 0x23), // RI | TI (in SCON)
-];
+/// Vectors by IE bit: IE0, TF0, IE1, TF1, RI|TI.
+const VECTORS: [u16; 5] = [0x03, 0x0B, 0x13, 0x1B, 0x23];
 
 impl Cpu {
     /// The requests that are pending and enabled, as IE bits (EA ignored).
+    #[inline(always)]
     fn requests(&self) -> u8 {
         let tcon = self.sfr[(TCON - 0x80) as usize];
         let scon = self.sfr[(SCON - 0x80) as usize];
-        let mut r = 0;
-        for (i, &(mask, _, _)) in SOURCES.iter().enumerate() {
-            let flags = if i == 4 { scon } else { tcon };
-            if flags & mask != 0 {
-                r |= 1 << i;
-            }
-        }
+        // TCON: IE0 bit 1, IE1 bit 3, TF0 bit 5, TF1 bit 7 -> IE bits 0, 2, 1, 3.
+        let r = (tcon >> 1 & 0x01)
+            | (tcon >> 1 & 0x04)
+            | (tcon >> 4 & 0x02)
+            | (tcon >> 4 & 0x08)
+            | if scon & 0x03 != 0 { 0x10 } else { 0 };
         r & self.sfr[(IE - 0x80) as usize]
     }
 
@@ -41,6 +35,7 @@ impl Cpu {
     }
 
     /// Enters the highest-priority pending interrupt, if one may be taken now.
+    #[inline(always)]
     pub(crate) fn poll_interrupt(&mut self) -> Result<Option<u16>, Error> {
         let ie = self.sfr[(IE - 0x80) as usize];
         if ie & 0x80 == 0 || self.inhibit {
@@ -60,7 +55,7 @@ impl Cpu {
             return Ok(None);
         };
         let index = chosen.trailing_zeros() as usize;
-        let vector = SOURCES[index].2;
+        let vector = VECTORS[index];
         self.op_pc = self.pc;
         let [lo, hi] = self.pc.to_le_bytes();
         self.push(lo)?;
@@ -76,7 +71,9 @@ impl Cpu {
         self.in_service |= level;
         self.pc = vector;
         self.cycles += self.entry_cycles as u64;
-        self.tick(self.entry_cycles as u32);
+        if self.cycles >= self.next_event {
+            self.sync(self.cycles);
+        }
         Ok(Some(vector))
     }
 
@@ -117,10 +114,10 @@ impl Cpu {
             *tcon |= 0x08;
         }
         if falling & 0x10 != 0 {
-            self.edges[0] += 1;
+            self.count_edge(0);
         }
         if falling & 0x20 != 0 {
-            self.edges[1] += 1;
+            self.count_edge(1);
         }
         self.sync_ext_ints();
     }

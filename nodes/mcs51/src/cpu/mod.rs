@@ -45,6 +45,19 @@ const WRITABLE: [bool; 128] = {
     t
 };
 
+/// SFRs whose value depends on or changes the timers or the serial port: they are brought up
+/// to date before an access.
+const TIMED: [bool; 128] = {
+    let mut t = [false; 128];
+    let timed = [TCON, TMOD, TL0, TL1, TH0, TH1, SCON, SBUF, P3];
+    let mut i = 0;
+    while i < timed.len() {
+        t[(timed[i] - 0x80) as usize] = true;
+        i += 1;
+    }
+    t
+};
+
 /// One MOVX access, as reported by [`Step`] and [`RunEnd`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum XAccess {
@@ -127,8 +140,12 @@ pub struct Cpu {
     pub(crate) inhibit: bool,
     pub(crate) tx: Tx,
     pub(crate) serial_out: Vec<u8>,
-    /// Falling edges on T0 and T1 not yet counted.
-    pub(crate) edges: [u32; 2],
+    /// Timers and the serial port are up to date to this cycle.
+    pub(crate) synced: u64,
+    /// The cycle of the next timer overflow or serial event (u64::MAX: none coming).
+    pub(crate) next_event: u64,
+    /// The cycle at which the executing instruction reads and writes.
+    pub(crate) effect_at: u64,
     pub(crate) xaccess: Option<XAccess>,
     pub(crate) fault: Option<u16>,
     pub(crate) entry_cycles: u8,
@@ -158,7 +175,9 @@ impl Cpu {
             inhibit: false,
             tx: Tx::Idle,
             serial_out: Vec::new(),
-            edges: [0; 2],
+            synced: 0,
+            next_event: u64::MAX,
+            effect_at: 0,
             xaccess: None,
             fault: None,
             entry_cycles: 2,
@@ -181,7 +200,9 @@ impl Cpu {
         self.inhibit = false;
         self.tx = Tx::Idle;
         self.fault = None;
+        self.synced = self.cycles;
         self.sync_ext_ints();
+        self.plan();
     }
 
     /// Sets the program counter (an entry point other than 0000h).
@@ -246,12 +267,14 @@ impl Cpu {
         if port > 3 || bit > 7 {
             return;
         }
+        self.sync(self.cycles);
         let before = self.pins(3);
         let p = &mut self.ext[port as usize];
         *p = if level { *p | 1 << bit } else { *p & !(1 << bit) };
         if port == 3 {
             self.p3_changed(before);
         }
+        self.plan();
     }
 
     /// Executes one instruction, or enters one interrupt.
@@ -261,13 +284,15 @@ impl Cpu {
         }
         self.xaccess = None;
         if let Some(vector) = self.poll_interrupt()? {
+            self.sync(self.cycles);
             return Ok(Step {
-                cycles: 2,
+                cycles: self.entry_cycles,
                 xdata: None,
                 interrupt: Some(vector),
             });
         }
         let cycles = self.execute(x)?;
+        self.sync(self.cycles);
         Ok(Step {
             cycles,
             xdata: self.xaccess,
@@ -286,14 +311,17 @@ impl Cpu {
             if self.poll_interrupt()?.is_some() {
                 continue;
             }
-            if self.skip_delay_loop(until) {
+            let op = self.code[self.pc as usize];
+            if (op | 0x07 == 0xDF || op == 0xD5) && self.skip_delay_loop(until) {
                 continue;
             }
             self.execute(x)?;
             if let Some(XAccess::Write { addr, value }) = self.xaccess {
+                self.sync(self.cycles);
                 return Ok(RunEnd::XdataWrite { addr, value });
             }
         }
+        self.sync(self.cycles);
         Ok(RunEnd::Reached)
     }
 
@@ -314,7 +342,10 @@ impl Cpu {
     }
 
     /// Reads an SFR; `pins` selects the port pins rather than the latches.
-    pub(crate) fn read_sfr(&self, addr: u8, pins: bool) -> u8 {
+    pub(crate) fn read_sfr(&mut self, addr: u8, pins: bool) -> u8 {
+        if TIMED[(addr - 0x80) as usize] {
+            self.sync(self.effect_at);
+        }
         match addr {
             P0 | P1 | P2 | P3 if pins => self.pins(((addr - 0x80) >> 4) as usize),
             PSW => self.psw(),
@@ -324,6 +355,18 @@ impl Cpu {
 
     pub(crate) fn write_sfr(&mut self, addr: u8, v: u8) {
         let i = (addr - 0x80) as usize;
+        if !TIMED[i] {
+            match addr {
+                IE | IP => {
+                    self.sfr[i] = v;
+                    self.inhibit = true;
+                }
+                _ if WRITABLE[i] => self.sfr[i] = v,
+                _ => {}
+            }
+            return;
+        }
+        self.sync(self.effect_at);
         match addr {
             SBUF => self.transmit(v),
             P3 => {
@@ -335,12 +378,8 @@ impl Cpu {
                 self.sfr[i] = v;
                 self.sync_ext_ints();
             }
-            IE | IP => {
-                self.sfr[i] = v;
-                self.inhibit = true;
-            }
-            _ if WRITABLE[i] => self.sfr[i] = v,
-            _ => {}
+            _ => self.sfr[i] = v,
         }
+        self.plan();
     }
 }

@@ -92,14 +92,14 @@ impl Cpu {
     fn rn(&self, n: u8) -> usize {
         ((self.sfr[(PSW - 0x80) as usize] & 0x18) | n) as usize
     }
-    fn direct(&self, addr: u8) -> u8 {
+    fn direct(&mut self, addr: u8) -> u8 {
         if addr < 0x80 {
             self.iram[addr as usize]
         } else {
             self.read_sfr(addr, true)
         }
     }
-    fn latch(&self, addr: u8) -> u8 {
+    fn latch(&mut self, addr: u8) -> u8 {
         if addr < 0x80 {
             self.iram[addr as usize]
         } else {
@@ -126,7 +126,7 @@ impl Cpu {
         let byte = if bit < 0x80 { 0x20 + (bit >> 3) } else { bit & 0xF8 };
         (byte, 1 << (bit & 7))
     }
-    fn bit(&self, bit: u8) -> bool {
+    fn bit(&mut self, bit: u8) -> bool {
         let (byte, mask) = Self::bit_loc(bit);
         self.direct(byte) & mask != 0
     }
@@ -208,12 +208,13 @@ impl Cpu {
         self.op_pc = self.pc;
         let op = self.fetch();
         let n = CYCLES[op as usize];
-        self.cycles += n as u64;
+        let start = self.cycles;
+        self.cycles = start + n as u64;
         // The first machine cycle passes before the instruction's effect (a timer started by
         // SETB TRx does not count that instruction's cycle), the others after it; conditional
         // jumps test after all their cycles. This is where s51 places them too.
         let before = if TESTS_LATE[op as usize] { n } else { 1 };
-        self.tick(before as u32);
+        self.effect_at = start + before as u64;
         match op {
             0x00 => {}
             0x01 | 0x21 | 0x41 | 0x61 | 0x81 | 0xA1 | 0xC1 | 0xE1 => {
@@ -374,13 +375,15 @@ impl Cpu {
             0x83 => self.set_a(self.code[self.pc.wrapping_add(self.a() as u16) as usize]),
             0x93 => self.set_a(self.code[self.dptr().wrapping_add(self.a() as u16) as usize]),
             0x84 => {
+                // Division by zero leaves A and B as they were (s51 does too) and sets OV.
                 let (a, b) = (self.a(), self.sfr[(B - 0x80) as usize]);
-                if b == 0 {
-                    self.set_cy_ov(false, true);
-                } else {
-                    self.set_a(a / b);
-                    self.sfr[(B - 0x80) as usize] = a % b;
-                    self.set_cy_ov(false, false);
+                match (a.checked_div(b), a.checked_rem(b)) {
+                    (Some(q), Some(r)) => {
+                        self.set_a(q);
+                        self.sfr[(B - 0x80) as usize] = r;
+                        self.set_cy_ov(false, false);
+                    }
+                    _ => self.set_cy_ov(false, true),
                 }
             }
             0xA4 => {
@@ -412,7 +415,8 @@ impl Cpu {
             }
             0xA2 => {
                 let b = self.fetch();
-                self.set_cy(self.bit(b));
+                let v = self.bit(b);
+                self.set_cy(v);
             }
             0xA3 => {
                 let [lo, hi] = self.dptr().wrapping_add(1).to_le_bytes();
@@ -572,8 +576,8 @@ impl Cpu {
                 self.iram[r] = self.a();
             }
         }
-        if n > before {
-            self.tick((n - before) as u32);
+        if self.cycles >= self.next_event {
+            self.sync(self.cycles);
         }
         Ok(n)
     }

@@ -1,19 +1,24 @@
 //! Timers 0 and 1, the serial transmitter's timing, and idle skipping.
 //!
-//! Timers advance in closed form by whole instructions (n machine cycles at once), which is
-//! exact for everything the program can observe between instructions. Modes (Intel MCS-51 User's
-//! Manual, "Timer/Counters"): 0 = 13 bits (TH and the low 5 bits of TL; the manual calls TL's
-//! upper 3 bits indeterminate, they read 0 here as in s51), 1 = 16 bits, 2 = TL with auto-reload from TH, 3 = timer 0 as two 8-bit timers
-//! (TL0 with TR0/TF0, TH0 counting cycles with TR1/TF1) while timer 1 in mode 3 stops. While
-//! timer 0 is in mode 3, timer 1 runs whenever it is not in mode 3 and sets no flag (it can still
-//! clock the serial port).
+//! Timers are brought up to date lazily, in closed form: only when the program touches a timer,
+//! serial or P3 register, when the caller changes a pin, at the end of `step`/`run`, and when the
+//! cycle count reaches the next event (a timer overflow or the end of a serial character), which
+//! is computed ahead. The result is exactly that of counting every machine cycle.
+//!
+//! Modes (Intel MCS-51 User's Manual, "Timer/Counters"): 0 = 13 bits (TH and the low 5 bits of
+//! TL; the manual calls TL's upper 3 bits indeterminate, they read 0 here as in s51), 1 = 16
+//! bits, 2 = TL with auto-reload from TH, 3 = timer 0 as two 8-bit timers (TL0 with TR0/TF0, TH0
+//! counting cycles with TR1/TF1) while timer 1 in mode 3 stops. While timer 0 is in mode 3,
+//! timer 1 runs whenever it is not in mode 3 and sets no flag (it can still clock the serial
+//! port). In counter mode (C/T = 1) a timer counts falling edges of its pin (T0 = P3.4,
+//! T1 = P3.5) as the caller drives them.
 
 use super::{Cpu, PCON, SCON, TCON, TH0, TH1, TL0, TL1, TMOD, Tx};
 
 /// Adds `inc` to an up-counter of `bits` bits; returns the new value and the overflow count.
-fn count(value: u32, inc: u32, bits: u32) -> (u32, u32) {
-    let total = value as u64 + inc as u64;
-    ((total & ((1 << bits) - 1)) as u32, (total >> bits) as u32)
+fn count(value: u32, inc: u64, bits: u32) -> (u32, u64) {
+    let total = value as u64 + inc;
+    ((total & ((1 << bits) - 1)) as u32, total >> bits)
 }
 
 impl Cpu {
@@ -24,55 +29,76 @@ impl Cpu {
         self.sfr[(a - 0x80) as usize] = v;
     }
 
-    /// Whether timer `t` (0/1) counts this cycle: TRx, and GATE clear or INTx high.
+    /// Whether timer `t` (0/1) counts: TRx, and GATE clear or INTx high.
+    #[inline(always)]
     fn gated_on(&self, t: usize, tr: bool) -> bool {
-        let gate = self.r(TMOD) >> (4 * t) & 0x08 != 0;
-        tr && (!gate || self.pins(3) & (0x04 << t) != 0)
+        tr && (self.r(TMOD) >> (4 * t) & 0x08 == 0 || self.pins(3) & (0x04 << t) != 0)
     }
 
-    /// Advances the timers and the serial transmitter by `n` machine cycles.
-    #[inline]
-    pub(crate) fn tick(&mut self, n: u32) {
+    /// Brings timers and the serial transmitter up to cycle `to`.
+    pub(crate) fn sync(&mut self, to: u64) {
+        if to > self.synced {
+            let n = to - self.synced;
+            self.synced = to;
+            self.advance_timers(n, false);
+        }
+        self.plan();
+    }
+
+    /// Computes the cycle of the next timer or serial event.
+    pub(crate) fn plan(&mut self) {
+        self.next_event = match self.cycles_to_event() {
+            Some(d) => self.synced + d,
+            None => u64::MAX,
+        };
+    }
+
+    /// A falling edge on T0 (`t` = 0) or T1 (`t` = 1): one count if that timer is a counter.
+    pub(crate) fn count_edge(&mut self, t: usize) {
+        if self.r(TMOD) >> (4 * t) & 0x04 != 0 {
+            self.advance_timers(1, true);
+            self.plan();
+        }
+    }
+
+    /// Advances by `n` machine cycles (`edge`: by one edge on the counter inputs instead).
+    fn advance_timers(&mut self, n: u64, edge: bool) {
         let tcon = self.r(TCON);
         let tmod = self.r(TMOD);
-        let t0_split = tmod & 3 == 3;
-        if tcon & 0x50 == 0 && !t0_split && self.tx == Tx::Idle && self.edges == [0, 0] {
-            return;
-        }
-        self.tick_slow(n, tcon, tmod);
-    }
-
-    fn tick_slow(&mut self, n: u32, tcon: u8, tmod: u8) {
-        let edges = std::mem::take(&mut self.edges);
-        let inc = |t: usize| if tmod >> (4 * t) & 0x04 != 0 { edges[t] } else { n };
+        // Cycles for timers, edges for counters.
+        let inc = |t: usize| {
+            if (tmod >> (4 * t) & 0x04 != 0) == edge {
+                n
+            } else {
+                0
+            }
+        };
+        let cycles = if edge { 0 } else { n };
         let m0 = tmod & 3;
         let m1 = tmod >> 4 & 3;
-        // Timer 0.
         if self.gated_on(0, tcon & 0x10 != 0) && self.advance(TL0, TH0, m0, inc(0)) > 0 {
             self.sfr[(TCON - 0x80) as usize] |= 0x20;
         }
         if m0 == 3 && tcon & 0x40 != 0 {
-            let (th, ov) = count(self.r(TH0) as u32, n, 8);
+            let (th, ov) = count(self.r(TH0) as u32, cycles, 8);
             self.w(TH0, th as u8);
             if ov > 0 {
                 self.sfr[(TCON - 0x80) as usize] |= 0x80;
             }
         }
-        // Timer 1.
         let mut ov1 = 0;
-        let tr1 = m0 == 3 || tcon & 0x40 != 0;
-        if m1 != 3 && self.gated_on(1, tr1) {
+        if m1 != 3 && self.gated_on(1, m0 == 3 || tcon & 0x40 != 0) {
             ov1 = self.advance(TL1, TH1, m1, inc(1));
             if ov1 > 0 && m0 != 3 {
                 self.sfr[(TCON - 0x80) as usize] |= 0x80;
             }
         }
-        self.serial_tick(n, ov1);
+        self.serial_tick(cycles, ov1);
     }
 
     /// Counts `inc` on the timer (TL, TH) in `mode` (0–3, mode 3 counting TL only); returns the
     /// number of overflows.
-    fn advance(&mut self, tl: u8, th: u8, mode: u8, inc: u32) -> u32 {
+    fn advance(&mut self, tl: u8, th: u8, mode: u8, inc: u64) -> u64 {
         if inc == 0 {
             return 0;
         }
@@ -91,13 +117,14 @@ impl Cpu {
                 ov
             }
             2 => {
-                if l + inc < 256 {
-                    self.w(tl, (l + inc) as u8);
+                let total = l as u64 + inc;
+                if total < 256 {
+                    self.w(tl, total as u8);
                     return 0;
                 }
-                let over = l + inc - 256;
-                let period = 256 - h;
-                self.w(tl, (h + over % period) as u8);
+                let over = total - 256;
+                let period = 256 - h as u64;
+                self.w(tl, (h as u64 + over % period) as u8);
                 1 + over / period
             }
             _ => {
@@ -127,36 +154,33 @@ impl Cpu {
                 Tx::Idle
             }
         };
+        self.plan();
     }
 
-    fn serial_tick(&mut self, n: u32, ov1: u32) {
+    fn serial_tick(&mut self, n: u64, ov1: u64) {
         let left = match self.tx {
             Tx::Idle => return,
-            Tx::Cycles(c) => c.saturating_sub(n),
-            Tx::Overflows(o) => o.saturating_sub(ov1),
+            Tx::Cycles(c) => (c as u64).saturating_sub(n),
+            Tx::Overflows(o) => (o as u64).saturating_sub(ov1),
         };
         self.tx = match (self.tx, left) {
             (_, 0) => {
                 self.sfr[(SCON - 0x80) as usize] |= 0x02;
                 Tx::Idle
             }
-            (Tx::Cycles(_), l) => Tx::Cycles(l),
-            (_, l) => Tx::Overflows(l),
+            (Tx::Cycles(_), l) => Tx::Cycles(l as u32),
+            (_, l) => Tx::Overflows(l as u32),
         };
     }
 
-    /// Cycles until the next timer overflow or serial event, at most `limit`: a bound within
-    /// which nothing can raise an interrupt request (pins do not change within a run).
-    fn cycles_to_event(&self, limit: u32) -> u32 {
-        if self.edges != [0, 0] {
-            return 0;
-        }
+    /// Cycles from `synced` to the next timer overflow or serial event, if any is coming.
+    fn cycles_to_event(&self) -> Option<u64> {
         let tcon = self.r(TCON);
         let tmod = self.r(TMOD);
         let (m0, m1) = (tmod & 3, tmod >> 4 & 3);
-        let mut d = limit;
-        let to = |tl: u8, th: u8, mode: u8| -> u32 {
-            let (l, h) = (self.r(tl) as u32, self.r(th) as u32);
+        let mut d = u64::MAX;
+        let to = |tl: u8, th: u8, mode: u8| -> u64 {
+            let (l, h) = (self.r(tl) as u64, self.r(th) as u64);
             match mode {
                 0 => 0x2000 - (h << 5 | (l & 0x1F)),
                 1 => 0x1_0000 - (h << 8 | l),
@@ -167,15 +191,15 @@ impl Cpu {
             d = d.min(to(TL0, TH0, m0));
         }
         if m0 == 3 && tcon & 0x40 != 0 {
-            d = d.min(256 - self.r(TH0) as u32);
+            d = d.min(256 - self.r(TH0) as u64);
         }
         if tmod & 0x40 == 0 && m1 != 3 && self.gated_on(1, m0 == 3 || tcon & 0x40 != 0) {
             d = d.min(to(TL1, TH1, m1));
         }
         if let Tx::Cycles(c) = self.tx {
-            d = d.min(c);
+            d = d.min(c as u64);
         }
-        d
+        (d != u64::MAX).then_some(d)
     }
 
     /// At a `DJNZ Rn,$` or `DJNZ direct,$` (direct in internal RAM), runs as many iterations as
@@ -192,12 +216,12 @@ impl Cpu {
             _ => return false,
         };
         let value = self.iram[addr as usize];
-        let mut k = if value == 0 { 256 } else { value as u32 };
+        let mut k = if value == 0 { 256 } else { value as u64 };
         // Iteration i starts at cycles + 2i and runs only while that is below `until`.
-        k = k.min((until.saturating_sub(self.cycles)).div_ceil(2).min(256) as u32);
+        k = k.min(until.saturating_sub(self.cycles).div_ceil(2));
         if self.interrupt_possible() {
             // The iteration whose cycles reach the event is the last one that runs unpolled.
-            k = k.min(self.cycles_to_event(512).div_ceil(2));
+            k = k.min(self.next_event.saturating_sub(self.cycles).div_ceil(2));
         }
         if k < 2 {
             return false;
@@ -206,9 +230,11 @@ impl Cpu {
         if self.iram[addr as usize] == 0 {
             self.pc = self.pc.wrapping_add(len);
         }
-        self.cycles += 2 * k as u64;
-        self.skipped += 2 * k as u64;
-        self.tick(2 * k);
+        self.cycles += 2 * k;
+        self.skipped += 2 * k;
+        if self.cycles >= self.next_event {
+            self.sync(self.cycles);
+        }
         self.inhibit = false;
         true
     }

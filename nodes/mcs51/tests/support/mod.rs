@@ -132,6 +132,22 @@ pub fn run_ours(p: &Program, variant: Variant, limit: u64) -> Outcome {
     }
 }
 
+/// Runs `p` in our core with [`Cpu::run`] (lazy timers, idle skipping) to `cycles`; the PC must
+/// then be at `done`.
+pub fn run_ours_to(p: &Program, variant: Variant, cycles: u64) -> Outcome {
+    let image = mcs51::hex::parse(&p.hex, 0x10000).expect("as31 writes valid HEX");
+    let mut cpu = Cpu::new(variant, &image);
+    cpu.set_interrupt_entry_cycles(1);
+    let mut ram = Ram(vec![0; 0x10000]);
+    while cpu.run(&mut ram, cycles).expect("no fault") != mcs51::RunEnd::Reached {}
+    assert_eq!(cpu.pc(), p.done, "run to cycle {cycles} ends at `done`");
+    Outcome {
+        iram: cpu.iram()[..top(variant)].to_vec(),
+        sfr: cpu.sfr(),
+        cycles: cpu.cycles(),
+    }
+}
+
 /// Runs `p` in s51 until PC reaches `done`; `setup` are extra commands before `run`.
 pub fn run_s51(p: &Program, variant: Variant, setup: &str) -> Outcome {
     let t = top(variant);
@@ -239,5 +255,7 @@ pub fn check_with(src: &str, variant: Variant, setup: &str) -> Outcome {
     let ours = run_ours(&p, variant, 50_000_000);
     let theirs = run_s51(&p, variant, setup);
     compare(&ours, &theirs, src);
+    let by_run = run_ours_to(&p, variant, theirs.cycles);
+    compare(&by_run, &theirs, src);
     ours
 }
