@@ -28,6 +28,11 @@
 //!   3 byte is written, TI is set at once. Nothing is ever received (RI stays as written).
 //! - Counter inputs (T0, T1) and INT0/INT1 edges are seen when the caller changes a pin between
 //!   steps, i.e. at most one edge per pin per call of [`Cpu::set_pin`].
+//! - Within an instruction, timers count the first machine cycle before the instruction's reads
+//!   and writes and the others after them; conditional jumps test after all their cycles. A flag
+//!   set during an instruction is polled at its end. s51 places the cycles the same way.
+//! - The hardware call into an interrupt takes 2 machine cycles as the manual says; s51 takes 1
+//!   ([`Cpu::set_interrupt_entry_cycles`] selects, the s51 comparisons use 1).
 //!
 //! Idle skipping: [`Cpu::run`] executes a `DJNZ Rn,$` or `DJNZ direct,$` delay loop in closed
 //! form, never past `until` and, when interrupts are enabled, never past the next timer overflow

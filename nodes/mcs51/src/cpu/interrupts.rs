@@ -29,7 +29,7 @@ impl Cpu {
         r & self.sfr[(IE - 0x80) as usize]
     }
 
-    /// Whether an interrupt would be taken at the next poll (used by idle skipping).
+    /// Whether interrupts are enabled at all (EA), so that a timer event may start one.
     pub(crate) fn interrupt_possible(&self) -> bool {
         self.sfr[(IE - 0x80) as usize] & 0x80 != 0
     }

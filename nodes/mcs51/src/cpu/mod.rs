@@ -1,5 +1,6 @@
 //! The core's state, its memory spaces and the public stepping API.
 
+mod access;
 mod interrupts;
 mod ops;
 mod timers;
