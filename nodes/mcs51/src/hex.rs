@@ -184,6 +184,15 @@ mod tests {
                 addr: 2
             })
         );
+        // Linear base FFFF0000h plus offset FFFFh: the top of the 32-bit space, no overflow.
+        assert_eq!(
+            parse(":02000004FFFFFC\n:02FFFF00AABB9B\n:00000001FF\n", 0x10000),
+            Err(Error::OutOfRange {
+                line: 2,
+                addr: 0xFFFF_FFFF,
+                size: 0x10000
+            })
+        );
         // One byte at 1000h into a 4 KB memory.
         assert_eq!(
             parse(":01100000AA45\n:00000001FF\n", 4096),

@@ -156,13 +156,9 @@ pub struct Cpu {
 impl Cpu {
     /// A core at reset running `image` (code beyond the image reads FFh).
     pub fn new(variant: Variant, image: &Image) -> Cpu {
-        let mut code = vec![0xFF; 0x10000];
+        let mut code = Box::new([0xFF; 0x10000]);
         let n = image.code.len().min(0x10000);
         code[..n].copy_from_slice(&image.code[..n]);
-        let code: Box<[u8; 0x10000]> = match code.into_boxed_slice().try_into() {
-            Ok(b) => b,
-            Err(_) => unreachable!("the vector has 65536 bytes"),
-        };
         let mut cpu = Cpu {
             code: Arc::from(code),
             iram: [0; 256],
