@@ -260,6 +260,31 @@ fn delay_program(ie: u8) -> Cpu {
 }
 
 #[test]
+fn idle_skip_waits_for_a_request_held_off_by_an_ie_write() {
+    // SETB TF0; MOV IE,#82h; DJNZ R7,$; SJMP $. Handler: INC 30h; RETI.
+    let main: &[u8] = &[0xD2, 0x8D, 0x75, 0xA8, 0x82, 0xDF, 0xFE, 0x80, 0xFE];
+    let make = || {
+        cpu(
+            Variant::I8051,
+            &[
+                (0, &[0x02, 0x00, 0x40]),
+                (0x0B, &[0x05, 0x30, 0x32]),
+                (0x40, main),
+            ],
+        )
+    };
+    let mut skipped = make();
+    run(&mut skipped, 20);
+    let mut stepped = make();
+    while stepped.cycles() < 20 {
+        stepped.step(&mut NoXdata).unwrap();
+    }
+    assert_eq!(skipped.snapshot(), stepped.snapshot());
+    // LJMP 2, SETB 1, MOV IE 2, one DJNZ 2 (R7 = FFh), entry 2, INC 1, RETI 2, DJNZ 2 = 14.
+    assert_eq!((skipped.iram()[0x30], skipped.iram()[7]), (1, 0xFB));
+}
+
+#[test]
 fn idle_skip_matches_stepping() {
     for (ie, until) in [0x82, 0x00]
         .into_iter()

@@ -34,6 +34,14 @@ impl Cpu {
         self.sfr[(IE - 0x80) as usize] & 0x80 != 0
     }
 
+    /// Whether a pending, enabled request is not held off by a handler in service (the
+    /// one-instruction delay after RETI or an IE/IP write aside).
+    pub(crate) fn request_takeable(&self) -> bool {
+        let req = self.requests();
+        let ip = self.sfr[(IP - 0x80) as usize];
+        (req & ip != 0 && self.in_service & 2 == 0) || (req & !ip != 0 && self.in_service == 0)
+    }
+
     /// Enters the highest-priority pending interrupt, if one may be taken now.
     #[inline(always)]
     pub(crate) fn poll_interrupt(&mut self) -> Result<Option<u16>, Error> {

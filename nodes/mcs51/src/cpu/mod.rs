@@ -184,8 +184,8 @@ impl Cpu {
         cpu
     }
 
-    /// Hardware reset: SP 07h, ports FFh, PC and other SFRs 0; internal RAM is kept (as on a
-    /// warm reset), the cycle count too.
+    /// Hardware reset: SP 07h, ports FFh, PC and other SFRs 0, no interrupt in service, a
+    /// fault cleared; internal RAM is kept (as on a warm reset), the cycle count too.
     pub fn reset(&mut self) {
         self.sfr = [0; 128];
         for p in [P0, P1, P2, P3] {

@@ -220,6 +220,10 @@ impl Cpu {
         // Iteration i starts at cycles + 2i and runs only while that is below `until`.
         k = k.min(until.saturating_sub(self.cycles).div_ceil(2));
         if self.interrupt_possible() {
+            if self.request_takeable() {
+                // Held off for one instruction only (after RETI or an IE/IP write).
+                return false;
+            }
             // The iteration whose cycles reach the event is the last one that runs unpolled.
             k = k.min(self.next_event.saturating_sub(self.cycles).div_ceil(2));
         }
