@@ -22,17 +22,19 @@
 //! - A push past the top of internal RAM (7Fh, or FFh on the 8052) and the reserved opcode A5h
 //!   are faults ([`Error::StackOverflow`], [`Error::ReservedOpcode`]); the core then stays
 //!   stopped and every later step returns [`Error::Stopped`].
-//! - Serial port: transmit only. A write to SBUF queues the byte at once and sets TI after the
-//!   character time (mode 0: 8 cycles; mode 2: 11 bits at fosc/64 or /32; modes 1 and 3: 10 or
-//!   11 bits, each 32 timer 1 overflows, 16 with SMOD). If timer 1 does not run when a mode 1 or
-//!   3 byte is written, TI is set at once. Nothing is ever received (RI stays as written).
+//! - Serial port: transmit only. A write to SBUF queues the byte at once and sets TI when the
+//!   whole character, stop bit included, has gone out (as s51 does): mode 0 after 8 cycles;
+//!   mode 2 after 11 bits at fosc/64 (fosc/32 with SMOD); modes 1 and 3 after 10 or 11 bits of
+//!   32 timer 1 overflows each (16 with SMOD). If timer 1 does not run when a mode 1 or 3 byte
+//!   is written, TI is set at once. Nothing is ever received (RI stays as written).
 //! - Counter inputs (T0, T1) and INT0/INT1 edges are seen when the caller changes a pin between
 //!   steps, i.e. at most one edge per pin per call of [`Cpu::set_pin`].
 //! - Within an instruction, timers count the first machine cycle before the instruction's reads
 //!   and writes and the others after them; conditional jumps test after all their cycles. A flag
 //!   set during an instruction is polled at its end. s51 places the cycles the same way.
 //! - The hardware call into an interrupt takes 2 machine cycles as the manual says; s51 takes 1
-//!   ([`Cpu::set_interrupt_entry_cycles`] selects, the s51 comparisons use 1).
+//!   ([`Cpu::set_interrupt_entry_cycles`] selects, the s51 comparisons use 1). s51 also sends
+//!   in serial mode 2 at twice the manual's rate; we follow the manual.
 //!
 //! Idle skipping: [`Cpu::run`] executes a `DJNZ Rn,$` or `DJNZ direct,$` delay loop in closed
 //! form, never past `until` and, when interrupts are enabled, never past the next timer overflow

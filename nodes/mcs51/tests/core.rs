@@ -233,6 +233,19 @@ fn serial_bytes_reach_the_caller() {
     assert!(c.take_serial().is_empty());
 }
 
+#[test]
+fn serial_mode2_ti_after_eleven_bits_at_fosc_64() {
+    // MOV SCON,#80h; MOV SBUF,#0AAh (written at cycle 3); NOPs. 11 bits × 64 clocks / 12 =
+    // 58.7 machine cycles: TI at cycle 3 + 59 = 62 (Intel manual: mode 2 baud = fosc/64).
+    let mut code = vec![0x75, 0x98, 0x80, 0x75, 0x99, 0xAA];
+    code.extend([0x00; 100]);
+    let mut c = cpu(Variant::I8051, &[(0, &code)]);
+    run(&mut c, 61);
+    assert_eq!((c.cycles(), c.sfr()[0x18] & 0x02), (61, 0));
+    c.step(&mut NoXdata).unwrap();
+    assert_eq!((c.cycles(), c.sfr()[0x18] & 0x02), (62, 0x02));
+}
+
 /// A delay-loop program with a timer 0 interrupt (mode 2, every 100 cycles) whose handler
 /// counts: the idle skip must give exactly the state that stepping gives.
 fn delay_program(ie: u8) -> Cpu {

@@ -168,3 +168,22 @@ done:\tsjmp done
 ";
     check(src, Variant::I8051);
 }
+
+/// Serial mode 0 (one bit per machine cycle): TI after the eighth bit. (Mode 2 is checked by
+/// hand in `core.rs`: s51 runs it at twice the manual's rate.)
+#[test]
+fn serial_mode0_ti_timing() {
+    let src = "\t.org 0
+\tmov scon,#00h
+\tmov sbuf,#55h
+w0:\tinc 30h
+\tjnb ti,w0
+\tclr ti
+\tmov sbuf,#0AAh
+w1:\tinc 31h
+\tnop
+\tjnb ti,w1
+done:\tsjmp done
+";
+    check(src, Variant::I8051);
+}
