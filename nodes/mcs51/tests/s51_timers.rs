@@ -3,7 +3,7 @@
 mod support;
 
 use mcs51::Variant;
-use support::check;
+use support::{check, check_with_pins};
 
 /// Timer 0 mode 1 (16 bits) reloaded by its interrupt handler; the main loop counts.
 #[test]
@@ -186,4 +186,44 @@ w1:\tinc 31h
 done:\tsjmp done
 ";
     check(src, Variant::I8051);
+}
+
+/// INT0 level-triggered with the pin held low: the handler runs again after each RETI plus one
+/// instruction; MOV A,P3 reads the low pin.
+#[test]
+fn int0_level_with_pin_low() {
+    let src = "\t.org 0
+\tljmp start
+\t.org 3
+\tinc 30h
+\treti
+\t.org 40h
+start:\tmov ie,#81h
+\tmov a,p3
+\tmov 31h,a
+\tmov r7,#20
+wait:\tdjnz r7,wait
+\tclr ea
+done:\tsjmp done
+";
+    check_with_pins(src, Variant::I8051, &[(3, 0xFB)]);
+}
+
+/// GATE: timer 0 counts only while INT0 is high; timer 1 (not gated) counts on.
+#[test]
+fn gate_holds_the_timer_while_int0_is_low() {
+    let src = "\t.org 0
+\tmov tmod,#19h
+\tsetb tr0
+\tsetb tr1
+\tmov r7,#30
+wait:\tdjnz r7,wait
+\tmov 30h,tl0
+\tmov 31h,tl1
+\tclr tr0
+\tclr tr1
+done:\tsjmp done
+";
+    check_with_pins(src, Variant::I8051, &[(3, 0xFB)]);
+    check_with_pins(src, Variant::I8051, &[(3, 0xFF)]);
 }

@@ -111,10 +111,34 @@ fn top(variant: Variant) -> usize {
     if variant == Variant::I8051 { 0x80 } else { 0x100 }
 }
 
+/// Our final state; a driven port shows its pins (latch AND level), as s51's dump does, where
+/// [`Cpu::sfr`] shows the latch.
+fn outcome(cpu: &Cpu, variant: Variant, pins: &[(u8, u8)]) -> Outcome {
+    let mut sfr = cpu.sfr();
+    for &(port, levels) in pins {
+        sfr[0x10 * port as usize] &= levels;
+    }
+    Outcome {
+        iram: cpu.iram()[..top(variant)].to_vec(),
+        sfr,
+        cycles: cpu.cycles(),
+    }
+}
+
+/// Drives external pin levels `(port, levels)` before the program starts.
+fn drive(cpu: &mut Cpu, pins: &[(u8, u8)]) {
+    for &(port, levels) in pins {
+        for bit in 0..8 {
+            cpu.set_pin(port, bit, levels >> bit & 1 != 0);
+        }
+    }
+}
+
 /// Runs `p` in our core until PC reaches `done` (at most `limit` cycles).
-pub fn run_ours(p: &Program, variant: Variant, limit: u64) -> Outcome {
+pub fn run_ours(p: &Program, variant: Variant, limit: u64, pins: &[(u8, u8)]) -> Outcome {
     let image = mcs51::hex::parse(&p.hex, 0x10000).expect("as31 writes valid HEX");
     let mut cpu = Cpu::new(variant, &image);
+    drive(&mut cpu, pins);
     // s51 enters an interrupt in 1 machine cycle, the manual's hardware LCALL takes 2.
     cpu.set_interrupt_entry_cycles(1);
     let mut ram = Ram(vec![0; 0x10000]);
@@ -125,27 +149,20 @@ pub fn run_ours(p: &Program, variant: Variant, limit: u64) -> Outcome {
         );
         cpu.step(&mut ram).expect("no fault");
     }
-    Outcome {
-        iram: cpu.iram()[..top(variant)].to_vec(),
-        sfr: cpu.sfr(),
-        cycles: cpu.cycles(),
-    }
+    outcome(&cpu, variant, pins)
 }
 
 /// Runs `p` in our core with [`Cpu::run`] (lazy timers, idle skipping) to `cycles`; the PC must
 /// then be at `done`.
-pub fn run_ours_to(p: &Program, variant: Variant, cycles: u64) -> Outcome {
+pub fn run_ours_to(p: &Program, variant: Variant, cycles: u64, pins: &[(u8, u8)]) -> Outcome {
     let image = mcs51::hex::parse(&p.hex, 0x10000).expect("as31 writes valid HEX");
     let mut cpu = Cpu::new(variant, &image);
+    drive(&mut cpu, pins);
     cpu.set_interrupt_entry_cycles(1);
     let mut ram = Ram(vec![0; 0x10000]);
     while cpu.run(&mut ram, cycles).expect("no fault") != mcs51::RunEnd::Reached {}
     assert_eq!(cpu.pc(), p.done, "run to cycle {cycles} ends at `done`");
-    Outcome {
-        iram: cpu.iram()[..top(variant)].to_vec(),
-        sfr: cpu.sfr(),
-        cycles: cpu.cycles(),
-    }
+    outcome(&cpu, variant, pins)
 }
 
 /// Runs `p` in s51 until PC reaches `done`; `setup` are extra commands before `run`.
@@ -246,16 +263,21 @@ pub fn compare(ours: &Outcome, s51: &Outcome, src: &str) {
 
 /// Assembles `src`, runs it in both simulators and compares.
 pub fn check(src: &str, variant: Variant) -> Outcome {
-    check_with(src, variant, "")
+    check_with_pins(src, variant, &[])
 }
 
-/// As [`check`], with extra s51 commands before `run`.
-pub fn check_with(src: &str, variant: Variant, setup: &str) -> Outcome {
+/// As [`check`], with external pin levels `(port, levels)` driven from the start (in s51 by
+/// `set hardware port[n]`).
+pub fn check_with_pins(src: &str, variant: Variant, pins: &[(u8, u8)]) -> Outcome {
     let p = assemble(src);
-    let ours = run_ours(&p, variant, 50_000_000);
-    let theirs = run_s51(&p, variant, setup);
+    let setup: String = pins
+        .iter()
+        .map(|(port, levels)| format!("set hardware port[{port}] {levels:#x}\n"))
+        .collect();
+    let ours = run_ours(&p, variant, 50_000_000, pins);
+    let theirs = run_s51(&p, variant, &setup);
     compare(&ours, &theirs, src);
-    let by_run = run_ours_to(&p, variant, theirs.cycles);
+    let by_run = run_ours_to(&p, variant, theirs.cycles, pins);
     compare(&by_run, &theirs, src);
     ours
 }
