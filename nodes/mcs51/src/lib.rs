@@ -31,14 +31,16 @@
 //!   steps, i.e. at most one edge per pin per call of [`Cpu::set_pin`].
 //! - Within an instruction, timers count the first machine cycle before the instruction's reads
 //!   and writes and the others after them; conditional jumps test after all their cycles. A flag
-//!   set during an instruction is polled at its end. s51 places the cycles the same way.
+//!   set during an instruction is polled at its end (the manual samples flags one cycle before
+//!   the poll, so hardware may answer one instruction later). s51 does the same as this core.
 //! - The hardware call into an interrupt takes 2 machine cycles as the manual says; s51 takes 1
 //!   ([`Cpu::set_interrupt_entry_cycles`] selects, the s51 comparisons use 1). s51 also sends
 //!   in serial mode 2 at twice the manual's rate; we follow the manual.
 //!
 //! Idle skipping: [`Cpu::run`] executes a `DJNZ Rn,$` or `DJNZ direct,$` delay loop in closed
 //! form, never past `until` and, when interrupts are enabled, never past the next timer overflow
-//! or serial event, so the result is exactly that of stepping. For other idle loops (polling a
+//! or serial event nor while a request waits out the instruction after RETI or an IE/IP write,
+//! so the result is exactly that of stepping (pins change only between calls). For other idle loops (polling a
 //! flag that only an interrupt or a pin changes) a caller can compare [`Cpu::snapshot`]s taken
 //! at the loop head: equal snapshots and no pending event mean the loop repeats unchanged.
 

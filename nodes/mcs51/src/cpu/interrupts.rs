@@ -5,8 +5,8 @@
 //! interrupts a low-priority handler, nothing interrupts a high-priority one, and a request is
 //! not taken while a handler of its own level runs. No interrupt is taken right after RETI or a
 //! write to IE or IP (the next instruction runs first). The hardware call takes 2 machine cycles
-//! (settable: s51 takes 1, see [`Cpu::set_interrupt_entry_cycles`])
-//! and clears IE0/IE1 (edge mode only) and TF0/TF1, never RI/TI.
+//! (settable: s51 takes 1, see [`Cpu::set_interrupt_entry_cycles`]) and clears IE0/IE1 (edge
+//! mode only) and TF0/TF1, never RI/TI.
 
 use super::{Cpu, IE, IP, SCON, TCON};
 use crate::Error;
