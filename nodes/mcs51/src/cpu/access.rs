@@ -1,0 +1,180 @@
+//! Operand access and ALU helpers for the instruction set: registers, direct, indirect and bit
+//! addresses, the stack, and the flag arithmetic of ADD/ADDC/SUBB.
+
+use super::{ACC, Cpu, DPH, DPL, P2, PSW, SP};
+use crate::Error;
+
+const CY: u8 = 0x80;
+pub(super) const AC: u8 = 0x40;
+const OV: u8 = 0x04;
+
+impl Cpu {
+    #[inline(always)]
+    pub(super) fn fetch(&mut self) -> u8 {
+        let b = self.code[self.pc as usize];
+        self.pc = self.pc.wrapping_add(1);
+        b
+    }
+    #[inline(always)]
+    pub(super) fn a(&self) -> u8 {
+        self.sfr[(ACC - 0x80) as usize]
+    }
+    #[inline(always)]
+    pub(super) fn set_a(&mut self, v: u8) {
+        self.sfr[(ACC - 0x80) as usize] = v;
+    }
+    #[inline(always)]
+    pub(super) fn psw_raw(&mut self) -> &mut u8 {
+        &mut self.sfr[(PSW - 0x80) as usize]
+    }
+    #[inline(always)]
+    pub(super) fn cy(&self) -> bool {
+        self.sfr[(PSW - 0x80) as usize] & CY != 0
+    }
+    pub(super) fn set_cy(&mut self, c: bool) {
+        let p = self.psw_raw();
+        *p = if c { *p | CY } else { *p & !CY };
+    }
+    pub(super) fn dptr(&self) -> u16 {
+        u16::from_le_bytes([self.sfr[(DPL - 0x80) as usize], self.sfr[(DPH - 0x80) as usize]])
+    }
+    /// Internal RAM address of register Rn in the current bank.
+    #[inline(always)]
+    pub(super) fn rn(&self, n: u8) -> usize {
+        ((self.sfr[(PSW - 0x80) as usize] & 0x18) | n) as usize
+    }
+    pub(super) fn direct(&mut self, addr: u8) -> u8 {
+        if addr < 0x80 {
+            self.iram[addr as usize]
+        } else {
+            self.read_sfr(addr, true)
+        }
+    }
+    pub(super) fn latch(&mut self, addr: u8) -> u8 {
+        if addr < 0x80 {
+            self.iram[addr as usize]
+        } else {
+            self.read_sfr(addr, false)
+        }
+    }
+    pub(super) fn set_direct(&mut self, addr: u8, v: u8) {
+        if addr < 0x80 {
+            self.iram[addr as usize] = v;
+        } else {
+            self.write_sfr(addr, v);
+        }
+    }
+    pub(super) fn indirect(&self, addr: u8) -> u8 {
+        self.iram[addr as usize]
+    }
+    pub(super) fn set_indirect(&mut self, addr: u8, v: u8) {
+        if addr <= self.ram_top {
+            self.iram[addr as usize] = v;
+        }
+    }
+    /// (byte address, mask) of a bit address.
+    pub(super) fn bit_loc(bit: u8) -> (u8, u8) {
+        let byte = if bit < 0x80 { 0x20 + (bit >> 3) } else { bit & 0xF8 };
+        (byte, 1 << (bit & 7))
+    }
+    pub(super) fn bit(&mut self, bit: u8) -> bool {
+        let (byte, mask) = Self::bit_loc(bit);
+        self.direct(byte) & mask != 0
+    }
+    pub(super) fn set_bit(&mut self, bit: u8, v: bool) {
+        let (byte, mask) = Self::bit_loc(bit);
+        let old = self.latch(byte);
+        self.set_direct(byte, if v { old | mask } else { old & !mask });
+    }
+    pub(crate) fn push(&mut self, v: u8) -> Result<(), Error> {
+        let sp = self.sfr[(SP - 0x80) as usize];
+        if sp >= self.ram_top {
+            return Err(self.fail(Error::StackOverflow { pc: self.op_pc, sp }));
+        }
+        self.sfr[(SP - 0x80) as usize] = sp + 1;
+        self.iram[sp as usize + 1] = v;
+        Ok(())
+    }
+    pub(super) fn pop(&mut self) -> u8 {
+        let sp = self.sfr[(SP - 0x80) as usize];
+        self.sfr[(SP - 0x80) as usize] = sp.wrapping_sub(1);
+        self.indirect(sp)
+    }
+    pub(super) fn jump_rel(&mut self, rel: u8) {
+        self.pc = self.pc.wrapping_add(rel as i8 as u16);
+    }
+
+    pub(super) fn add(&mut self, b: u8, carry: bool) {
+        let a = self.a();
+        let c = carry as u8;
+        let sum = a as u16 + b as u16 + c as u16;
+        let half = (a & 0x0F) + (b & 0x0F) + c > 0x0F;
+        let r = sum as u8;
+        let ov = (!(a ^ b) & (a ^ r)) & 0x80 != 0;
+        self.set_flags(sum > 0xFF, half, ov);
+        self.set_a(r);
+    }
+    pub(super) fn subb(&mut self, b: u8) {
+        let a = self.a();
+        let c = self.cy() as u8;
+        let r = a.wrapping_sub(b).wrapping_sub(c);
+        let borrow = (a as u16) < b as u16 + c as u16;
+        let half = (a & 0x0F) < (b & 0x0F) + c;
+        let ov = ((a ^ b) & (a ^ r)) & 0x80 != 0;
+        self.set_flags(borrow, half, ov);
+        self.set_a(r);
+    }
+    pub(super) fn set_flags(&mut self, cy: bool, ac: bool, ov: bool) {
+        let p = self.psw_raw();
+        *p = (*p & !(CY | AC | OV))
+            | if cy { CY } else { 0 }
+            | if ac { AC } else { 0 }
+            | if ov { OV } else { 0 };
+    }
+    pub(super) fn set_cy_ov(&mut self, cy: bool, ov: bool) {
+        let p = self.psw_raw();
+        *p = (*p & !(CY | OV)) | if cy { CY } else { 0 } | if ov { OV } else { 0 };
+    }
+    pub(super) fn cjne(&mut self, x: u8, y: u8) {
+        let rel = self.fetch();
+        self.set_cy(x < y);
+        if x != y {
+            self.jump_rel(rel);
+        }
+    }
+    pub(super) fn movx_addr_ri(&self, op: u8) -> u16 {
+        let lo = self.iram[self.rn(op & 1)];
+        u16::from_le_bytes([lo, self.sfr[(P2 - 0x80) as usize]])
+    }
+    pub(super) fn call(&mut self, target: u16) -> Result<(), Error> {
+        let [lo, hi] = self.pc.to_le_bytes();
+        self.push(lo)?;
+        self.push(hi)?;
+        self.pc = target;
+        Ok(())
+    }
+
+    /// Second operand of ADD/ADDC/ORL/ANL/XRL/SUBB A,<src> (x4 #data, x5 direct, x6/x7 @Ri,
+    /// x8–xF Rn).
+    #[inline(always)]
+    pub(super) fn alu_operand(&mut self, op: u8) -> u8 {
+        if op & 0x0F == 4 {
+            self.fetch()
+        } else {
+            self.src_operand(op)
+        }
+    }
+
+    /// Source operand by the low opcode bits: x5 direct, x6/x7 @Ri, x8–xF Rn.
+    #[inline(always)]
+    pub(super) fn src_operand(&mut self, op: u8) -> u8 {
+        match op & 0x0F {
+            5 => {
+                let d = self.fetch();
+                self.direct(d)
+            }
+            6 | 7 => self.indirect(self.iram[self.rn(op & 1)]),
+            _ => self.iram[self.rn(op & 7)],
+        }
+    }
+}

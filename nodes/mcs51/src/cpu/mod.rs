@@ -1,0 +1,382 @@
+//! The core's state, its memory spaces and the public stepping API.
+
+mod access;
+mod interrupts;
+mod ops;
+mod timers;
+
+use crate::{Error, Image, Variant, Xdata};
+use std::sync::Arc;
+
+// SFR addresses (Intel MCS-51 User's Manual, table of special function registers).
+pub(crate) const P0: u8 = 0x80;
+pub(crate) const SP: u8 = 0x81;
+pub(crate) const DPL: u8 = 0x82;
+pub(crate) const DPH: u8 = 0x83;
+pub(crate) const PCON: u8 = 0x87;
+pub(crate) const TCON: u8 = 0x88;
+pub(crate) const TMOD: u8 = 0x89;
+pub(crate) const TL0: u8 = 0x8A;
+pub(crate) const TL1: u8 = 0x8B;
+pub(crate) const TH0: u8 = 0x8C;
+pub(crate) const TH1: u8 = 0x8D;
+pub(crate) const P1: u8 = 0x90;
+pub(crate) const SCON: u8 = 0x98;
+pub(crate) const SBUF: u8 = 0x99;
+pub(crate) const P2: u8 = 0xA0;
+pub(crate) const IE: u8 = 0xA8;
+pub(crate) const P3: u8 = 0xB0;
+pub(crate) const IP: u8 = 0xB8;
+pub(crate) const PSW: u8 = 0xD0;
+pub(crate) const ACC: u8 = 0xE0;
+pub(crate) const B: u8 = 0xF0;
+
+const IMPLEMENTED: [u8; 21] = [
+    P0, SP, DPL, DPH, PCON, TCON, TMOD, TL0, TL1, TH0, TH1, P1, SCON, SBUF, P2, IE, P3, IP, PSW, ACC, B,
+];
+
+/// Whether each SFR address 80h–FFh is implemented (writes elsewhere are ignored).
+const WRITABLE: [bool; 128] = {
+    let mut t = [false; 128];
+    let mut i = 0;
+    while i < IMPLEMENTED.len() {
+        t[(IMPLEMENTED[i] - 0x80) as usize] = true;
+        i += 1;
+    }
+    t
+};
+
+/// SFRs whose value depends on or changes the timers or the serial port: they are brought up
+/// to date before an access.
+const TIMED: [bool; 128] = {
+    let mut t = [false; 128];
+    let timed = [TCON, TMOD, TL0, TL1, TH0, TH1, SCON, SBUF, P3];
+    let mut i = 0;
+    while i < timed.len() {
+        t[(timed[i] - 0x80) as usize] = true;
+        i += 1;
+    }
+    t
+};
+
+/// One MOVX access, as reported by [`Step`] and [`RunEnd`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum XAccess {
+    /// MOVX A,@DPTR or MOVX A,@Ri read `addr`.
+    Read {
+        /// External address.
+        addr: u16,
+    },
+    /// MOVX @DPTR,A or MOVX @Ri,A wrote `value` at `addr`.
+    Write {
+        /// External address.
+        addr: u16,
+        /// The byte written.
+        value: u8,
+    },
+}
+
+/// What one [`Cpu::step`] did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Step {
+    /// Machine cycles taken (1, 2 or 4; 2 for an interrupt entry unless set otherwise).
+    pub cycles: u8,
+    /// The MOVX access of the instruction, if it was one.
+    pub xdata: Option<XAccess>,
+    /// The vector called, if this step was an interrupt entry rather than an instruction.
+    pub interrupt: Option<u16>,
+}
+
+/// Why [`Cpu::run`] returned.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RunEnd {
+    /// The cycle count reached `until`.
+    Reached,
+    /// The instruction just executed was a MOVX write.
+    XdataWrite {
+        /// External address.
+        addr: u16,
+        /// The byte written.
+        value: u8,
+    },
+}
+
+/// The state that decides what the core does next (everything but the cycle count and the
+/// serial output), comparable for equality to detect a loop whose state repeats.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Snapshot {
+    /// Program counter.
+    pub pc: u16,
+    /// Internal RAM.
+    pub iram: [u8; 256],
+    /// SFRs 80h–FFh as [`Cpu::sfr`] shows them.
+    pub sfr: [u8; 128],
+    /// Interrupt levels in service (bit 0 low, bit 1 high).
+    pub in_service: u8,
+}
+
+/// Transmission in progress: what still has to pass before TI is set.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Tx {
+    Idle,
+    Cycles(u32),
+    Overflows(u32),
+}
+
+/// An 80C51/8052 core. Cloning is cheap: the code memory is shared.
+#[derive(Debug, Clone)]
+pub struct Cpu {
+    pub(crate) code: Arc<[u8; 0x10000]>,
+    pub(crate) iram: [u8; 256],
+    pub(crate) sfr: [u8; 128],
+    pub(crate) pc: u16,
+    /// PC of the instruction being executed, for fault reports.
+    pub(crate) op_pc: u16,
+    pub(crate) cycles: u64,
+    pub(crate) ram_top: u8,
+    /// External levels driven on the port pins (a pin reads latch AND level).
+    pub(crate) ext: [u8; 4],
+    pub(crate) in_service: u8,
+    /// Set by RETI and writes to IE/IP: the next instruction runs before any interrupt.
+    pub(crate) inhibit: bool,
+    pub(crate) tx: Tx,
+    pub(crate) serial_out: Vec<u8>,
+    /// Timers and the serial port are up to date to this cycle.
+    pub(crate) synced: u64,
+    /// The cycle of the next timer overflow or serial event (u64::MAX: none coming).
+    pub(crate) next_event: u64,
+    /// The cycle at which the executing instruction reads and writes.
+    pub(crate) effect_at: u64,
+    pub(crate) xaccess: Option<XAccess>,
+    pub(crate) fault: Option<u16>,
+    pub(crate) entry_cycles: u8,
+    pub(crate) skipped: u64,
+}
+
+impl Cpu {
+    /// A core at reset running `image` (code beyond the image reads FFh).
+    pub fn new(variant: Variant, image: &Image) -> Cpu {
+        let mut code = Box::new([0xFF; 0x10000]);
+        let n = image.code.len().min(0x10000);
+        code[..n].copy_from_slice(&image.code[..n]);
+        let mut cpu = Cpu {
+            code: Arc::from(code),
+            iram: [0; 256],
+            sfr: [0; 128],
+            pc: 0,
+            op_pc: 0,
+            cycles: 0,
+            ram_top: if variant == Variant::I8051 { 0x7F } else { 0xFF },
+            ext: [0xFF; 4],
+            in_service: 0,
+            inhibit: false,
+            tx: Tx::Idle,
+            serial_out: Vec::new(),
+            synced: 0,
+            next_event: u64::MAX,
+            effect_at: 0,
+            xaccess: None,
+            fault: None,
+            entry_cycles: 2,
+            skipped: 0,
+        };
+        cpu.reset();
+        cpu
+    }
+
+    /// Hardware reset: SP 07h, ports FFh, PC and other SFRs 0, no interrupt in service, a
+    /// fault cleared; internal RAM is kept (as on a warm reset), the cycle count too.
+    pub fn reset(&mut self) {
+        self.sfr = [0; 128];
+        for p in [P0, P1, P2, P3] {
+            self.sfr[(p - 0x80) as usize] = 0xFF;
+        }
+        self.sfr[(SP - 0x80) as usize] = 0x07;
+        self.pc = 0;
+        self.in_service = 0;
+        self.inhibit = false;
+        self.tx = Tx::Idle;
+        self.fault = None;
+        self.synced = self.cycles;
+        self.sync_ext_ints();
+        self.plan();
+    }
+
+    /// Sets the program counter (an entry point other than 0000h).
+    pub fn set_pc(&mut self, pc: u16) {
+        self.pc = pc;
+    }
+
+    /// Machine cycles of the hardware call that enters an interrupt: 2 by the Intel manual
+    /// (the default); s51 (uCsim 0.6) takes 1, and tests that compare with it set 1.
+    pub fn set_interrupt_entry_cycles(&mut self, cycles: u8) {
+        self.entry_cycles = cycles;
+    }
+
+    /// Program counter.
+    pub fn pc(&self) -> u16 {
+        self.pc
+    }
+
+    /// Machine cycles since the core was made.
+    pub fn cycles(&self) -> u64 {
+        self.cycles
+    }
+
+    /// Machine cycles that [`Cpu::run`] passed in closed form in DJNZ delay loops (included
+    /// in [`Cpu::cycles`]).
+    pub fn skipped_cycles(&self) -> u64 {
+        self.skipped
+    }
+
+    /// Internal RAM 00h–FFh (the upper half is zero on the 80C51).
+    pub fn iram(&self) -> [u8; 256] {
+        self.iram
+    }
+
+    /// SFRs 80h–FFh at index `addr - 80h`: ports show their latches, PSW its parity bit,
+    /// SBUF the receive buffer, unimplemented addresses 00h.
+    pub fn sfr(&self) -> [u8; 128] {
+        let mut s = self.sfr;
+        s[(PSW - 0x80) as usize] = self.psw();
+        s
+    }
+
+    /// The state that decides what happens next; see [`Snapshot`].
+    pub fn snapshot(&self) -> Snapshot {
+        Snapshot {
+            pc: self.pc,
+            iram: self.iram,
+            sfr: self.sfr(),
+            in_service: self.in_service,
+        }
+    }
+
+    /// Bytes written to SBUF since the last call.
+    pub fn take_serial(&mut self) -> Vec<u8> {
+        std::mem::take(&mut self.serial_out)
+    }
+
+    /// Drives external pin `bit` of port `port` (0–3) to `level`. A pin reads as its latch AND
+    /// this level. Falling edges on P3.2/P3.3 (INT0/INT1, edge mode) and P3.4/P3.5 (T0/T1) count.
+    /// Out-of-range ports or bits are ignored.
+    pub fn set_pin(&mut self, port: u8, bit: u8, level: bool) {
+        if port > 3 || bit > 7 {
+            return;
+        }
+        self.sync(self.cycles);
+        let before = self.pins(3);
+        let p = &mut self.ext[port as usize];
+        *p = if level { *p | 1 << bit } else { *p & !(1 << bit) };
+        if port == 3 {
+            self.p3_changed(before);
+        }
+        self.plan();
+    }
+
+    /// Executes one instruction, or enters one interrupt.
+    pub fn step(&mut self, x: &mut dyn Xdata) -> Result<Step, Error> {
+        if let Some(pc) = self.fault {
+            return Err(Error::Stopped { pc });
+        }
+        self.xaccess = None;
+        if let Some(vector) = self.poll_interrupt()? {
+            self.sync(self.cycles);
+            return Ok(Step {
+                cycles: self.entry_cycles,
+                xdata: None,
+                interrupt: Some(vector),
+            });
+        }
+        let cycles = self.execute(x)?;
+        self.sync(self.cycles);
+        Ok(Step {
+            cycles,
+            xdata: self.xaccess,
+            interrupt: None,
+        })
+    }
+
+    /// Runs while the cycle count is below `until`, skipping DJNZ delay loops in closed form,
+    /// and returns early right after a MOVX write.
+    pub fn run(&mut self, x: &mut dyn Xdata, until: u64) -> Result<RunEnd, Error> {
+        if let Some(pc) = self.fault {
+            return Err(Error::Stopped { pc });
+        }
+        while self.cycles < until {
+            self.xaccess = None;
+            if self.poll_interrupt()?.is_some() {
+                continue;
+            }
+            let op = self.code[self.pc as usize];
+            if (op | 0x07 == 0xDF || op == 0xD5) && self.skip_delay_loop(until) {
+                continue;
+            }
+            self.execute(x)?;
+            if let Some(XAccess::Write { addr, value }) = self.xaccess {
+                self.sync(self.cycles);
+                return Ok(RunEnd::XdataWrite { addr, value });
+            }
+        }
+        self.sync(self.cycles);
+        Ok(RunEnd::Reached)
+    }
+
+    /// A fault: the core stops at `pc`.
+    pub(crate) fn fail(&mut self, e: Error) -> Error {
+        self.fault = Some(self.op_pc);
+        e
+    }
+
+    pub(crate) fn psw(&self) -> u8 {
+        let acc = self.sfr[(ACC - 0x80) as usize];
+        (self.sfr[(PSW - 0x80) as usize] & 0xFE) | (acc.count_ones() & 1) as u8
+    }
+
+    /// Pin levels of port `n`: latch AND external level.
+    pub(crate) fn pins(&self, n: usize) -> u8 {
+        self.sfr[0x10 * n] & self.ext[n]
+    }
+
+    /// Reads an SFR; `pins` selects the port pins rather than the latches.
+    pub(crate) fn read_sfr(&mut self, addr: u8, pins: bool) -> u8 {
+        if TIMED[(addr - 0x80) as usize] {
+            self.sync(self.effect_at);
+        }
+        match addr {
+            P0 | P1 | P2 | P3 if pins => self.pins(((addr - 0x80) >> 4) as usize),
+            PSW => self.psw(),
+            _ => self.sfr[(addr - 0x80) as usize],
+        }
+    }
+
+    pub(crate) fn write_sfr(&mut self, addr: u8, v: u8) {
+        let i = (addr - 0x80) as usize;
+        if !TIMED[i] {
+            match addr {
+                IE | IP => {
+                    self.sfr[i] = v;
+                    self.inhibit = true;
+                }
+                _ if WRITABLE[i] => self.sfr[i] = v,
+                _ => {}
+            }
+            return;
+        }
+        self.sync(self.effect_at);
+        match addr {
+            SBUF => self.transmit(v),
+            P3 => {
+                let before = self.pins(3);
+                self.sfr[i] = v;
+                self.p3_changed(before);
+            }
+            TCON => {
+                self.sfr[i] = v;
+                self.sync_ext_ints();
+            }
+            _ => self.sfr[i] = v,
+        }
+        self.plan();
+    }
+}
