@@ -133,3 +133,32 @@ pub fn traffic_of(
 pub async fn run_to(running: &Running, t: BusTime) {
     running.hub.send(RunUntil(t)).await.expect("hub").expect("run");
 }
+
+/// Assembles 8051 source with Debian's `as31` and returns the Intel HEX. Panics naming the
+/// package when `as31` is missing (a test that needs it fails; it never passes without it).
+pub fn assemble(source: &str) -> String {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    static N: AtomicUsize = AtomicUsize::new(0);
+    let dir = std::env::temp_dir().join(format!(
+        "harvemu-as31-{}-{}",
+        std::process::id(),
+        N.fetch_add(1, Ordering::Relaxed)
+    ));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("scratch directory");
+    std::fs::write(dir.join("prog.asm"), source).expect("write the source");
+    let out = std::process::Command::new("as31")
+        .current_dir(&dir)
+        .args(["-Fhex", "-Oprog.hex", "prog.asm"])
+        .output()
+        .unwrap_or_else(|e| panic!("cannot run as31 ({e}): install the Debian package as31"));
+    assert!(
+        out.status.success(),
+        "as31 failed:\n{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let hex = std::fs::read_to_string(dir.join("prog.hex")).expect("as31 wrote prog.hex");
+    let _ = std::fs::remove_dir_all(&dir);
+    hex
+}

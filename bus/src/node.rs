@@ -102,6 +102,17 @@ pub trait NodeLogic {
     }
     /// When `handle_timeout` is next due.
     fn poll_timeout(&self) -> Option<BusTime>;
+    /// Set once the logic has stopped for good, with why (a firmware's CPU fault): the driver
+    /// reports it as a crash, as it reports a panic.
+    fn failed(&self) -> Option<String> {
+        None
+    }
+    /// A register-level node's hardware as it is at `at` (not before its last input), for a
+    /// state dump; `None` for a logic without such hardware.
+    fn hardware(&self, at: BusTime) -> Option<HardwareState> {
+        let _ = at;
+        None
+    }
     /// True when `handle_frame` only stores frames for `handle_timeout` to work through (a
     /// receive interrupt feeding a main loop): it transmits nothing and moves no deadline. The
     /// hub then takes such a node's frames from its FIFO a reaction time after they arrive, as the
@@ -116,6 +127,47 @@ pub trait NodeLogic {
         let _ = (fault, now);
         Err(Refused("its logic takes no injected faults".to_string()))
     }
+}
+
+/// A firmware node's hardware, as `harvemu run --dump-state` writes it ([`NodeLogic::hardware`]).
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct HardwareState {
+    /// The CPU.
+    pub cpu: CpuState,
+    /// Its CAN controllers.
+    pub controllers: Vec<ChipState>,
+}
+
+/// A CPU's state.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct CpuState {
+    /// Program counter.
+    pub pc: u16,
+    /// Machine cycles since reset.
+    pub cycles: u64,
+    /// Internal RAM, 256 bytes as hex (what a part without the upper half lacks reads 00).
+    pub iram: String,
+    /// The SFRs 80h–FFh as hex, 128 bytes.
+    pub sfr: String,
+}
+
+/// A CAN controller's state.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct ChipState {
+    /// The part ("SJA1000").
+    pub kind: String,
+    /// Where the CPU reaches it.
+    pub base: u16,
+    /// Its register set ("BasicCAN" or "PeliCAN").
+    pub mode: String,
+    /// Registers 0–31 as the CPU would read them, as hex.
+    pub registers: String,
+    /// Transmit error counter.
+    pub tec: u16,
+    /// Receive error counter.
+    pub rec: u16,
+    /// "active", "passive" or "bus-off".
+    pub state: String,
 }
 
 /// A fault injected into a node's logic: see [`NodeLogic::inject`].
@@ -243,7 +295,7 @@ pub fn drive_counted(
         commands,
         transmit,
         next_timeout: logic.poll_timeout(),
-        crashed: None,
+        crashed: logic.failed(),
         frames_can_wait: logic.frames_can_wait(),
         every_event: logic.wants_every_event(),
         frames_handled: *handled,

@@ -13,6 +13,7 @@
 pub mod environment;
 mod error;
 pub mod file;
+pub mod firmware;
 pub mod monitor;
 pub mod plant;
 pub mod script;

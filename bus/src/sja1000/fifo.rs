@@ -12,7 +12,7 @@ use std::collections::VecDeque;
 pub const FIFO_BYTES: usize = 64;
 
 /// The receive FIFO: the RAM, the start address and the stored messages' lengths.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub(crate) struct RxFifo {
     pub ram: [u8; FIFO_BYTES],
     /// RBSA: where the front message starts.

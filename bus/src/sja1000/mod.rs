@@ -217,14 +217,14 @@ pub fn ecc_segment(location: Location) -> u8 {
 }
 
 /// A frame waiting in the transmit buffer.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct Pending {
     frame: Frame,
     self_reception: bool,
 }
 
 /// One SJA1000: its registers, receive FIFO and transmit buffer. See the module docs.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Sja1000 {
     xtal_hz: u32,
     cdr: u8,
@@ -349,6 +349,17 @@ impl Sja1000 {
                 amr: [self.amr[0], 0xFF, 0xFF, 0xFF],
             },
         }
+    }
+
+    /// The error counters as the chip holds them (TXERR and RXERR, which read 127 and 0 from
+    /// bus off on) and its error state.
+    pub fn error_counters(&self) -> (u16, u16, ErrorState) {
+        let state = if self.bus_off {
+            ErrorState::BusOff
+        } else {
+            self.state
+        };
+        (self.tec, self.rec, state)
     }
 
     /// The INT pin is low (active): an enabled interrupt flag is set.

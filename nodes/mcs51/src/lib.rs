@@ -71,6 +71,12 @@ pub trait Xdata {
     fn read(&mut self, addr: u16) -> u8;
     /// Writes `value` at `addr`.
     fn write(&mut self, addr: u16, value: u8);
+    /// True when the last access changed something the caller must act on before the CPU goes
+    /// on (a peripheral moved its interrupt output): [`Cpu::run`] then returns after a MOVX
+    /// read too, as it always does after a MOVX write.
+    fn wants_stop(&self) -> bool {
+        false
+    }
 }
 
 /// No external memory: every address reads FFh (an undriven bus) and writes do nothing.

@@ -92,6 +92,9 @@ pub struct Step {
 pub enum RunEnd {
     /// The cycle count reached `until`.
     Reached,
+    /// The instruction just executed was a MOVX read after which the external data space
+    /// asked to stop ([`Xdata::wants_stop`]).
+    Peripheral,
     /// The instruction just executed was a MOVX write.
     XdataWrite {
         /// External address.
@@ -252,6 +255,31 @@ impl Cpu {
         }
     }
 
+    /// True when `other` is in the same state as `self` but for the cycle count: the same
+    /// [`Snapshot`], pin levels and interrupt inhibit, and neither has a timer or the serial
+    /// port under way. A loop that comes back to such a state repeats for ever until an input
+    /// changes it, so its cycles can be skipped ([`Cpu::skip_cycles`]).
+    pub fn same_state(&self, other: &Cpu) -> bool {
+        self.next_event == u64::MAX
+            && other.next_event == u64::MAX
+            && self.tx == Tx::Idle
+            && other.tx == Tx::Idle
+            && self.fault == other.fault
+            && self.ext == other.ext
+            && self.inhibit == other.inhibit
+            && self.snapshot() == other.snapshot()
+    }
+
+    /// Moves the cycle count on by `cycles` with nothing else changing, for a caller that found
+    /// the core in a loop that changes nothing ([`Cpu::same_state`]). Counted in
+    /// [`Cpu::skipped_cycles`].
+    pub fn skip_cycles(&mut self, cycles: u64) {
+        self.sync(self.cycles);
+        self.cycles = self.cycles.saturating_add(cycles);
+        self.synced = self.cycles;
+        self.skipped = self.skipped.saturating_add(cycles);
+    }
+
     /// Bytes written to SBUF since the last call.
     pub fn take_serial(&mut self) -> Vec<u8> {
         std::mem::take(&mut self.serial_out)
@@ -316,6 +344,10 @@ impl Cpu {
             if let Some(XAccess::Write { addr, value }) = self.xaccess {
                 self.sync(self.cycles);
                 return Ok(RunEnd::XdataWrite { addr, value });
+            }
+            if self.xaccess.is_some() && x.wants_stop() {
+                self.sync(self.cycles);
+                return Ok(RunEnd::Peripheral);
             }
         }
         self.sync(self.cycles);

@@ -1,0 +1,407 @@
+//! [`FirmwareNode`]: a firmware image as a node's logic, in machine cycles.
+//!
+//! Time: machine cycle `c` after power-on is bus time `power_on + c · cycle`, exactly (the
+//! clock's period is a whole number of bus-clock ticks). The CPU runs ahead of the bus
+//! optimistically: after every input it runs on from the present, keeping a copy of its state
+//! every [`CHUNK`] cycles, until a chip asks the bus for something (a transmit request, a mode
+//! change), until a horizon, or until it is found in a loop whose whole state repeats. It asks
+//! to be woken when it stopped. An input that arrives before that moment (a frame, a
+//! confirmation) sends it back to the last copy before the input, from where it runs to the
+//! input's moment again: so it never acts on what it could not yet have read, and a run is the
+//! same every time.
+//!
+//! A loop whose whole state (CPU, internal RAM, SFRs, the chips) comes back after `P` cycles
+//! changes nothing until an input arrives: such a node asks for no wake at all, and an input
+//! at cycle `n` finds it where `n − c₀` mod `P` cycles into the loop puts it.
+
+use super::machine::Machine;
+use super::spec::FirmwareSpec;
+use bus::Frame;
+use bus::fault::ErrorState;
+use bus::node::{ControllerCommand, ControllerEvent, HardwareState, NodeLogic};
+use bus::sja1000::{Action, BusSide, ecc_segment};
+use bus::time::BusTime;
+use std::collections::VecDeque;
+use std::sync::Arc;
+
+/// Cycles between kept copies of a run ahead.
+pub const CHUNK: u64 = 1000;
+/// The shortest and longest horizon of a run ahead, cycles: it doubles while runs ahead are
+/// not cut short by an input and halves when they are, so a node that hears frames often
+/// wastes little and a quiet one is seldom woken.
+const HORIZON: (u64, u64) = (1_000, 64_000);
+/// Instructions watched at the start of every chunk for a loop whose state repeats.
+const LOOP_WATCH: usize = 64;
+
+/// How a run ahead ended.
+#[derive(Clone, Debug, PartialEq)]
+enum Stop {
+    /// A chip asked the bus for something.
+    Actions,
+    /// The horizon.
+    Horizon,
+    /// In a loop of this many cycles that changes nothing.
+    Parked(u64),
+    /// The CPU stopped with this fault.
+    Failed(String),
+}
+
+/// How [`FirmwareNode::project`] reached a cycle.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Path {
+    /// It was there already.
+    Here,
+    /// From the run ahead, which had got that far.
+    Ahead,
+    /// From the run ahead parked in a loop, skipping this many cycles of it.
+    Skipped(u64),
+    /// From a copy before the run ahead went past it.
+    Back,
+}
+
+/// The machine at some cycle, and how it got there.
+struct Projection {
+    machine: Machine,
+    actions: Vec<bus::sja1000::Action>,
+    failed: Option<String>,
+    path: Path,
+}
+
+/// Counters of how the node spent its time, for benchmarks and the state dump.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct RunStats {
+    /// Cycles passed in loops found repeating, without running them.
+    pub skipped_cycles: u64,
+    /// Runs ahead sent back by an input that came first.
+    pub rollbacks: u64,
+    /// Runs ahead started.
+    pub runs_ahead: u64,
+}
+
+/// A firmware node.
+pub struct FirmwareNode {
+    spec: Arc<FirmwareSpec>,
+    power_on: BusTime,
+    bitrate_hz: f64,
+    /// The hardware as of the last input.
+    now: Machine,
+    /// Copies every [`CHUNK`] cycles from `now` on; the run ahead; how it ended.
+    checkpoints: Vec<Machine>,
+    ahead: Machine,
+    stop: Stop,
+    horizon: u64,
+    commands: VecDeque<ControllerCommand>,
+    failed: Option<String>,
+    /// Error state as last heard, to tell the end of a bus-off recovery.
+    state: ErrorState,
+    serial: Vec<u8>,
+    stats: RunStats,
+}
+
+impl FirmwareNode {
+    /// The node powered on at `power_on` on a bus of `bitrate_hz`: CPU and chips at reset.
+    pub fn new(spec: Arc<FirmwareSpec>, power_on: BusTime, bitrate_hz: f64) -> FirmwareNode {
+        let now = Machine::new(&spec);
+        let mut node = FirmwareNode {
+            ahead: now.clone(),
+            now,
+            spec,
+            power_on,
+            bitrate_hz,
+            checkpoints: Vec::new(),
+            stop: Stop::Horizon,
+            horizon: HORIZON.0,
+            // Its controller is in reset mode, off the bus, until the firmware sets it up.
+            commands: VecDeque::from([ControllerCommand::Offline]),
+            failed: None,
+            state: ErrorState::Active,
+            serial: Vec::new(),
+            stats: RunStats::default(),
+        };
+        node.run_ahead();
+        node
+    }
+
+    /// Its spec.
+    pub fn spec(&self) -> &FirmwareSpec {
+        &self.spec
+    }
+
+    /// How it spent its time so far.
+    pub fn stats(&self) -> RunStats {
+        self.stats
+    }
+
+    /// The CPU as of the last input.
+    pub fn cpu(&self) -> &mcs51::Cpu {
+        &self.now.cpu
+    }
+
+    /// The chips as of the last input.
+    pub fn chips(&self) -> impl Iterator<Item = (&super::spec::ChipSpec, &bus::sja1000::Sja1000)> {
+        self.now.board.chips.iter().map(|c| (&c.spec, &c.sja))
+    }
+
+    fn time_of(&self, cycle: u64) -> BusTime {
+        self.power_on
+            .checked_add(self.spec.cycle.saturating_mul(cycle))
+            .unwrap_or(BusTime::NEVER)
+    }
+
+    fn cycle_at(&self, t: BusTime) -> u64 {
+        t.since(self.power_on).as_ticks() / self.spec.cycle.as_ticks().max(1)
+    }
+
+    /// Runs ahead from `now` (see the module docs).
+    fn run_ahead(&mut self) {
+        self.checkpoints.clear();
+        self.stats.runs_ahead += 1;
+        if self.failed.is_some() {
+            self.ahead = self.now.clone();
+            self.stop = Stop::Parked(0);
+            return;
+        }
+        let mut m = self.now.clone();
+        let limit = m.cpu.cycles().saturating_add(self.horizon);
+        self.stop = loop {
+            self.checkpoints.push(m.clone());
+            match find_loop(&mut m) {
+                Err(e) => break Stop::Failed(e.to_string()),
+                Ok(Some(period)) => break Stop::Parked(period),
+                Ok(None) if !m.board.actions.is_empty() => break Stop::Actions,
+                Ok(None) => {}
+            }
+            let target = m.cpu.cycles().saturating_add(CHUNK).min(limit);
+            if let Err(e) = m.run(target) {
+                break Stop::Failed(e.to_string());
+            }
+            if !m.board.actions.is_empty() {
+                break Stop::Actions;
+            }
+            if m.cpu.cycles() >= limit {
+                break Stop::Horizon;
+            }
+        };
+        self.ahead = m;
+    }
+
+    /// The machine at cycle `n` (not before `now`), found from the run ahead where it holds,
+    /// without changing anything: what it asked of the bus on the way, and a fault if it hit
+    /// one.
+    fn project(&self, n: u64) -> Projection {
+        let reached = self.ahead.cpu.cycles();
+        let (mut machine, path) = match self.stop {
+            _ if n <= self.now.cpu.cycles() => (self.now.clone(), Path::Here),
+            Stop::Parked(period) if n >= reached && period > 0 => {
+                let loops = (n - reached) / period;
+                let mut m = self.ahead.clone();
+                m.cpu.skip_cycles(loops * period);
+                (m, Path::Skipped(loops * period))
+            }
+            _ if n >= reached => (self.ahead.clone(), Path::Ahead),
+            _ => {
+                // An input came first: back to the last copy before it.
+                let i = self
+                    .checkpoints
+                    .partition_point(|c| c.cpu.cycles() <= n)
+                    .saturating_sub(1);
+                (self.checkpoints.get(i).unwrap_or(&self.now).clone(), Path::Back)
+            }
+        };
+        let mut failed = match &self.stop {
+            Stop::Failed(message) if path == Path::Ahead => Some(message.clone()),
+            _ => None,
+        };
+        let mut actions = machine.take_actions();
+        while machine.cpu.cycles() < n && failed.is_none() {
+            if let Err(e) = machine.run(n) {
+                failed = Some(e.to_string());
+            }
+            actions.extend(machine.take_actions());
+        }
+        Projection {
+            machine,
+            actions,
+            failed,
+            path,
+        }
+    }
+
+    /// Brings `now` to cycle `n`.
+    fn advance_to(&mut self, n: u64) {
+        if self.failed.is_some() {
+            return;
+        }
+        let p = self.project(n);
+        match p.path {
+            Path::Here => {}
+            Path::Skipped(cycles) => self.stats.skipped_cycles += cycles,
+            Path::Ahead => self.horizon = (self.horizon * 2).min(HORIZON.1),
+            Path::Back => {
+                self.stats.rollbacks += 1;
+                self.horizon = (self.horizon / 2).max(HORIZON.0);
+            }
+        }
+        if let Some(message) = p.failed {
+            self.failed = Some(format!("{}: {message}", self.spec.name));
+        }
+        self.command(p.actions);
+        self.now = p.machine;
+        self.serial();
+    }
+
+    /// Turns chip requests into controller commands.
+    fn command(&mut self, actions: Vec<Action>) {
+        for a in actions {
+            let tuned = |node: &FirmwareNode| {
+                node.now
+                    .board
+                    .chips
+                    .first()
+                    .is_none_or(|c| c.sja.bit_timing().samples_correctly(node.bitrate_hz))
+            };
+            match a {
+                Action::Online { listen_only, .. } => {
+                    self.commands.push_back(ControllerCommand::Tuned(tuned(self)));
+                    self.commands.push_back(ControllerCommand::Online { listen_only });
+                }
+                Action::StartRecovery { listen_only, .. } => {
+                    self.commands.push_back(ControllerCommand::Tuned(tuned(self)));
+                    self.commands.push_back(ControllerCommand::Online { listen_only });
+                    self.commands.push_back(ControllerCommand::Recover);
+                }
+                Action::Offline => self.commands.push_back(ControllerCommand::Offline),
+                Action::Transmit { frame, .. } => self.commands.push_back(ControllerCommand::Transmit(frame)),
+                Action::Abort => self.commands.push_back(ControllerCommand::Abort),
+                Action::SetCounters { tec, rec } => self
+                    .commands
+                    .push_back(ControllerCommand::SetCounters { tec, rec }),
+            }
+        }
+    }
+
+    /// Lines the firmware wrote to its serial port go to the log.
+    fn serial(&mut self) {
+        let bytes = self.now.cpu.take_serial();
+        for b in bytes {
+            if b == b'\n' {
+                let line = String::from_utf8_lossy(&self.serial).trim_end().to_string();
+                tracing::info!(node = %self.spec.name, "serial: {line}");
+                self.serial.clear();
+            } else if self.serial.len() < 256 {
+                self.serial.push(b);
+            }
+        }
+    }
+
+    /// An input for chip 0 at `at`.
+    fn input(&mut self, at: BusTime, events: &[BusSide]) {
+        let n = self.cycle_at(at);
+        self.advance_to(n);
+        for &e in events {
+            self.now.input(0, e);
+        }
+        let actions = self.now.take_actions();
+        self.command(actions);
+        self.run_ahead();
+    }
+}
+
+/// Watches the first instructions of a chunk for a loop whose whole state repeats: the loop's
+/// length in cycles, with `m` one loop further on; `None` (with `m` moved on as far as it ran)
+/// if none was seen or a chip asked for the bus.
+fn find_loop(m: &mut Machine) -> Result<Option<u64>, mcs51::Error> {
+    let head = m.clone();
+    for _ in 0..LOOP_WATCH {
+        m.step()?;
+        if !m.board.actions.is_empty() {
+            return Ok(None);
+        }
+        if m.cpu.pc() == head.cpu.pc() && m.same_state(&head) {
+            return Ok(Some(m.cpu.cycles() - head.cpu.cycles()));
+        }
+    }
+    Ok(None)
+}
+
+impl NodeLogic for FirmwareNode {
+    fn handle_frame(&mut self, now: BusTime, frame: &Frame) {
+        self.input(now, &[BusSide::Received(*frame)]);
+    }
+
+    fn handle_timeout(&mut self, now: BusTime) {
+        self.input(now, &[]);
+    }
+
+    fn handle_event(&mut self, now: BusTime, event: ControllerEvent) {
+        let mut side = Vec::new();
+        match event {
+            ControllerEvent::Sent(_) => side.push(BusSide::Transmitted),
+            ControllerEvent::Aborted(_) | ControllerEvent::Refused(_) => side.push(BusSide::Aborted),
+            ControllerEvent::Counters { tec, rec } => side.push(BusSide::Counters {
+                tec,
+                rec,
+                state: state_of(tec, rec),
+            }),
+            ControllerEvent::State(s) => {
+                if self.state == ErrorState::BusOff && s == ErrorState::Active {
+                    side.push(BusSide::RecoveryDone);
+                }
+                self.state = s;
+            }
+            ControllerEvent::BusError {
+                error,
+                transmitting,
+                location,
+            } => side.push(BusSide::BusError {
+                error,
+                transmitting,
+                segment: ecc_segment(location),
+            }),
+            ControllerEvent::ArbitrationLost(bit) => side.push(BusSide::ArbitrationLost {
+                bit: u8::try_from(bit).unwrap_or(u8::MAX),
+            }),
+            // The chip keeps its own receive FIFO and counts its own overruns.
+            ControllerEvent::Overrun => {}
+        }
+        self.input(now, &side);
+    }
+
+    fn poll_transmit(&mut self) -> Option<Frame> {
+        None
+    }
+
+    fn poll_command(&mut self) -> Option<ControllerCommand> {
+        self.commands.pop_front()
+    }
+
+    fn poll_timeout(&self) -> Option<BusTime> {
+        match self.stop {
+            Stop::Parked(_) => None,
+            _ => Some(self.time_of(self.ahead.cpu.cycles())),
+        }
+    }
+
+    fn wants_every_event(&self) -> bool {
+        true
+    }
+
+    fn failed(&self) -> Option<String> {
+        self.failed.clone()
+    }
+
+    fn hardware(&self, at: BusTime) -> Option<HardwareState> {
+        Some(super::dump::state(&self.project(self.cycle_at(at)).machine))
+    }
+}
+
+/// The error state counters imply (ISO 11898-1 fault confinement).
+fn state_of(tec: u16, rec: u16) -> ErrorState {
+    if tec >= 256 {
+        ErrorState::BusOff
+    } else if tec >= 128 || rec >= 128 {
+        ErrorState::Passive
+    } else {
+        ErrorState::Active
+    }
+}
