@@ -25,12 +25,12 @@ use std::time::Duration;
 const LOOP_CYCLES: u64 = 99_916;
 const DATA: [u8; 8] = [0xAA, 0xBB, 0xCC, 0xD4, 0xE5, 0xF6, 0x97, 0x18];
 
-/// A bench running `hex` with its SJA1000 at `base`.
-fn bench(name: &str, hex: &str, base: u16) -> Arc<FirmwareSpec> {
+/// A bench running `hex` with its SJA1000 at `base`, on a crystal of `xtal_hz`.
+fn bench(name: &str, hex: &str, base: u16, xtal_hz: u32) -> Arc<FirmwareSpec> {
     let text = format!(
         "Firmware(name: \"{name}\", image: \"lab.hex\", entry: Some(0x4000), \
          cpu: I80C51(clock_hz: 12000000), \
-         controllers: [Sja1000(base: {base}, xtal_hz: 6000000, irq: None)])"
+         controllers: [Sja1000(base: {base}, xtal_hz: {xtal_hz}, irq: None)])"
     );
     let hex = hex.to_string();
     let read = move |_: &Path| Ok(("lab.hex".to_string(), hex.clone()));
@@ -39,10 +39,17 @@ fn bench(name: &str, hex: &str, base: u16) -> Arc<FirmwareSpec> {
 
 /// Runs the two benches for `seconds` of bus time: the trace, and each bench's hardware then.
 fn run_lab(sender_hex: &str, receiver_hex: &str, seconds: u64) -> (String, Vec<HardwareState>) {
-    let benches = [
-        bench("SENDER", sender_hex, 0xD300),
-        bench("RECEIVER", receiver_hex, 0xD400),
-    ];
+    run_benches(
+        [
+            bench("SENDER", sender_hex, 0xD300, 6_000_000),
+            bench("RECEIVER", receiver_hex, 0xD400, 6_000_000),
+        ],
+        seconds,
+    )
+}
+
+/// Runs `benches` for `seconds` of bus time at 30 kbit/s.
+fn run_benches(benches: [Arc<FirmwareSpec>; 2], seconds: u64) -> (String, Vec<HardwareState>) {
     let trace = Shared::default();
     let t = trace.clone();
     let states = System::with_tokio_rt(|| runtime(true).expect("runtime")).block_on(async move {
@@ -142,4 +149,53 @@ fn a_receiver_with_acceptance_code_aah_keeps_30h_untouched() {
     let (trace, states) = run_lab(&shipped_hex(), &hex, 1);
     assert!(!parse_trace(&trace).is_empty(), "the sender still sends");
     assert_eq!(iram(&states[1], 0x30, 8), [0; 8], "receiver 30H-37H");
+}
+
+/// The lab notes' first cause of failed communication: bus timing registers set wrong, or a
+/// crystal that drifted. A receiver off the bus's bit rate by more than its bit timing
+/// tolerates cannot sample the sender's frames: while error active it destroys each with an
+/// active error flag, which the sender reads as a bit error (TEC + 8) one bit before its own flag
+/// begins, so the receiver sees a dominant bit after its flag (REC + 1 + 8). After 15 attempts
+/// its REC (135) makes it error passive and its flags no longer destroy anything, but it
+/// acknowledges nothing it could not read: the 16th attempt is an ACK error (TEC 120 + 8 = 128,
+/// error passive), and from then on an error-passive sender's ACK errors leave TEC at 128
+/// (ISO 11898-1, fault confinement, exception to rule 3). No frame ever gets through.
+fn assert_communication_fails(trace: &str, states: &[HardwareState]) {
+    let frames = parse_trace(trace);
+    assert!(frames.is_empty(), "no frame completes: {trace}");
+    assert_eq!(iram(&states[1], 0x30, 8), [0; 8], "receiver 30H-37H");
+    let sender = &states[0].controllers[0];
+    assert_eq!((sender.tec, sender.state.as_str()), (128, "passive"), "sender");
+    let receiver = &states[1].controllers[0];
+    assert_eq!(receiver.state, "passive", "receiver REC {}", receiver.rec);
+}
+
+#[test]
+fn wrong_bus_timing_registers_stop_communication() {
+    let source = std::fs::read_to_string(root().join("configs/firmware/can_seed.asm")).expect("asm");
+    // BTR0 = 01h: BRP 1 instead of 3, twice the bit rate (60 kbit/s).
+    let patched = source.replacen("MOV     A, #03H", "MOV     A, #01H", 1);
+    assert_ne!(patched, source, "BTR0's value is in the source");
+    let (trace, states) = run_lab(&shipped_hex(), &harvemu_e2e::assemble(&patched), 1);
+    assert_communication_fails(&trace, &states);
+}
+
+#[test]
+fn a_drifted_crystal_stops_communication_and_a_good_one_does_not() {
+    let hex = shipped_hex();
+    // 1 % off: the bit timing of BTR0 03h, BTR1 FFh tolerates 0.2 % (SJW 1 of 25 quanta:
+    // 1 / (20 * 25)).
+    let drifted = [
+        bench("SENDER", &hex, 0xD300, 6_000_000),
+        bench("RECEIVER", &hex, 0xD400, 6_060_000),
+    ];
+    let (trace, states) = run_benches(drifted, 1);
+    assert_communication_fails(&trace, &states);
+    // 0.1 % off is within the tolerance.
+    let close = [
+        bench("SENDER", &hex, 0xD300, 6_000_000),
+        bench("RECEIVER", &hex, 0xD400, 6_006_000),
+    ];
+    let (_, states) = run_benches(close, 1);
+    assert_eq!(iram(&states[1], 0x30, 8), DATA, "receiver 30H-37H");
 }
