@@ -162,3 +162,108 @@ pub fn assemble(source: &str) -> String {
     let _ = std::fs::remove_dir_all(&dir);
     hex
 }
+
+/// Firmware nodes on a 30 kbit/s bus, driven through the hub in virtual time, as harvemu drives
+/// every node. `benches` are (node file text, HEX) pairs; the node file names its image
+/// `lab.hex`. Returns the trace, each node's hardware at the end (`None` for a node that
+/// crashed) and the crashes.
+pub fn run_firmware(benches: &[(String, String)], seconds: u64) -> FirmwareRun {
+    use bus::engine::{BusConfig, ControllerConfig, Filter, Recovery};
+    use bus_runtime::hub::{Attach, GetCrashed, Hub, HubConfig};
+    use bus_runtime::node::{Apply, NodeActor};
+    use nodes::firmware::FirmwareNode;
+    use std::sync::Arc;
+    let specs: Vec<_> = benches
+        .iter()
+        .map(|(text, hex)| {
+            let hex = hex.clone();
+            let read = move |_: &Path| Ok(("lab.hex".to_string(), hex.clone()));
+            Arc::new(nodes::firmware::load("bench.ron", Path::new("bench.ron"), text, &read).expect("bench"))
+        })
+        .collect();
+    let trace = Shared::default();
+    let t = trace.clone();
+    let (states, crashed) = System::with_tokio_rt(|| runtime(true).expect("runtime")).block_on(async move {
+        let config = HubConfig {
+            bus: BusConfig {
+                bitrate: bus::bits::BitRate::new(30_000).expect("30 kbit/s"),
+                ..BusConfig::default()
+            },
+            ..HubConfig::new(false)
+        };
+        let sink = Box::new(CandumpWriter::new(t, Epoch::FIXED));
+        let hub = Hub::new(config, vec![sink]).expect("hub").start();
+        let mut actors = Vec::new();
+        for spec in specs {
+            let logic = FirmwareNode::new(spec.clone(), BusTime::ZERO, 30_000.0);
+            let actor = NodeActor::new(spec.name.clone(), Box::new(logic)).start();
+            let controller = ControllerConfig {
+                recovery: Recovery::OnRequest,
+                ..ControllerConfig::named(spec.name.clone()).with_filter(Filter::All)
+            };
+            hub.send(Attach {
+                controller,
+                node: Some(actor.clone().recipient()),
+                reaction: std::time::Duration::ZERO,
+            })
+            .await
+            .expect("attach");
+            actors.push(actor);
+        }
+        let end = BusTime::from_secs(seconds);
+        hub.send(RunUntil(end)).await.expect("hub").expect("run");
+        let crashed: Vec<(usize, String)> = hub
+            .send(GetCrashed)
+            .await
+            .expect("crashes")
+            .into_iter()
+            .map(|(id, why)| (id.index(), why))
+            .collect();
+        let mut states = Vec::new();
+        for a in actors {
+            let (tx, rx) = std::sync::mpsc::channel();
+            let asked = a
+                .send(Apply(Box::new(move |logic| {
+                    let _ = tx.send(logic.hardware(end));
+                })))
+                .await;
+            states.push(asked.ok().and_then(|()| rx.recv().ok()).flatten());
+        }
+        (states, crashed)
+    });
+    FirmwareRun {
+        trace: String::from_utf8(trace.0.take()).expect("utf-8"),
+        states,
+        crashed,
+    }
+}
+
+/// What [`run_firmware`] gives back.
+pub struct FirmwareRun {
+    /// The candump trace.
+    pub trace: String,
+    /// Each node's hardware at the end.
+    pub states: Vec<Option<bus::node::HardwareState>>,
+    /// Crashed nodes by index, and why.
+    pub crashed: Vec<(usize, String)>,
+}
+
+impl FirmwareRun {
+    /// Internal RAM bytes `from..from + n` of node `node`.
+    pub fn iram(&self, node: usize, from: usize, n: usize) -> Vec<u8> {
+        let state = self.states[node].as_ref().expect("the node's hardware");
+        (from..from + n)
+            .map(|i| u8::from_str_radix(&state.cpu.iram[2 * i..2 * i + 2], 16).expect("hex"))
+            .collect()
+    }
+}
+
+/// A bench's node file: an 80C51 at 12 MHz starting at `entry`, one SJA1000 at `base` on a
+/// crystal of `xtal_hz`, its INT wired as `irq` (RON: `None`, `Some(Int0)`).
+pub fn bench_file(name: &str, entry: u16, base: u16, xtal_hz: u32, irq: &str) -> String {
+    format!(
+        "Firmware(name: \"{name}\", image: \"lab.hex\", entry: Some({entry}), \
+         cpu: I80C51(clock_hz: 12000000), \
+         controllers: [Sja1000(base: {base}, xtal_hz: {xtal_hz}, irq: {irq})])"
+    )
+}

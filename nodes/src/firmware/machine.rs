@@ -3,7 +3,7 @@
 //! cycles give the same state.
 
 use super::spec::{CHIP_WINDOW, ChipSpec, FirmwareSpec};
-use bus::sja1000::{Action, BusSide, Sja1000};
+use bus::sja1000::{Action, BitTiming, BusSide, Sja1000};
 use mcs51::{Cpu, RunEnd, Xdata};
 
 /// An SJA1000 where the CPU reaches it.
@@ -13,12 +13,16 @@ pub(crate) struct Chip {
     pub sja: Sja1000,
 }
 
+/// A chip's request, with its bit timing when it made it (which decides whether it can read the
+/// bus when it joins it).
+pub(crate) type Request = (Action, BitTiming);
+
 /// The CPU's external data space: the chips, and what they asked of the bus since the CPU last
 /// stopped.
 #[derive(Clone, Debug, PartialEq)]
 pub(crate) struct Board {
     pub chips: Vec<Chip>,
-    pub actions: Vec<Action>,
+    pub actions: Vec<Request>,
     /// Something the CPU must see before it goes on: a chip asked for the bus or moved its
     /// interrupt output.
     stop: bool,
@@ -37,7 +41,8 @@ impl Board {
     fn after(&mut self, i: usize, int_before: bool) {
         let chip = &mut self.chips[i];
         let before = self.actions.len();
-        self.actions.extend(chip.sja.take_actions());
+        let timing = chip.sja.bit_timing();
+        self.actions.extend(chip.sja.take_actions().map(|a| (a, timing)));
         self.stop |= self.actions.len() > before || chip.sja.int_active() != int_before;
     }
 }
@@ -68,11 +73,17 @@ impl Xdata for Board {
     }
 }
 
+/// A write of the CPU to a chip's register: the cycle after the instruction, the chip's base,
+/// the register and the value.
+pub(crate) type Write = (u64, u16, u8, u8);
+
 /// The CPU and its board.
 #[derive(Clone, Debug)]
 pub(crate) struct Machine {
     pub cpu: Cpu,
     pub board: Board,
+    /// The CPU's writes to chip registers since the log was last taken, when they are logged.
+    pub writes: Option<Vec<Write>>,
 }
 
 impl Machine {
@@ -96,6 +107,7 @@ impl Machine {
                 actions: Vec::new(),
                 stop: false,
             },
+            writes: None,
         };
         m.sync_pins();
         m
@@ -123,6 +135,11 @@ impl Machine {
     pub fn run(&mut self, until: u64) -> Result<(), mcs51::Error> {
         while self.cpu.cycles() < until {
             let end = self.cpu.run(&mut self.board, until)?;
+            if let (RunEnd::XdataWrite { addr, value }, Some(log)) = (end, &mut self.writes)
+                && let Some((i, register)) = self.board.decode(addr)
+            {
+                log.push((self.cpu.cycles(), self.board.chips[i].spec.base, register, value));
+            }
             if self.board.stop {
                 self.sync_pins();
             }
@@ -149,13 +166,16 @@ impl Machine {
     pub fn input(&mut self, i: usize, event: BusSide) {
         if let Some(chip) = self.board.chips.get_mut(i) {
             chip.sja.on_event(event);
-            self.board.actions.extend(chip.sja.take_actions());
+            let timing = chip.sja.bit_timing();
+            self.board
+                .actions
+                .extend(chip.sja.take_actions().map(|a| (a, timing)));
         }
         self.sync_pins();
     }
 
     /// The chips' requests since the last call, in order.
-    pub fn take_actions(&mut self) -> Vec<Action> {
+    pub fn take_actions(&mut self) -> Vec<Request> {
         std::mem::take(&mut self.board.actions)
     }
 }

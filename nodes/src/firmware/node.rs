@@ -14,7 +14,7 @@
 //! changes nothing until an input arrives: such a node asks for no wake at all, and an input
 //! at cycle `n` finds it where `n − c₀` mod `P` cycles into the loop puts it.
 
-use super::machine::Machine;
+use super::machine::{Machine, Request};
 use super::spec::FirmwareSpec;
 use bus::Frame;
 use bus::fault::ErrorState;
@@ -62,7 +62,7 @@ enum Path {
 /// The machine at some cycle, and how it got there.
 struct Projection {
     machine: Machine,
-    actions: Vec<bus::sja1000::Action>,
+    actions: Vec<Request>,
     failed: Option<String>,
     path: Path,
 }
@@ -101,7 +101,10 @@ pub struct FirmwareNode {
 impl FirmwareNode {
     /// The node powered on at `power_on` on a bus of `bitrate_hz`: CPU and chips at reset.
     pub fn new(spec: Arc<FirmwareSpec>, power_on: BusTime, bitrate_hz: f64) -> FirmwareNode {
-        let now = Machine::new(&spec);
+        let mut now = Machine::new(&spec);
+        if tracing::enabled!(tracing::Level::DEBUG) {
+            now.writes = Some(Vec::new());
+        }
         let mut node = FirmwareNode {
             ahead: now.clone(),
             now,
@@ -248,25 +251,36 @@ impl FirmwareNode {
         self.command(p.actions);
         self.now = p.machine;
         self.serial();
+        self.log_writes();
+    }
+
+    /// The firmware's writes to its controllers' registers, at debug level, once each: only
+    /// the path the node took, never a run ahead that an input sent back.
+    fn log_writes(&mut self) {
+        let Some(log) = self.now.writes.as_mut() else {
+            return;
+        };
+        for (cycle, base, register, value) in std::mem::take(log) {
+            let at = self.time_of(cycle);
+            tracing::debug!(
+                node = %self.spec.name,
+                at = %at,
+                "SJA1000 at {base:04X}h: register {register} <- {value:02X}h"
+            );
+        }
     }
 
     /// Turns chip requests into controller commands.
-    fn command(&mut self, actions: Vec<Action>) {
-        for a in actions {
-            let tuned = |node: &FirmwareNode| {
-                node.now
-                    .board
-                    .chips
-                    .first()
-                    .is_none_or(|c| c.sja.bit_timing().samples_correctly(node.bitrate_hz))
-            };
+    fn command(&mut self, actions: Vec<Request>) {
+        for (a, timing) in actions {
+            let tuned = timing.samples_correctly(self.bitrate_hz);
             match a {
                 Action::Online { listen_only, .. } => {
-                    self.commands.push_back(ControllerCommand::Tuned(tuned(self)));
+                    self.commands.push_back(ControllerCommand::Tuned(tuned));
                     self.commands.push_back(ControllerCommand::Online { listen_only });
                 }
                 Action::StartRecovery { listen_only, .. } => {
-                    self.commands.push_back(ControllerCommand::Tuned(tuned(self)));
+                    self.commands.push_back(ControllerCommand::Tuned(tuned));
                     self.commands.push_back(ControllerCommand::Online { listen_only });
                     self.commands.push_back(ControllerCommand::Recover);
                 }
