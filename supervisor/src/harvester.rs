@@ -11,6 +11,7 @@ use bus::time::{BusDuration, BusTime};
 use bus::trace::Sink;
 use bus_runtime::hub::{Attach, GetCrashed, Hub, HubConfig, Replace, RunUntil};
 use bus_runtime::node::{Crash, NodeActor};
+use nodes::firmware::{FirmwareNode, FirmwareSpec};
 use nodes::monitor::{DisplayHandle, Monitor, MonitorConfig};
 use nodes::plant::{Plant, PlantConfig, PlantHandle};
 use nodes::script::{NodeScript, ScriptedNode, SharedEnv};
@@ -20,6 +21,7 @@ use serde::Deserialize;
 use std::cell::RefCell;
 use std::path::Path;
 use std::rc::Rc;
+use std::sync::Arc;
 use std::time::Duration;
 
 /// `configs/harvester.ron`.
@@ -59,6 +61,11 @@ pub struct Harvester {
     pub config: HarvesterConfig,
     /// The node scripts, in config order.
     pub scripts: Vec<NodeScript>,
+    /// The firmware nodes, in config order.
+    pub firmware: Vec<Arc<FirmwareSpec>>,
+    /// Read from a `Network(...)` file: a plain bus, no harvester around it (no plant signals
+    /// worth showing).
+    pub network: bool,
     /// Where bus time zero lies on the wall clock in the trace and the gateway's frames; `None`
     /// for the hub's default (the wall clock in real time, [`bus::time::Epoch::FIXED`] in
     /// virtual time). A command that writes the trace itself sets it, so that both agree.
@@ -81,7 +88,13 @@ impl Harvester {
         let signals = nodes::environment::PlantSignals;
         Harvester::parse(&source, &text, |script| {
             let (found, text) = script.read()?;
-            nodes::script::from_file_text(&found.to_string(), &found.path, &text, &signals, &found.reader())
+            let file = found.to_string();
+            if nodes::script::top_name(&text) == Some("Firmware") {
+                let spec = nodes::firmware::load(&file, &found.path, &text, &found.reader())?;
+                return Ok(NodeFile::Firmware(Arc::new(spec)));
+            }
+            nodes::script::from_file_text(&file, &found.path, &text, &signals, &found.reader())
+                .map(NodeFile::Script)
         })
     }
 
@@ -93,16 +106,22 @@ impl Harvester {
         text: &str,
         mut script: impl FnMut(&Path) -> Result<NodeScript, Error>,
     ) -> Result<Harvester, Error> {
-        Harvester::parse(&Source::file(path), text, |s| script(&s.path))
+        Harvester::parse(&Source::file(path), text, |s| {
+            script(&s.path).map(NodeFile::Script)
+        })
     }
 
     fn parse(
         source: &Source,
         text: &str,
-        mut script: impl FnMut(&Source) -> Result<NodeScript, Error>,
+        mut script: impl FnMut(&Source) -> Result<NodeFile, Error>,
     ) -> Result<Harvester, Error> {
         let file = source.to_string();
-        let config: HarvesterConfig = nodes::parse_ron(&file, text)?;
+        let network = nodes::script::top_name(text) == Some("Network");
+        let config: HarvesterConfig = match nodes::script::top_name(text) {
+            Some("Network") => nodes::parse_ron::<crate::network::NetworkConfig>(&file, text)?.into(),
+            _ => nodes::parse_ron(&file, text)?,
+        };
         let mut problems = Vec::new();
         if BitRate::for_bus(config.bitrate).is_none() {
             problems.push(Problem::at(
@@ -151,11 +170,17 @@ impl Harvester {
         );
         let mut scripts = Vec::new();
         let mut places = Vec::new();
+        let mut firmware = Vec::new();
+        let mut firmware_places = Vec::new();
         for (i, rel) in config.nodes.iter().enumerate() {
             match script(&source.beside(rel)) {
-                Ok(s) => {
+                Ok(NodeFile::Script(s)) => {
                     scripts.push(s);
                     places.push(format!("nodes[{i}] ({rel})"));
+                }
+                Ok(NodeFile::Firmware(f)) => {
+                    firmware.push(f);
+                    firmware_places.push(format!("nodes[{i}] ({rel})"));
                 }
                 Err(Error::Invalid(p)) => problems.extend(p),
                 Err(Error::Io { path, source }) => problems.push(Problem::at(
@@ -166,11 +191,20 @@ impl Harvester {
             }
         }
         problems.extend(clashes(&file, &scripts, &places));
+        problems.extend(firmware_clashes(
+            &file,
+            &scripts,
+            &places,
+            &firmware,
+            &firmware_places,
+        ));
         if problems.is_empty() {
             Ok(Harvester {
                 source: source.clone(),
                 config,
                 scripts,
+                firmware,
+                network,
                 epoch: None,
             })
         } else {
@@ -187,6 +221,8 @@ impl Harvester {
                 self.config.monitor.enabled = false;
             } else if let Some(i) = self.scripts.iter().position(|s| &s.name == n) {
                 self.scripts.remove(i);
+            } else if let Some(i) = self.firmware.iter().position(|f| &f.name == n) {
+                self.firmware.remove(i);
             } else {
                 let file = self.source.to_string();
                 problems.push(Problem::at(
@@ -253,6 +289,48 @@ fn clashes(file: &str, scripts: &[NodeScript], places: &[String]) -> Vec<Problem
     problems
 }
 
+/// What a node file holds: a behaviour script or a firmware node.
+pub enum NodeFile {
+    /// A behaviour script (or an instance of a template).
+    Script(NodeScript),
+    /// A firmware image on an emulated CPU.
+    Firmware(Arc<FirmwareSpec>),
+}
+
+/// Firmware nodes whose names clash with each other, with a script's or with the monitor's.
+fn firmware_clashes(
+    file: &str,
+    scripts: &[NodeScript],
+    places: &[String],
+    firmware: &[Arc<FirmwareSpec>],
+    firmware_places: &[String],
+) -> Vec<Problem> {
+    let mut problems = Vec::new();
+    let mut seen: std::collections::BTreeMap<&str, &String> = scripts
+        .iter()
+        .zip(places)
+        .map(|(s, p)| (s.name.as_str(), p))
+        .collect();
+    for (f, place) in firmware.iter().zip(firmware_places) {
+        let problem = |message: String| Problem {
+            file: file.to_string(),
+            position: None,
+            node: Some(f.name.clone()),
+            field: Some(place.clone()),
+            message,
+        };
+        if f.name == "F5" {
+            problems.push(problem("F5 is the monitor's name".into()));
+        }
+        if let Some(other) = seen.insert(f.name.as_str(), place) {
+            problems.push(problem(format!(
+                "{other} has the same name: every node needs a name of its own"
+            )));
+        }
+    }
+    problems
+}
+
 /// Turns a config error into bad input for the command line.
 pub fn bad(e: Error) -> anyhow::Error {
     BadInput(e.to_string()).into()
@@ -265,6 +343,14 @@ fn controller(name: &str, spec: &Spec) -> anyhow::Result<ControllerConfig> {
         Spec::Monitor => Filter::SocketCan(SocketCanFilterSet(vec![protocol::ident::to_node_filter(
             Address::MONITOR,
         )])),
+        // Its controller is the chip's: it filters itself, and leaves bus off when the firmware
+        // says so.
+        Spec::Firmware(_) => {
+            return Ok(ControllerConfig {
+                recovery: bus::engine::Recovery::OnRequest,
+                ..ControllerConfig::named(name).with_filter(Filter::All)
+            });
+        }
         // Loaded scripts have been validated, so this only fails for a script built in code.
         Spec::Script(script) => script.filter.to_filter().map_err(|problems| {
             let what: Vec<String> = problems
@@ -315,6 +401,7 @@ pub struct SupervisorEvent {
 enum Spec {
     Monitor,
     Script(Box<NodeScript>),
+    Firmware(Arc<FirmwareSpec>),
 }
 
 /// One supervised node.
@@ -359,6 +446,11 @@ fn build(
             let display = display.clone().unwrap_or_default();
             Box::new(Monitor::with_display(h.config.monitor.clone(), display, power_on))
         }
+        Spec::Firmware(spec) => Box::new(FirmwareNode::new(
+            spec.clone(),
+            power_on,
+            f64::from(h.config.bitrate),
+        )),
         Spec::Script(script) => {
             let env: SharedEnv = plant.clone();
             let seed = h.config.seed ^ (u64::from(script.address) << 32) ^ power_on.as_nanos();
@@ -461,6 +553,34 @@ impl Running {
             .map(|m| m.actor.clone())
     }
 
+    /// Each firmware node's hardware at bus time `at` (where its last input left it, run on to
+    /// `at`), by name in config order; a node whose actor is gone is left out.
+    pub async fn hardware(&self, at: BusTime) -> Vec<(String, bus::node::HardwareState)> {
+        let mut states = Vec::new();
+        for m in self
+            .members
+            .iter()
+            .filter(|m| matches!(m.spec, Spec::Firmware(_)))
+        {
+            let (tx, rx) = std::sync::mpsc::channel();
+            let asked = m
+                .actor
+                .send(bus_runtime::node::Apply(Box::new(move |logic| {
+                    let _ = tx.send(logic.hardware(at));
+                })))
+                .await;
+            if let Some(state) = asked.ok().and_then(|()| rx.recv().ok()).flatten() {
+                states.push((m.name.clone(), state));
+            }
+        }
+        states
+    }
+
+    /// The harvester (or network) it runs.
+    pub fn harvester(&self) -> &Harvester {
+        &self.harvester
+    }
+
     /// Bus time reached.
     pub fn now(&self) -> BusTime {
         self.now
@@ -499,6 +619,10 @@ impl Running {
             let spec = Spec::Script(Box::new(script.clone()));
             self.attach(&script.name, spec, h.config.reaction_us, relay)
                 .await?;
+        }
+        // A firmware node's reaction is its own code's: the hub hands it everything at once.
+        for f in &h.firmware {
+            self.attach(&f.name, Spec::Firmware(f.clone()), 0, relay).await?;
         }
         Ok(())
     }

@@ -11,6 +11,7 @@ pub mod dbc;
 pub mod exit;
 pub mod harvester;
 pub mod inspect;
+pub mod network;
 pub mod output;
 pub mod realtime;
 pub mod record;

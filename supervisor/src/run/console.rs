@@ -210,6 +210,7 @@ mod tests {
             not_active: 0,
             speed_kmh: 4.5,
             harvested_kg: secs as f64 * 0.8,
+            plant: true,
             basket_pct: 3.0,
             monitor: None,
         }

@@ -62,6 +62,10 @@ pub struct Args {
     /// real time, 2024-01-01T00:00:00Z with --fast (so a seed gives the same trace).
     #[arg(long, value_name = "TIME", value_parser = crate::record::parse_start_time)]
     start_time: Option<bus::time::Epoch>,
+    /// At the end of the run, write each firmware node's state (CPU, internal RAM, SFRs, CAN
+    /// controllers) to this JSON file (docs/FIRMWARE.md).
+    #[arg(long, value_name = "FILE.json")]
+    dump_state: Option<PathBuf>,
 }
 
 /// Parses `120s`, `10m`, `1h`, `500ms` or a plain number of seconds.
@@ -123,7 +127,7 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
     eprintln!(
         "harvemu: {} ({} nodes) from {}, seed {}, {}",
         h.config.name,
-        h.scripts.len() + usize::from(h.config.monitor.enabled),
+        h.scripts.len() + h.firmware.len() + usize::from(h.config.monitor.enabled),
         h.source,
         h.config.seed,
         if args.fast {
@@ -133,6 +137,7 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
         }
     );
     let fast = args.fast;
+    let dump_state = args.dump_state.clone();
     let (tui, machine) = (args.tui, h.config.name.clone());
     let socketcand = args.socketcand;
     if fast && socketcand.is_some() {
@@ -215,6 +220,17 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
         }
         if let Some(line) = crate::realtime::overruns_line(&snap) {
             eprintln!("{line}");
+        }
+        if let Some(path) = &dump_state {
+            let nodes: serde_json::Map<String, serde_json::Value> = running
+                .hardware(running.now())
+                .await
+                .into_iter()
+                .map(|(name, state)| (name, serde_json::json!(state)))
+                .collect();
+            let text = serde_json::to_string_pretty(&serde_json::json!({ "nodes": nodes }))
+                .map_err(|e| anyhow::anyhow!("state dump: {e}"))?;
+            crate::output::write_whole(path, format!("{text}\n").as_bytes())?;
         }
         anyhow::Ok(Ended {
             expectations_failed: false,

@@ -29,6 +29,9 @@ pub struct Summary {
     pub speed_kmh: f64,
     /// Cotton harvested, the plant's truth [kg].
     pub harvested_kg: f64,
+    /// The plant's fields (speed, harvest, basket) mean something: a harvester, not a plain
+    /// network.
+    pub plant: bool,
     /// Basket fill [%].
     pub basket_pct: f64,
     /// What the monitor shows, when there is one.
@@ -74,6 +77,7 @@ impl Summary {
                 .count(),
             speed_kmh: get("speed.actual"),
             harvested_kg: get("harvested.total"),
+            plant: !running.harvester().network,
             basket_pct: get("basket.fill"),
             monitor: running.display.as_ref().map(|d| {
                 let d = d.borrow();
@@ -96,10 +100,12 @@ impl Summary {
             field(10, format!("(1 s {:.1}%)", self.load_1s * 100.0)),
             field(5, format!("errors {}", self.error_frames)),
             field(2, format!("not active {}", self.not_active)),
-            field(6, format!("speed {:.1} km/h", self.speed_kmh)),
-            field(1, format!("harvested {:.1} kg", self.harvested_kg)),
-            field(9, format!("basket {:.1}%", self.basket_pct)),
         ];
+        if self.plant {
+            fields.push(field(6, format!("speed {:.1} km/h", self.speed_kmh)));
+            fields.push(field(1, format!("harvested {:.1} kg", self.harvested_kg)));
+            fields.push(field(9, format!("basket {:.1}%", self.basket_pct)));
+        }
         if let Some(m) = self.monitor {
             fields.push(field(8, format!("monitor {:.1} kg", m.total_kg)));
             fields.push(field(3, format!("{} alarm(s)", m.alarms)));
@@ -172,6 +178,7 @@ mod tests {
             not_active: 1,
             speed_kmh: 5.26,
             harvested_kg: 1234.56,
+            plant: true,
             basket_pct: 42.0,
             monitor: Some(MonitorSummary {
                 total_kg: 1230.0,
