@@ -197,7 +197,10 @@ pub fn load(file: &str, path: &Path, text: &str, read: Reader) -> Result<Firmwar
         Ok((name, hex)) => match mcs51::hex::parse(&hex, code_bytes.clamp(1, 0x10000) as usize) {
             Ok(image) => Some(image),
             Err(e) => {
-                problems.push(Problem::at(&name, "image", e.to_string()));
+                problems.push(Problem {
+                    node: Some(f.name.clone()),
+                    ..Problem::at(&name, "image", e.to_string())
+                });
                 None
             }
         },

@@ -1,0 +1,204 @@
+//! `harvemu run` with firmware nodes: the shipped seed lab from the command line (from the
+//! repository and from anywhere), its state dump, and bad firmware input refused before anything
+//! starts, with the file and line.
+
+mod common;
+
+use common::{harvemu, root, scratch};
+use serde_json::Value;
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn text(out: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    )
+}
+
+/// A dump's hex string as bytes.
+fn bytes(hex: &Value) -> Vec<u8> {
+    let s = hex.as_str().expect("a hex string");
+    (0..s.len() / 2)
+        .map(|i| u8::from_str_radix(&s[2 * i..2 * i + 2], 16).expect("hex"))
+        .collect()
+}
+
+fn check_lab_dump(path: &Path) {
+    let dump: Value = serde_json::from_str(&std::fs::read_to_string(path).expect("the dump")).expect("JSON");
+    let receiver = &dump["nodes"]["RECEIVER"];
+    let iram = bytes(&receiver["cpu"]["iram"]);
+    assert_eq!(iram.len(), 256);
+    assert_eq!(
+        &iram[0x30..0x38],
+        [0xAA, 0xBB, 0xCC, 0xD4, 0xE5, 0xF6, 0x97, 0x18]
+    );
+    // An 80C51 has no internal RAM above 7Fh.
+    assert!(iram[0x80..].iter().all(|&b| b == 0));
+    assert_eq!(bytes(&receiver["cpu"]["sfr"]).len(), 128);
+    // A second at 12 MHz is a million machine cycles; the run stops at an instruction's end.
+    let cycles = receiver["cpu"]["cycles"].as_u64().expect("cycles");
+    assert!((1_000_000..1_000_004).contains(&cycles), "{cycles}");
+    let chip = &receiver["controllers"][0];
+    assert_eq!(chip["kind"], "SJA1000");
+    assert_eq!(chip["base"], 0xD400);
+    assert_eq!(chip["mode"], "PeliCAN");
+    assert_eq!(chip["state"], "active");
+    let registers = bytes(&chip["registers"]);
+    assert_eq!(registers.len(), 32);
+    // MOD: operating mode, single filter (08h); IER 0Dh; BTR0 03h, BTR1 FFh; OCR AAh; CDR 88h.
+    assert_eq!(
+        [
+            registers[0],
+            registers[4],
+            registers[6],
+            registers[7],
+            registers[8],
+            registers[31]
+        ],
+        [0x08, 0x0D, 0x03, 0xFF, 0xAA, 0x88]
+    );
+    assert!(dump["nodes"]["SENDER"]["cpu"]["pc"].is_u64());
+}
+
+#[test]
+fn the_seed_lab_runs_from_the_command_line_and_dumps_its_state() {
+    let dir = scratch("cli-firmware", "lab");
+    let (log, dump) = (dir.join("lab.log"), dir.join("state.json"));
+    let out = harvemu(&[
+        "run",
+        "configs/firmware/seed_lab.ron",
+        "--fast",
+        "--for",
+        "1s",
+        "--record",
+        log.to_str().unwrap(),
+        "--dump-state",
+        dump.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", text(&out));
+    assert!(text(&out).contains("seed lab (2 nodes)"), "{}", text(&out));
+    let frames = std::fs::read_to_string(&log).expect("the trace");
+    assert_eq!(frames.lines().count(), 11, "{frames}");
+    assert!(
+        frames.lines().all(|l| l.ends_with(" harv0 5DF#AABBCCD4E5F69718")),
+        "{frames}"
+    );
+    check_lab_dump(&dump);
+
+    // The lab is built in: it runs from a directory without configs/ too.
+    let elsewhere = scratch("cli-firmware", "elsewhere");
+    let out = Command::new(env!("CARGO_BIN_EXE_harvemu"))
+        .current_dir(&elsewhere)
+        .args([
+            "run",
+            "configs/firmware/seed_lab.ron",
+            "--fast",
+            "--for",
+            "1s",
+            "--dump-state",
+            "s.json",
+        ])
+        .output()
+        .expect("run harvemu");
+    assert!(out.status.success(), "{}", text(&out));
+    check_lab_dump(&elsewhere.join("s.json"));
+}
+
+/// A lab whose receiver file is `receiver` and whose image is `hex`; runs it and returns the
+/// output.
+fn run_bad(tag: &str, receiver: &str, hex: &str) -> Output {
+    let dir = scratch("cli-firmware", tag);
+    let lab = root().join("configs/firmware");
+    for f in ["seed_lab.ron", "sender.ron", "can_seed.hex"] {
+        std::fs::copy(lab.join(f), dir.join(f)).expect("copy");
+    }
+    std::fs::write(dir.join("receiver.ron"), receiver).expect("write");
+    std::fs::write(dir.join("bad.hex"), hex).expect("write");
+    harvemu(&[
+        "run",
+        dir.join("seed_lab.ron").to_str().unwrap(),
+        "--fast",
+        "--for",
+        "1s",
+    ])
+}
+
+fn receiver(image: &str, cpu: &str, controllers: &str) -> String {
+    format!(
+        "Firmware(\n    name: \"RECEIVER\",\n    image: \"{image}\",\n    entry: Some(0x4000),\n    \
+         cpu: {cpu},\n    controllers: [\n{controllers}\n    ],\n)\n"
+    )
+}
+
+const CHIP: &str = "        Sja1000(base: 0xD400, xtal_hz: 6000000, irq: None),";
+const CPU: &str = "I80C51(clock_hz: 12000000)";
+
+fn shipped_hex() -> String {
+    std::fs::read_to_string(root().join("configs/firmware/can_seed.hex")).expect("HEX")
+}
+
+fn assert_refused(out: &Output, wanted: &[&str]) {
+    let t = text(out);
+    assert_eq!(out.status.code(), Some(2), "{t}");
+    for w in wanted {
+        assert!(t.contains(w), "wanted {w:?} in:\n{t}");
+    }
+    assert!(!t.contains("virtual time"), "nothing starts:\n{t}");
+}
+
+#[test]
+fn bad_hex_files_are_refused_with_file_and_line() {
+    let hex = shipped_hex();
+    let lines: Vec<&str> = hex.lines().collect();
+    // Line 3's checksum, one off: the record no longer sums to zero.
+    let mut bad = lines.clone();
+    let l3 = bad[2].to_string();
+    let (body, sum) = l3.split_at(l3.len() - 2);
+    let wrong = format!(
+        "{body}{:02X}",
+        (u8::from_str_radix(sum, 16).unwrap()).wrapping_add(1)
+    );
+    bad[2] = &wrong;
+    let out = run_bad("checksum", &receiver("bad.hex", CPU, CHIP), &bad.join("\n"));
+    assert_refused(&out, &["bad.hex", "HEX line 3", "checksum", "RECEIVER"]);
+
+    // Line 2 again as line 3: the same addresses written twice.
+    let mut twice = lines.clone();
+    twice.insert(2, lines[1]);
+    let out = run_bad("overlap", &receiver("bad.hex", CPU, CHIP), &twice.join("\n"));
+    assert_refused(&out, &["bad.hex", "HEX line 3", "already written by line 2"]);
+
+    // The image starts at 4000h; a 4 KB code memory ends at 0FFFh.
+    let small = "I80C51(clock_hz: 12000000, code_bytes: 4096)";
+    let out = run_bad("beyond", &receiver("can_seed.hex", small, CHIP), "");
+    assert_refused(
+        &out,
+        &["can_seed.hex", "HEX line 1", "beyond the 4096-byte code memory"],
+    );
+}
+
+#[test]
+fn bad_node_files_are_refused_with_file_and_line() {
+    let hex = shipped_hex();
+    let two = "        Sja1000(base: 0xD400, xtal_hz: 6000000, irq: None),\n        \
+               Sja1000(base: 0xD480, xtal_hz: 6000000, irq: None),";
+    let out = run_bad("overlap-chips", &receiver("can_seed.hex", CPU, two), &hex);
+    assert_refused(
+        &out,
+        &["receiver.ron", "controllers[1].base", "overlaps controllers[0]"],
+    );
+
+    let int2 = "        Sja1000(base: 0xD400, xtal_hz: 6000000, irq: Some(Int2)),";
+    let out = run_bad("pin", &receiver("can_seed.hex", CPU, int2), &hex);
+    // The line and column of the unknown pin: line 7 of the file `receiver` writes.
+    assert_refused(&out, &["receiver.ron:7:", "Int2"]);
+
+    let odd_clock = "I80C51(clock_hz: 33000000)";
+    let out = run_bad("clock", &receiver("can_seed.hex", odd_clock, CHIP), &hex);
+    assert_refused(&out, &["receiver.ron", "cpu.clock_hz", "33000000 Hz"]);
+
+    let out = run_bad("missing", &receiver("nothing.hex", CPU, CHIP), &hex);
+    assert_refused(&out, &["receiver.ron", "image", "nothing.hex"]);
+}
