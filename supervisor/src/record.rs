@@ -63,12 +63,15 @@ impl Feed {
         if let Some(e) = &s.error {
             return Err(io::Error::new(e.kind(), e.to_string()));
         }
-        let r = op(&mut s);
-        if let Err(e) = &r {
-            // The trace keeps the first error and hands out copies of it; the writer keeps its own.
-            s.error = Some(io::Error::new(e.kind(), e.to_string()));
+        match op(&mut s) {
+            Err(e) => {
+                // The trace keeps the first error itself, for `finish`, and hands out copies.
+                let copy = io::Error::new(e.kind(), e.to_string());
+                s.error = Some(e);
+                Err(copy)
+            }
+            ok => ok,
         }
-        r
     }
 }
 
