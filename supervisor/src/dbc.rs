@@ -2,7 +2,7 @@
 //! the harvester config's node scripts. `-o FILE` gets the whole DBC or, when it cannot be
 //! written completely, is left as it was (exit code 3).
 
-use crate::harvester::{self, Harvester};
+use crate::harvester::Harvester;
 use nodes::script::When;
 use protocol::catalogue::dbc::{self, Network};
 use protocol::catalogue::{MESSAGES, Trigger};
@@ -57,8 +57,8 @@ pub fn network(h: &Harvester) -> Network {
 }
 
 /// Runs `harvemu dbc`.
-pub fn run(args: &Args) -> anyhow::Result<()> {
-    let h = Harvester::load(&args.config).map_err(harvester::bad)?;
+pub fn run(args: &Args) -> crate::Result<()> {
+    let h = Harvester::load(&args.config)?;
     let text = dbc::generate(MESSAGES, &network(&h));
     match &args.output {
         Some(path) => crate::output::write_whole(path, text.as_bytes())?,

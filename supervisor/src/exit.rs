@@ -6,7 +6,6 @@
 //! so it meets none of the others.
 
 use crate::stop::Signal;
-use crate::{BadInput, OutputFailed};
 
 /// Everything went as asked.
 pub const OK: u8 = 0;
@@ -33,16 +32,14 @@ pub struct Ended {
 
 /// The exit code for a command that returned `result`, with `signal` the stop signal received,
 /// if any.
-pub fn code(result: &anyhow::Result<Ended>, signal: Option<Signal>) -> u8 {
+pub fn code(result: &crate::Result<Ended>, signal: Option<Signal>) -> u8 {
     if let Some(s) = signal {
         return s.exit_code();
     }
     match result {
-        Err(e) if e.downcast_ref::<BadInput>().is_some() => BAD_INPUT,
-        Err(e) if e.downcast_ref::<OutputFailed>().is_some() => OUTPUT_FAILED,
-        // Any other error is the emulator's own failure (an actor gone, a runtime that could not
-        // start): it is not the user's input, and nothing was written wrongly by it.
-        Err(_) => INTERNAL,
+        // Bad input, an output that failed, or the emulator's own failure (an actor gone, a
+        // runtime that could not start): the error says which.
+        Err(e) => e.exit_code(),
         Ok(e) if e.node_down => NODE_DOWN,
         Ok(e) if e.expectations_failed => EXPECTATIONS_FAILED,
         Ok(_) => OK,
@@ -52,6 +49,8 @@ pub fn code(result: &anyhow::Result<Ended>, signal: Option<Signal>) -> u8 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::Error;
+    use std::io;
 
     #[test]
     fn each_ending_has_its_code() {
@@ -67,13 +66,27 @@ mod tests {
             node_down: true,
         };
         assert_eq!(ok(down), 4);
-        let bad: anyhow::Result<Ended> = Err(BadInput("x".into()).into());
-        assert_eq!(code(&bad, None), 2);
-        let io: anyhow::Result<Ended> = Err(OutputFailed("x".into()).into());
-        assert_eq!(code(&io, None), 3);
+        let err = |e: Error| code(&Err(e), None);
+        assert_eq!(err(Error::BadInput("x".into())), 2);
+        assert_eq!(err(nodes::Error::Invalid(Vec::new()).into()), 2);
+        let missing = || io::Error::from(io::ErrorKind::NotFound);
+        let input = Error::Input {
+            path: "t.log".into(),
+            source: missing(),
+        };
+        assert_eq!(err(input), 2);
+        let output = || Error::Output {
+            verb: "write",
+            what: "x".into(),
+            source: io::Error::from(io::ErrorKind::StorageFull),
+        };
+        assert_eq!(err(output()), 3);
         // Neither the input's fault nor an output's: not 1, which says an expectation failed.
-        let bug: anyhow::Result<Ended> = Err(anyhow::anyhow!("the hub is gone"));
-        assert_eq!(code(&bug, None), 70);
+        assert_eq!(err(Error::Mailbox(actix::MailboxError::Closed)), 70);
+        assert_eq!(err(bus_runtime::Error::HubStopped.into()), 70);
+        assert_eq!(err(Error::NoNode("F9".into())), 70);
+        assert_eq!(err(Error::System(missing())), 70);
+        let io: crate::Result<Ended> = Err(output());
         for (s, c) in [(Signal::Int, 130), (Signal::Term, 143), (Signal::Hup, 129)] {
             assert_eq!(code(&io, Some(s)), c);
             assert_eq!(code(&Ok(down), Some(s)), c);

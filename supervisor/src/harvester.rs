@@ -1,7 +1,6 @@
 //! The emulated harvester: its config file, and the assembly of hub, plant, monitor and the 20
 //! scripted nodes.
 
-use crate::BadInput;
 use crate::configs::Source;
 use actix::prelude::*;
 use bus::bits::BitRate;
@@ -331,14 +330,9 @@ fn firmware_clashes(
     problems
 }
 
-/// Turns a config error into bad input for the command line.
-pub fn bad(e: Error) -> anyhow::Error {
-    BadInput(e.to_string()).into()
-}
-
 /// The controller of a node: a field node's as its script declares it; the monitor's keeps every
 /// extended frame addressed to it (a PC-side CAN interface filtering on the destination byte).
-fn controller(name: &str, spec: &Spec) -> anyhow::Result<ControllerConfig> {
+fn controller(name: &str, spec: &Spec) -> crate::Result<ControllerConfig> {
     let filter = match spec {
         Spec::Monitor => Filter::SocketCan(SocketCanFilterSet(vec![protocol::ident::to_node_filter(
             Address::MONITOR,
@@ -357,7 +351,7 @@ fn controller(name: &str, spec: &Spec) -> anyhow::Result<ControllerConfig> {
                 .iter()
                 .map(|p| format!("filter{}: {}", p.field, p.message))
                 .collect();
-            BadInput(format!("node {name}: {}", what.join("; ")))
+            crate::Error::BadInput(format!("node {name}: {}", what.join("; ")))
         })?,
     };
     Ok(ControllerConfig::named(name).with_filter(filter))
@@ -462,7 +456,7 @@ fn build(
 /// Builds the harvester on a new hub and runs it through start-up: the monitor from time 0, the
 /// field nodes from the time relay on. Must run inside an actix system. `paced`: in real time
 /// (else virtual time, as fast as the nodes answer; see [`HubConfig::paced`]).
-pub async fn start(h: &Harvester, paced: bool, sinks: Vec<Box<dyn Sink>>) -> anyhow::Result<Running> {
+pub async fn start(h: &Harvester, paced: bool, sinks: Vec<Box<dyn Sink>>) -> crate::Result<Running> {
     let mut running = begin(h, paced, sinks).await?;
     running.run_until(h.relay()).await?;
     Ok(running)
@@ -472,9 +466,10 @@ pub async fn start(h: &Harvester, paced: bool, sinks: Vec<Box<dyn Sink>>) -> any
 /// `sinks`; the field nodes are
 /// attached when [`Running::run_until`] reaches the time relay. Start-up is thus an ordinary
 /// stretch of the run, which a caller can stop at any moment (a huge time relay, a signal).
-pub async fn begin(h: &Harvester, paced: bool, sinks: Vec<Box<dyn Sink>>) -> anyhow::Result<Running> {
+pub async fn begin(h: &Harvester, paced: bool, sinks: Vec<Box<dyn Sink>>) -> crate::Result<Running> {
     let c = &h.config;
-    let bitrate = BitRate::new(c.bitrate).ok_or_else(|| BadInput(format!("bit rate {}", c.bitrate)))?;
+    let bitrate =
+        BitRate::new(c.bitrate).ok_or_else(|| crate::Error::BadInput(format!("bit rate {}", c.bitrate)))?;
     let mut hub_config = HubConfig {
         bus: BusConfig {
             bitrate,
@@ -515,7 +510,7 @@ impl Running {
         spec: Spec,
         reaction_us: u64,
         power_on: BusTime,
-    ) -> anyhow::Result<()> {
+    ) -> crate::Result<()> {
         let controller = controller(name, &spec)?;
         let logic = build(&self.harvester, &spec, &self.plant, &self.display, power_on);
         let actor = NodeActor::new(name, logic).start();
@@ -589,7 +584,7 @@ impl Running {
     /// Runs the bus to `until`, looking after crashed nodes on the way: the hub stops at a crash,
     /// at every restart that falls due and at the time relay, where the field nodes are attached
     /// (as in the source: the monitor first, then the time relay starts every node).
-    pub async fn run_until(&mut self, until: BusTime) -> anyhow::Result<()> {
+    pub async fn run_until(&mut self, until: BusTime) -> crate::Result<()> {
         loop {
             if self.field_nodes_at.is_some_and(|t| t <= self.now) {
                 self.attach_field_nodes().await?;
@@ -610,7 +605,7 @@ impl Running {
         }
     }
 
-    async fn attach_field_nodes(&mut self) -> anyhow::Result<()> {
+    async fn attach_field_nodes(&mut self) -> crate::Result<()> {
         let Some(relay) = self.field_nodes_at.take() else {
             return Ok(());
         };
@@ -646,7 +641,7 @@ impl Running {
     }
 
     /// Notes crashes and restarts what is due, by the restart policy.
-    async fn supervise(&mut self) -> anyhow::Result<()> {
+    async fn supervise(&mut self) -> crate::Result<()> {
         let now = self.now;
         let crashed = self.hub.send(GetCrashed).await?;
         let policy = self.harvester.config.restart.clone();
@@ -698,7 +693,7 @@ impl Running {
 
     /// Rebuilds node `i` from its spec: a new actor with new logic that powers on at
     /// `power_on`, behind the node's controller (which is reset).
-    async fn rebuild(&mut self, i: usize, power_on: BusTime) -> anyhow::Result<()> {
+    async fn rebuild(&mut self, i: usize, power_on: BusTime) -> crate::Result<()> {
         let logic = build(
             &self.harvester,
             &self.members[i].spec,
@@ -720,24 +715,24 @@ impl Running {
     }
 
     /// Restarts a crashed node now, counting the restart against the policy.
-    async fn restart(&mut self, i: usize, now: BusTime) -> anyhow::Result<()> {
+    async fn restart(&mut self, i: usize, now: BusTime) -> crate::Result<()> {
         self.rebuild(i, now).await?;
         self.members[i].restarts.push(now);
         Ok(())
     }
 
     /// Makes a node's logic crash at its next wake.
-    pub async fn crash(&self, name: &str) -> anyhow::Result<()> {
+    pub async fn crash(&self, name: &str) -> crate::Result<()> {
         let actor = self
             .actor(name)
-            .ok_or_else(|| anyhow::anyhow!("no node {name}"))?;
+            .ok_or_else(|| crate::Error::NoNode(name.into()))?;
         actor.send(Crash).await?;
         Ok(())
     }
 
     /// Switches the whole machine off and on: every node is rebuilt and boots again (the monitor
     /// at once, the field nodes after the time relay), every controller is reset.
-    pub async fn power_cycle(&mut self) -> anyhow::Result<()> {
+    pub async fn power_cycle(&mut self) -> crate::Result<()> {
         let now = self.now;
         self.events.push(SupervisorEvent {
             at: now,

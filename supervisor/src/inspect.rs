@@ -1,6 +1,6 @@
 //! `harvemu inspect ID#DATA`: everything harvemu knows about one frame.
 
-use crate::BadInput;
+use crate::Error;
 use bus::bits::{self, BitRate};
 use bus::filter::{AtmelFilter, Sja1000Filter, acr_bytes_for, canidt_bytes};
 use bus::{Frame, candump};
@@ -24,18 +24,18 @@ pub struct Args {
 }
 
 /// Runs `harvemu inspect`.
-pub fn run(args: &Args) -> anyhow::Result<()> {
-    let frame =
-        candump::parse_frame(&args.frame).map_err(|e| BadInput(format!("frame '{}': {e}", args.frame)))?;
+pub fn run(args: &Args) -> crate::Result<()> {
+    let frame = candump::parse_frame(&args.frame)
+        .map_err(|e| Error::BadInput(format!("frame '{}': {e}", args.frame)))?;
     let rate = BitRate::new(args.bitrate)
-        .ok_or_else(|| BadInput(format!("bit rate {} is outside 1..=1000000 bit/s", args.bitrate)))?;
+        .ok_or_else(|| Error::BadInput(format!("bit rate {} is outside 1..=1000000 bit/s", args.bitrate)))?;
     let report = report(&frame, rate);
     let shown = if args.json {
         format!("{report}\n")
     } else {
         text(&report)
     };
-    Ok(crate::output::stdout(&shown)?)
+    crate::output::stdout(&shown)
 }
 
 fn hex(bytes: [u8; 4]) -> String {

@@ -162,13 +162,13 @@ fn main() -> ExitCode {
         Command::Protocol { markdown } => protocol(markdown).map(|()| done),
     };
     if let Err(e) = &result {
-        eprintln!("harvemu: error: {e:#}");
+        eprintln!("harvemu: error: {}", e.report());
     }
     ExitCode::from(exit::code(&result, stop::received()))
 }
 
 /// `harvemu protocol`: the catalogue on standard output.
-fn protocol(markdown: bool) -> anyhow::Result<()> {
+fn protocol(markdown: bool) -> supervisor::Result<()> {
     let text = if markdown {
         format!("{}\n", protocol::catalogue::doc::markdown())
     } else {
@@ -177,5 +177,5 @@ fn protocol(markdown: bool) -> anyhow::Result<()> {
             .map(|m| format!("{:02X} {:<24} {}\n", m.number, m.name, m.doc))
             .collect()
     };
-    Ok(supervisor::output::stdout(&text)?)
+    supervisor::output::stdout(&text)
 }

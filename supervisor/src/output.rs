@@ -6,9 +6,9 @@
 //! file-size limit) leaves the name as it was. An output to anything else that exists (a pipe, a
 //! FIFO, a character device, a socket) or to a name under `/dev/` or `/proc/` (`/dev/stdout`)
 //! is written to directly, as a stream. Every failure, on creating, writing, flushing, syncing or
-//! renaming, is an [`OutputFailed`] naming the file.
+//! renaming, is an [`Error::Output`] naming the file, with the I/O error as its source.
 
-use crate::OutputFailed;
+use crate::{Error, Result};
 use std::fs::File;
 use std::io::{self, BufWriter, Write};
 use std::os::unix::fs::PermissionsExt;
@@ -24,22 +24,30 @@ pub struct Output {
 }
 
 /// "cannot VERB PATH: why", without the temporary file's name that some errors carry.
-pub fn failed(verb: &str, path: &Path, e: &io::Error) -> OutputFailed {
+pub fn failed(verb: &'static str, path: &Path, e: io::Error) -> Error {
     // tempfile appends the temporary file's name (` at path "..."`), which means nothing to the
-    // user: the file they named is said instead.
+    // user: the file they named is said instead. Its error type is private, so the cause is
+    // rebuilt from the text before the name, with the same kind.
     let text = e.to_string();
-    let why = text.split(" at path \"").next().unwrap_or(&text);
-    OutputFailed(format!("cannot {verb} {}: {why}", path.display()))
+    let source = match text.split_once(" at path \"") {
+        Some((why, _)) => io::Error::new(e.kind(), why),
+        None => e,
+    };
+    Error::Output {
+        verb,
+        what: path.display().to_string(),
+        source,
+    }
 }
 
 /// Writes `text` to standard output. A reader that went away (a closed pipe: `harvemu protocol |
 /// head`) ends the output quietly, as it ends any Unix filter; any other failure (`> /dev/full`)
-/// is an [`OutputFailed`] naming standard output. Unlike `println!`, never panics.
-pub fn stdout(text: &str) -> Result<(), OutputFailed> {
+/// is an [`Error::Output`] naming standard output. Unlike `println!`, never panics.
+pub fn stdout(text: &str) -> Result<()> {
     let mut out = io::stdout().lock();
     match out.write_all(text.as_bytes()).and_then(|()| out.flush()) {
         Err(e) if e.kind() != io::ErrorKind::BrokenPipe => {
-            Err(failed("write", Path::new("standard output"), &e))
+            Err(failed("write", Path::new("standard output"), e))
         }
         _ => Ok(()),
     }
@@ -55,12 +63,12 @@ pub fn is_stream(path: &Path) -> bool {
 
 impl Output {
     /// Starts the output to `path`: its temporary file, or the stream opened.
-    pub fn create(path: &Path) -> Result<Output, OutputFailed> {
+    pub fn create(path: &Path) -> Result<Output> {
         if is_stream(path) {
             let file = std::fs::OpenOptions::new()
                 .write(true)
                 .open(path)
-                .map_err(|e| failed("create", path, &e))?;
+                .map_err(|e| failed("create", path, e))?;
             return Ok(Output {
                 path: path.to_path_buf(),
                 file: BufWriter::new(file),
@@ -73,10 +81,8 @@ impl Output {
             _ => path.to_path_buf(),
         };
         if target.is_dir() {
-            return Err(OutputFailed(format!(
-                "cannot create {}: it is a directory",
-                path.display()
-            )));
+            let source = io::Error::new(io::ErrorKind::IsADirectory, "it is a directory");
+            return Err(failed("create", path, source));
         }
         let dir = match target.parent() {
             Some(d) if !d.as_os_str().is_empty() => d,
@@ -91,11 +97,11 @@ impl Output {
             .suffix(".part")
             .permissions(std::fs::Permissions::from_mode(0o666))
             .tempfile_in(dir)
-            .map_err(|e| failed("create", path, &e))?;
+            .map_err(|e| failed("create", path, e))?;
         let file = temp
             .as_file()
             .try_clone()
-            .map_err(|e| failed("create", path, &e))?;
+            .map_err(|e| failed("create", path, e))?;
         Ok(Output {
             path: target,
             file: BufWriter::new(file),
@@ -110,15 +116,13 @@ impl Output {
 
     /// Ends the output: flushed, and for a regular file synced and put in place. Dropping an
     /// output instead leaves the name as it was.
-    pub fn commit(mut self) -> Result<(), OutputFailed> {
+    pub fn commit(mut self) -> Result<()> {
         let path = self.path.clone();
-        self.file.flush().map_err(|e| failed("write", &path, &e))?;
+        self.file.flush().map_err(|e| failed("write", &path, e))?;
         if let Some(temp) = self.temp.take() {
-            temp.as_file()
-                .sync_all()
-                .map_err(|e| failed("write", &path, &e))?;
+            temp.as_file().sync_all().map_err(|e| failed("write", &path, e))?;
             temp.persist(&path)
-                .map_err(|e| failed("create", &path, &e.error))?;
+                .map_err(|e| failed("create", &path, e.error))?;
         }
         Ok(())
     }
@@ -135,9 +139,9 @@ impl Write for Output {
 }
 
 /// Writes `bytes` to `path`, wholly or not at all (for a regular file).
-pub fn write_whole(path: &Path, bytes: &[u8]) -> Result<(), OutputFailed> {
+pub fn write_whole(path: &Path, bytes: &[u8]) -> Result<()> {
     let mut out = Output::create(path)?;
-    out.write_all(bytes).map_err(|e| failed("write", path, &e))?;
+    out.write_all(bytes).map_err(|e| failed("write", path, e))?;
     out.commit()
 }
 
@@ -189,11 +193,19 @@ mod tests {
         assert!(!is_stream(Path::new("Cargo.toml")));
         write_whole(Path::new("/dev/null"), b"x").unwrap();
         let e = write_whole(Path::new("/dev/full"), b"x").unwrap_err();
-        assert!(e.0.starts_with("cannot write /dev/full: "), "{e}");
+        assert_eq!(e.exit_code(), crate::exit::OUTPUT_FAILED);
+        assert!(
+            e.report().to_string().starts_with("cannot write /dev/full: "),
+            "{e}"
+        );
         let e = write_whole(Path::new("/nonexistent-folder/x.html"), b"x").unwrap_err();
         assert_eq!(
-            e.0,
+            e.report().to_string(),
             "cannot create /nonexistent-folder/x.html: No such file or directory (os error 2)"
         );
+        let Error::Output { source, .. } = e else {
+            panic!("not an output: {e:?}");
+        };
+        assert_eq!(source.kind(), io::ErrorKind::NotFound);
     }
 }

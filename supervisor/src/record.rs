@@ -7,13 +7,12 @@
 //! run was interrupted, then the `End TriggerBlock` footer; then the file is put in place whole
 //! ([`crate::output`]: a regular file is replaced only by a complete trace, a stream ends on a
 //! whole line). The first write that fails stops the trace; `finish` reports it, naming the file.
-//! A file that cannot be created is an [`crate::OutputFailed`] naming it.
+//! A file that cannot be created is an [`crate::Error::Output`] naming it.
 //!
 //! Timestamps: a candump log has bus time stamped with the run's [`Epoch`] ([`epoch`] picks it:
 //! `--start-time`, else the wall clock at the start of a real-time run, else
 //! [`Epoch::FIXED`]); an ASC file is dated at that epoch and its times count from it.
 
-use crate::OutputFailed;
 use crate::output::{Output, failed};
 use crate::stop::Signal;
 use bus::time::Epoch;
@@ -52,7 +51,7 @@ struct State {
     /// Taken out by [`Trace::finish`].
     out: Option<Shared>,
     /// The first write that failed.
-    error: Option<String>,
+    error: Option<io::Error>,
 }
 
 /// The sink the hub hands its records to.
@@ -62,13 +61,17 @@ impl Feed {
     fn guard<T>(&mut self, op: impl FnOnce(&mut State) -> io::Result<T>) -> io::Result<T> {
         let mut s = self.0.borrow_mut();
         if let Some(e) = &s.error {
-            return Err(io::Error::other(e.clone()));
+            return Err(io::Error::new(e.kind(), e.to_string()));
         }
-        let r = op(&mut s);
-        if let Err(e) = &r {
-            s.error = Some(e.to_string());
+        match op(&mut s) {
+            Err(e) => {
+                // The trace keeps the first error itself, for `finish`, and hands out copies.
+                let copy = io::Error::new(e.kind(), e.to_string());
+                s.error = Some(e);
+                Err(copy)
+            }
+            ok => ok,
         }
-        r
     }
 }
 
@@ -109,10 +112,10 @@ pub fn parse_start_time(text: &str) -> Result<Epoch, String> {
 
 /// Starts the trace file at `path`, in the format its name asks for, for a run whose trace is
 /// stamped with `epoch`: the hub's sink and the trace to finish.
-pub fn create(path: &Path, epoch: Epoch) -> Result<(Box<dyn Sink>, Trace), OutputFailed> {
+pub fn create(path: &Path, epoch: Epoch) -> crate::Result<(Box<dyn Sink>, Trace)> {
     let out = Shared(Rc::new(RefCell::new(Output::create(path)?)));
     let format = if is_asc(path) {
-        let asc = AscWriter::new(out.clone(), epoch).map_err(|e| failed("write", path, &e))?;
+        let asc = AscWriter::new(out.clone(), epoch).map_err(|e| failed("write", path, e))?;
         Format::Asc(asc)
     } else {
         Format::Log(CandumpWriter::new(out.clone(), epoch))
@@ -133,7 +136,7 @@ pub fn create(path: &Path, epoch: Epoch) -> Result<(Box<dyn Sink>, Trace), Outpu
 pub type Recording = (Option<Box<dyn Sink>>, Option<Trace>);
 
 /// [`create`] for an optional `--record`.
-pub fn create_opt(path: Option<&PathBuf>, epoch: Epoch) -> Result<Recording, OutputFailed> {
+pub fn create_opt(path: Option<&PathBuf>, epoch: Epoch) -> crate::Result<Recording> {
     match path {
         Some(p) => {
             let (w, t) = create(p, epoch)?;
@@ -147,12 +150,12 @@ impl Trace {
     /// Ends the trace: for ASC an `interrupted` comment when the run was, and the footer; then
     /// the file is flushed and put in place. An error names the file; the file is then left as
     /// it was (a regular file) or ends where writing failed (a stream).
-    pub fn finish(self, interrupted: Option<Signal>) -> Result<(), OutputFailed> {
+    pub fn finish(self, interrupted: Option<Signal>) -> crate::Result<()> {
         let mut s = self.state.borrow_mut();
         let format = s.format.take();
         let out = s.out.take();
-        if let Some(e) = &s.error {
-            return Err(OutputFailed(format!("cannot write {}: {e}", self.path.display())));
+        if let Some(e) = s.error.take() {
+            return Err(failed("write", &self.path, e));
         }
         drop(s);
         let Some(mut out) = out else {
@@ -160,7 +163,7 @@ impl Trace {
         };
         // The format's writer holds the output too: it is done with before the output is.
         if let Some(Format::Log(mut log)) = format {
-            log.flush().map_err(|e| failed("write", &self.path, &e))?;
+            log.flush().map_err(|e| failed("write", &self.path, e))?;
         } else if let Some(Format::Asc(mut asc)) = format {
             let mut end = || -> io::Result<()> {
                 asc.flush()?;
@@ -173,10 +176,10 @@ impl Trace {
                 }
                 asc.finish()
             };
-            end().map_err(|e| failed("write", &self.path, &e))?;
+            end().map_err(|e| failed("write", &self.path, e))?;
         }
         let out = Rc::try_unwrap(out.0)
-            .map_err(|_| OutputFailed(format!("cannot write {}: still in use", self.path.display())))?;
+            .map_err(|_| failed("write", &self.path, io::Error::other("still in use")))?;
         out.into_inner().commit()
     }
 }

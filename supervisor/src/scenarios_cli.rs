@@ -1,9 +1,8 @@
 //! `harvemu scenario FILE...` and `harvemu validate FILE...`.
 
-use crate::BadInput;
 use crate::configs::{self, Source};
 use crate::exit::Ended;
-use crate::harvester::{self, Harvester};
+use crate::harvester::Harvester;
 use crate::output::Output;
 use crate::report;
 use crate::scenario::{self, Loaded, junit};
@@ -44,7 +43,7 @@ pub struct ScenarioArgs {
 /// Runs `harvemu scenario`: exit code 0 only when every expectation of every scenario passed.
 /// The JUnit XML and the HTML report are written whole at the end, also when an expectation
 /// failed or a stop signal ended the batch (they then say so).
-pub fn run(args: &ScenarioArgs) -> anyhow::Result<Ended> {
+pub fn run(args: &ScenarioArgs) -> crate::Result<Ended> {
     // Load everything first: a bad file stops the whole batch before anything runs.
     let mut loaded = Vec::new();
     let mut problems = Vec::new();
@@ -56,11 +55,11 @@ pub fn run(args: &ScenarioArgs) -> anyhow::Result<Ended> {
                 loaded.push(l)
             }
             Err(Error::Invalid(p)) => problems.extend(p),
-            Err(e) => return Err(harvester::bad(e)),
+            Err(e) => return Err(e.into()),
         }
     }
     if !problems.is_empty() {
-        return Err(harvester::bad(Error::Invalid(problems)));
+        return Err(Error::Invalid(problems).into());
     }
     // Started before anything runs: a bad path should not cost a whole run.
     let report = args.report.as_deref().map(Output::create).transpose()?;
@@ -163,14 +162,14 @@ pub fn run(args: &ScenarioArgs) -> anyhow::Result<Ended> {
 }
 
 /// Writes a whole output and puts it in place.
-fn write(mut out: Output, bytes: &[u8]) -> anyhow::Result<()> {
+fn write(mut out: Output, bytes: &[u8]) -> crate::Result<()> {
     out.write_all(bytes)
-        .map_err(|e| crate::output::failed("write", out.path(), &e))?;
+        .map_err(|e| crate::output::failed("write", out.path(), e))?;
     out.commit()?;
     Ok(())
 }
 
-fn run_one(l: &Loaded, record: Option<&PathBuf>) -> anyhow::Result<scenario::Outcome> {
+fn run_one(l: &Loaded, record: Option<&PathBuf>) -> crate::Result<scenario::Outcome> {
     let epoch = l.harvester.epoch.unwrap_or(bus::time::Epoch::FIXED);
     let (trace, recording) = crate::record::create_opt(record, epoch)?;
     let bar = ProgressBar::new(l.scenario.duration_s.ceil() as u64);
@@ -198,10 +197,10 @@ pub struct ValidateArgs {
 }
 
 /// Runs `harvemu validate`: every problem of every file, exit code 2 when there is any.
-pub fn validate(args: &ValidateArgs) -> anyhow::Result<()> {
+pub fn validate(args: &ValidateArgs) -> crate::Result<()> {
     let mut problems = Vec::new();
     for f in &args.files {
-        let (source, text) = Source::file(f).read().map_err(|e| BadInput(e.to_string()))?;
+        let (source, text) = Source::file(f).read()?;
         // The struct name at the top of the file says what it is.
         let signals = nodes::environment::PlantSignals;
         let name = source.to_string();
@@ -230,6 +229,6 @@ pub fn validate(args: &ValidateArgs) -> anyhow::Result<()> {
     if problems.is_empty() {
         Ok(())
     } else {
-        Err(harvester::bad(Error::Invalid(problems)))
+        Err(Error::Invalid(problems).into())
     }
 }

@@ -5,6 +5,8 @@
 //! python-can), else `python3`. Without python-can the tests fail: a cross-check that cannot run
 //! has checked nothing.
 
+mod common;
+
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -296,27 +298,8 @@ fn readme_socketcand_script() -> String {
 
 #[test]
 fn python_can_sends_the_readme_frame_through_harvemu_run_socketcand() {
-    use std::io::BufRead;
     require_python_can();
-    let mut child = Command::new(env!("CARGO_BIN_EXE_harvemu"))
-        .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
-        .args(["run", "--for", "15s", "--socketcand", "127.0.0.1:0"])
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    let stderr = child.stderr.take().unwrap();
-    let mut lines = std::io::BufReader::new(stderr).lines();
-    let addr = lines
-        .by_ref()
-        .map_while(Result::ok)
-        .find_map(|l| {
-            l.strip_prefix("harvemu: socketcand gateway on ")
-                .and_then(|rest| rest.split(',').next())
-                .map(str::to_string)
-        })
-        .expect("the gateway's address on stderr");
-    // Keep reading stderr so that the child never blocks on a full pipe.
-    std::thread::spawn(move || lines.for_each(drop));
+    let (mut child, addr) = common::socketcand_gateway(&["--for", "15s"]);
     let out = Command::new(interpreter())
         .args(["-c", SOCKETCAND, &addr, &readme_socketcand_script()])
         .output()

@@ -4,6 +4,8 @@
 //!
 //! python-can is the independent reference for the dates (`HARVEMU_PYTHON`, as in python_can.rs).
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::time::{SystemTime, UNIX_EPOCH};
@@ -288,26 +290,9 @@ bus.shutdown()
 /// The first socketcand frame's stamp and the wall clock then, in seconds, read by python-can
 /// from `harvemu run --socketcand` with `extra` arguments.
 fn socketcand_stamp(extra: &[&str]) -> (f64, f64) {
-    use std::io::BufRead;
-    let mut child = Command::new(env!("CARGO_BIN_EXE_harvemu"))
-        .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
-        // Long enough for a loaded machine; the test stops it when python-can is done.
-        .args(["run", "--for", "120s", "--socketcand", "127.0.0.1:0"])
-        .args(extra)
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut lines = std::io::BufReader::new(child.stderr.take().unwrap()).lines();
-    let addr = lines
-        .by_ref()
-        .map_while(Result::ok)
-        .find_map(|l| {
-            l.strip_prefix("harvemu: socketcand gateway on ")
-                .and_then(|rest| rest.split(',').next())
-                .map(str::to_string)
-        })
-        .expect("the gateway's address on stderr");
-    std::thread::spawn(move || lines.for_each(drop));
+    // Long enough for a loaded machine; the test stops it when python-can is done.
+    let args: Vec<&str> = ["--for", "120s"].iter().chain(extra).copied().collect();
+    let (mut child, addr) = common::socketcand_gateway(&args);
     let python = std::env::var_os("HARVEMU_PYTHON").map_or_else(|| "python3".into(), PathBuf::from);
     let out = Command::new(python)
         .args(["-c", SOCKETCAND_STAMP, &addr])

@@ -6,9 +6,8 @@ use bus::fault::ErrorState;
 use clap::Parser;
 use harvemu_e2e::{Shared, candump, default_harvester, parse_trace, root};
 use std::collections::{BTreeMap, BTreeSet};
-use supervisor::BadInput;
 use supervisor::scenario::{self, Action, RandomFault, Target, random};
-use supervisor::soak;
+use supervisor::{exit, soak};
 
 /// The command line as far as these tests need it.
 #[derive(Parser)]
@@ -20,7 +19,13 @@ enum Cli {
 /// Runs `harvemu soak` with `words` in-process: Ok(passed and flat) or the error.
 fn harvemu_soak(words: &[&str]) -> anyhow::Result<bool> {
     let Cli::Soak(args) = Cli::try_parse_from(["harvemu", "soak"].iter().chain(words))?;
-    soak::run(&args).map(|e| !e.expectations_failed)
+    Ok(soak::run(&args).map(|e| !e.expectations_failed)?)
+}
+
+/// True when `e` is bad input (exit code 2).
+fn is_bad_input(e: &anyhow::Error) -> bool {
+    e.downcast_ref::<supervisor::Error>()
+        .is_some_and(|e| e.exit_code() == exit::BAD_INPUT)
 }
 
 const SCENARIO: &str = r#"Scenario(
@@ -165,7 +170,7 @@ fn bad_soak_input_is_named_and_nothing_runs() {
         (vec!["no/such/soak.ron"], "no/such/soak.ron"),
     ] {
         let e = harvemu_soak(&words).unwrap_err();
-        assert!(e.downcast_ref::<BadInput>().is_some(), "{words:?}: {e}");
+        assert!(is_bad_input(&e), "{words:?}: {e}");
         assert!(e.to_string().contains(says), "{words:?}: {e}");
     }
     let dir = std::env::temp_dir().join(format!("harvemu-soak-bad-{}", std::process::id()));
@@ -181,7 +186,7 @@ fn bad_soak_input_is_named_and_nothing_runs() {
     std::fs::write(&file, text).unwrap();
     let unknown = harvemu_soak(&[file.to_str().unwrap()]).unwrap_err();
     std::fs::remove_dir_all(&dir).unwrap();
-    assert!(e.downcast_ref::<BadInput>().is_some());
+    assert!(is_bad_input(&e));
     let e = e.to_string();
     assert!(
         e.contains("bad.ron") && e.contains("random_faults.mean_interval_s"),

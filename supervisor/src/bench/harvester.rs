@@ -22,7 +22,7 @@ pub fn run_on_this_thread(h: &Harvester, count: usize, first: u64, seconds: f64)
             running.push(
                 harvester::start(&h, false, Vec::new())
                     .await
-                    .map_err(|e| format!("{e:#}"))?,
+                    .map_err(|e| e.report().to_string())?,
             );
         }
         // Round robin in slices of bus time, one harvester at a time: each one's working set
@@ -33,7 +33,7 @@ pub fn run_on_this_thread(h: &Harvester, count: usize, first: u64, seconds: f64)
         while reached < until {
             reached = (reached + SLICE).min(until);
             for r in &mut running {
-                r.run_until(reached).await.map_err(|e| format!("{e:#}"))?;
+                r.run_until(reached).await.map_err(|e| e.report().to_string())?;
             }
         }
         let hubs: Vec<_> = running.iter().map(|r| r.hub.clone()).collect();

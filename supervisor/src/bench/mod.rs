@@ -217,7 +217,7 @@ pub fn measure(
 const SCENARIOS: [&str; 4] = ["saturated", "saturated-multi", "harvester", "realtime"];
 
 /// Runs `harvemu bench`.
-pub fn run(args: &Args) -> anyhow::Result<()> {
+pub fn run(args: &Args) -> crate::Result<()> {
     for (flag, v) in [
         ("--seconds", args.seconds),
         ("--harvester-seconds", args.harvester_seconds),
@@ -225,15 +225,16 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         ("--realtime", args.realtime.unwrap_or(1.0)),
     ] {
         if !(v > 0.0 && v.is_finite()) {
-            return Err(crate::BadInput(format!("{flag} {v} must be a positive number")).into());
+            return Err(crate::Error::BadInput(format!(
+                "{flag} {v} must be a positive number"
+            )));
         }
     }
     if let Some(bad) = args.only.iter().find(|n| !SCENARIOS.contains(&n.as_str())) {
-        return Err(crate::BadInput(format!(
+        return Err(crate::Error::BadInput(format!(
             "--only {bad}: the scenarios are {}",
             SCENARIOS.join(", ")
-        ))
-        .into());
+        )));
     }
     let wanted = |n: &str| args.only.is_empty() || args.only.iter().any(|o| o == n);
     let mut plan: Vec<(&str, Workload, usize, usize, f64)> = Vec::new();
@@ -253,7 +254,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     }
     let realtime = args.realtime.filter(|_| wanted("realtime"));
     let harvester = if wanted("harvester") || realtime.is_some() {
-        let h = crate::harvester::Harvester::load(&args.config).map_err(crate::harvester::bad)?;
+        let h = crate::harvester::Harvester::load(&args.config)?;
         Some(Arc::new(h))
     } else {
         None
@@ -280,7 +281,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             "peak RSS"
         ))?;
     }
-    let print = |m: &Measurement| -> anyhow::Result<()> {
+    let print = |m: &Measurement| -> crate::Result<()> {
         if args.json {
             crate::output::stdout(&format!("{}\n", serde_json::to_string(m)?))?;
         } else {
@@ -306,11 +307,11 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     for (name, workload, buses, threads, seconds) in plan {
         let threads = threads.clamp(1, buses.max(1));
         eprintln!("bench: {name}, {buses} bus(es) on {threads} thread(s), {seconds} s of virtual time ...");
-        print(&measure(name, &workload, buses, threads, seconds).map_err(anyhow::Error::msg)?)?;
+        print(&measure(name, &workload, buses, threads, seconds).map_err(crate::Error::Internal)?)?;
     }
     if let (Some(seconds), Some(h)) = (realtime, &harvester) {
         eprintln!("bench: realtime, the harvester for {seconds} s of wall-clock time ...");
-        print(&realtime::measure(h, seconds).map_err(anyhow::Error::msg)?)?;
+        print(&realtime::measure(h, seconds).map_err(crate::Error::Internal)?)?;
     }
     Ok(())
 }

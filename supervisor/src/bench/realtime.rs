@@ -143,7 +143,7 @@ pub fn measure(h: &Harvester, seconds: f64) -> Result<Measurement, String> {
     let (jitter, snap) = system.block_on(async move {
         let mut running = harvester::start(&h, true, Vec::new())
             .await
-            .map_err(|e| format!("{e:#}"))?;
+            .map_err(|e| e.report().to_string())?;
         // Large enough for minutes of traffic: the observer must not be the one losing frames.
         let (tx, mut rx) = tokio::sync::mpsc::channel::<Observed>(65_536);
         running.hub.send(Subscribe(tx)).await.map_err(|e| e.to_string())?;
@@ -168,7 +168,7 @@ pub fn measure(h: &Harvester, seconds: f64) -> Result<Measurement, String> {
         running
             .run_until(from + BusDuration::from_secs_f64(seconds))
             .await
-            .map_err(|e| format!("{e:#}"))?;
+            .map_err(|e| e.report().to_string())?;
         // Let the observer take what is still queued.
         tokio::task::yield_now().await;
         let snap = running.hub.send(GetSnapshot).await.map_err(|e| e.to_string())?;

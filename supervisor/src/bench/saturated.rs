@@ -54,7 +54,7 @@ impl NodeLogic for Saturator {
 }
 
 /// Builds one saturated bus and returns its hub.
-async fn saturated_bus(seed: u64) -> anyhow::Result<Addr<Hub>> {
+async fn saturated_bus(seed: u64) -> crate::Result<Addr<Hub>> {
     let config = HubConfig {
         bus: BusConfig {
             seed,

@@ -9,7 +9,7 @@
 //! code 3, leaving the files written before it.
 
 use super::FILES;
-use crate::BadInput;
+use crate::Error;
 use crate::output::{self, failed};
 use std::path::{Path, PathBuf};
 
@@ -38,7 +38,7 @@ pub struct ExportArgs {
 }
 
 /// Runs `harvemu config ...`.
-pub fn run(command: &Command) -> anyhow::Result<()> {
+pub fn run(command: &Command) -> crate::Result<()> {
     match command {
         Command::Export(args) => export(args),
         Command::List => {
@@ -48,10 +48,10 @@ pub fn run(command: &Command) -> anyhow::Result<()> {
     }
 }
 
-fn export(args: &ExportArgs) -> anyhow::Result<()> {
+fn export(args: &ExportArgs) -> crate::Result<()> {
     let dir = &args.dir;
     if std::fs::metadata(dir).is_ok_and(|m| !m.is_dir()) {
-        return Err(BadInput(format!("{}: not a folder", dir.display())).into());
+        return Err(Error::BadInput(format!("{}: not a folder", dir.display())));
     }
     let files: Vec<(PathBuf, &[u8])> = FILES
         .iter()
@@ -68,15 +68,14 @@ fn export(args: &ExportArgs) -> anyhow::Result<()> {
                 1 => String::new(),
                 n => format!(" and {} more", n - 1),
             };
-            return Err(BadInput(format!(
+            return Err(Error::BadInput(format!(
                 "{first}{more} already there: nothing written (--force overwrites them)"
-            ))
-            .into());
+            )));
         }
     }
     for (path, bytes) in &files {
         if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
-            std::fs::create_dir_all(parent).map_err(|e| failed("create", parent, &e))?;
+            std::fs::create_dir_all(parent).map_err(|e| failed("create", parent, e))?;
         }
         output::write_whole(path, bytes)?;
     }

@@ -16,7 +16,7 @@
 
 pub mod schedule;
 
-use crate::BadInput;
+use crate::Error;
 use crate::exit::Ended;
 use crate::harvester::{self, Harvester, Running};
 use crate::run::parse_duration;
@@ -93,12 +93,15 @@ pub struct Played {
 
 /// The records of a trace file, read as they are taken; a bad line is bad input naming
 /// `file:line`, a file that cannot be opened is bad input too.
-pub fn records(path: &Path) -> Box<dyn Iterator<Item = anyhow::Result<Record>>> {
+pub fn records(path: &Path) -> Box<dyn Iterator<Item = crate::Result<Record>>> {
     let file = match std::fs::File::open(path) {
         Ok(f) => f,
-        Err(e) => {
-            let e = BadInput(format!("cannot open {}: {e}", path.display()));
-            return Box::new(std::iter::once(Err(e.into())));
+        Err(source) => {
+            let e = Error::Input {
+                path: path.to_path_buf(),
+                source,
+            };
+            return Box::new(std::iter::once(Err(e)));
         }
     };
     let path = path.to_path_buf();
@@ -106,9 +109,9 @@ pub fn records(path: &Path) -> Box<dyn Iterator<Item = anyhow::Result<Record>>> 
         tracefile::read(BufReader::new(file), ErrorFrames::Keep).map(move |r| {
             r.map_err(|e| match e {
                 bus::Error::TraceLine { line, reason } => {
-                    BadInput(format!("{}:{line}: {reason}", path.display())).into()
+                    Error::BadInput(format!("{}:{line}: {reason}", path.display()))
                 }
-                other => BadInput(format!("{}: {other}", path.display())).into(),
+                other => Error::BadInput(format!("{}: {other}", path.display())),
             })
         }),
     )
@@ -142,7 +145,7 @@ pub fn for_interface(h: &mut Harvester, with_emulated: bool) {
 }
 
 /// Attaches the replay's controller to the hub of `running`.
-pub async fn attach(running: &Running) -> anyhow::Result<NodeId> {
+pub async fn attach(running: &Running) -> crate::Result<NodeId> {
     let controller = ControllerConfig {
         tx_queue_len: 256,
         ..ControllerConfig::named("replay")
@@ -168,7 +171,7 @@ pub async fn play(
     start: BusTime,
     end: Option<BusTime>,
     played: &mut Played,
-) -> anyhow::Result<()> {
+) -> crate::Result<()> {
     for due in schedule.by_ref() {
         let due = due?;
         let at = start + BusDuration::from_nanos(due.offset);
@@ -195,14 +198,13 @@ pub async fn play(
 
 /// Refuses a trace that cannot be read twice (a pipe, a FIFO, a terminal): the check before
 /// the run would drain it, and the replay would then find it empty and send nothing.
-fn readable_twice(path: &Path) -> anyhow::Result<()> {
+fn readable_twice(path: &Path) -> crate::Result<()> {
     match std::fs::metadata(path) {
-        Ok(m) if !m.is_file() => Err(BadInput(format!(
+        Ok(m) if !m.is_file() => Err(Error::BadInput(format!(
             "{}: not a regular file (a pipe, a FIFO or a device): replay reads its trace twice, \
              once to check it and once as it plays, so save it to a file first",
             path.display()
-        ))
-        .into()),
+        ))),
         // A missing file is reported by the reader, with the reason.
         _ => Ok(()),
     }
@@ -210,27 +212,31 @@ fn readable_twice(path: &Path) -> anyhow::Result<()> {
 
 /// Runs `harvemu replay`. A stop signal ends it at any moment; the trace is finished in every
 /// case.
-pub fn run(args: &Args) -> anyhow::Result<Ended> {
-    let mut h = Harvester::load(&args.config).map_err(harvester::bad)?;
-    h.without(&args.without).map_err(harvester::bad)?;
+pub fn run(args: &Args) -> crate::Result<Ended> {
+    let mut h = Harvester::load(&args.config)?;
+    h.without(&args.without)?;
     let passes = match args.passes {
         None => Passes::Times(1),
         Some(None) => Passes::Forever,
         Some(Some(0)) => {
-            return Err(BadInput("--loop N: N is the number of passes, at least 1".into()).into());
+            return Err(Error::BadInput(
+                "--loop N: N is the number of passes, at least 1".into(),
+            ));
         }
         Some(Some(n)) => Passes::Times(n),
     };
     if args.fast && args.iface.is_some() {
-        return Err(BadInput("--iface runs in real time: leave out --fast".into()).into());
+        return Err(Error::BadInput(
+            "--iface runs in real time: leave out --fast".into(),
+        ));
     }
     if args.fast && passes == Passes::Forever && args.duration.is_none() {
-        return Err(
-            BadInput("--fast --loop needs --for: virtual time would otherwise run for ever".into()).into(),
-        );
+        return Err(Error::BadInput(
+            "--fast --loop needs --for: virtual time would otherwise run for ever".into(),
+        ));
     }
     if let Some(name) = &args.iface {
-        bus_runtime::backend::socketcan::check(name).map_err(|e| BadInput(e.to_string()))?;
+        bus_runtime::backend::socketcan::check(name).map_err(Error::Interface)?;
         for_interface(&mut h, args.with_emulated);
     }
     let skip = if args.skip_emulated {
@@ -241,7 +247,10 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
     readable_twice(&args.file)?;
     let survey = Survey::new(records(&args.file), &skip)?;
     if survey.counts().read == 0 {
-        return Err(BadInput(format!("{}: no frames in this trace", args.file.display())).into());
+        return Err(Error::BadInput(format!(
+            "{}: no frames in this trace",
+            args.file.display()
+        )));
     }
     let mut schedule = Schedule::new(survey, skip, passes, source(&args.file));
     let counts = schedule.counts();
@@ -267,13 +276,13 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
     let relay = h.relay();
     let system = System::with_tokio_rt(move || runtime(fast).expect("a tokio runtime"));
     let result = system.block_on(async move {
-        let mut stop = Stop::new()?;
+        let mut stop = Stop::new().map_err(Error::System)?;
         let mut running = harvester::begin(&h, !fast, trace.into_iter().collect()).await?;
         let _bridge = match &iface {
             Some(name) => Some(
                 bus_runtime::backend::socketcan::bridge(running.hub.clone(), name)
                     .await
-                    .map_err(|e| BadInput(e.to_string()))?,
+                    .map_err(Error::Interface)?,
             ),
             None => None,
         };
@@ -319,7 +328,7 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
         if let Some(line) = crate::realtime::overruns_line(&snap) {
             eprintln!("{line}");
         }
-        anyhow::Ok(Ended {
+        Ok::<_, Error>(Ended {
             expectations_failed: false,
             node_down: crate::run::report_down(&running),
         })

@@ -23,7 +23,7 @@
 //!   plus its mean interval between records (1 ms when all records share one instant), so the
 //!   times of a looped trace keep increasing by the trace's own rhythm.
 
-use crate::BadInput;
+use crate::Error;
 use bus::Frame;
 use bus::time::Stamp;
 use bus::tracefile::{Entry, Record};
@@ -130,7 +130,7 @@ impl Survey {
 }
 
 /// Gives a trace's records from its start, once per pass.
-pub type Source = Box<dyn FnMut() -> Box<dyn Iterator<Item = anyhow::Result<Record>>>>;
+pub type Source = Box<dyn FnMut() -> Box<dyn Iterator<Item = crate::Result<Record>>>>;
 
 /// The frames of a trace, in the order and at the offsets they are to be sent.
 pub struct Schedule {
@@ -140,7 +140,7 @@ pub struct Schedule {
     period: u64,
     source: Source,
     /// The pass being read, once opened.
-    reading: Option<Box<dyn Iterator<Item = anyhow::Result<Record>>>>,
+    reading: Option<Box<dyn Iterator<Item = crate::Result<Record>>>>,
     /// The current pass, from 0.
     pass: u32,
     /// Passes whose first frame has been taken.
@@ -211,9 +211,9 @@ impl Schedule {
 }
 
 impl Iterator for Schedule {
-    type Item = anyhow::Result<Due>;
+    type Item = crate::Result<Due>;
 
-    fn next(&mut self) -> Option<anyhow::Result<Due>> {
+    fn next(&mut self) -> Option<crate::Result<Due>> {
         while !self.done {
             let Some(reading) = &mut self.reading else {
                 self.reading = Some((self.source)());
@@ -231,11 +231,11 @@ impl Iterator for Schedule {
                     if self.begun == self.pass {
                         // The survey found frames to send, this reading none: the trace changed.
                         self.done = true;
-                        let e = BadInput(format!(
+                        let e = Error::BadInput(format!(
                             "the trace changed while it was replayed: pass {} found no frame to send",
                             self.pass + 1
                         ));
-                        return Some(Err(e.into()));
+                        return Some(Err(e));
                     }
                     if self.another_pass() {
                         self.pass += 1;
@@ -396,7 +396,9 @@ mod tests {
         let survey = Survey::new(trace().into_iter().map(Ok::<_, ()>), &BTreeSet::new()).unwrap();
         let source: Source = Box::new(|| {
             let good = trace().into_iter().take(2).map(Ok);
-            Box::new(good.chain(std::iter::once(Err(anyhow::anyhow!("t.log:3: bad")))))
+            Box::new(good.chain(std::iter::once(Err(crate::Error::BadInput(
+                "t.log:3: bad".into(),
+            )))))
         });
         let got: Vec<Result<u64, String>> = Schedule::new(survey, BTreeSet::new(), Passes::Forever, source)
             .map(|d| d.map(|d| d.offset / 1000).map_err(|e| e.to_string()))

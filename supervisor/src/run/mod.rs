@@ -6,7 +6,7 @@ pub mod summary;
 pub use console::{PLAIN_EVERY, PLAIN_LINES, plain_period};
 pub use summary::Summary;
 
-use crate::BadInput;
+use crate::Error;
 use crate::exit::Ended;
 use crate::harvester::{self, Harvester};
 use crate::stop::Stop;
@@ -98,27 +98,33 @@ pub fn summary(s: &Snapshot, running: &harvester::Running) -> String {
 
 /// Runs `harvemu run`. It stops at `--for`, at a stop signal (at any moment, start-up included)
 /// or, with the terminal display, at a quit key; the trace is finished in every case.
-pub fn run(args: &Args) -> anyhow::Result<Ended> {
+pub fn run(args: &Args) -> crate::Result<Ended> {
     if args.tui {
         crate::tui::require_terminal()?;
     }
-    let mut h = Harvester::load(&args.config).map_err(harvester::bad)?;
+    let mut h = Harvester::load(&args.config)?;
     if let Some(seed) = args.seed {
         h.config.seed = seed;
     }
-    h.without(&args.without).map_err(harvester::bad)?;
+    h.without(&args.without)?;
     if args.fast && args.iface.is_some() {
-        return Err(BadInput("--iface runs in real time: leave out --fast".into()).into());
+        return Err(Error::BadInput(
+            "--iface runs in real time: leave out --fast".into(),
+        ));
     }
     if args.fast && args.realtime {
-        return Err(BadInput("--realtime is for real-time runs: leave out --fast".into()).into());
+        return Err(Error::BadInput(
+            "--realtime is for real-time runs: leave out --fast".into(),
+        ));
     }
     let iface = args.iface.clone();
     if let Some(name) = &iface {
-        bus_runtime::backend::socketcan::check(name).map_err(|e| BadInput(e.to_string()))?;
+        bus_runtime::backend::socketcan::check(name).map_err(Error::Interface)?;
     }
     if args.fast && args.duration.is_none() {
-        return Err(BadInput("--fast needs --for: virtual time would otherwise run for ever".into()).into());
+        return Err(Error::BadInput(
+            "--fast needs --for: virtual time would otherwise run for ever".into(),
+        ));
     }
     let epoch = crate::record::epoch(args.start_time, !args.fast);
     h.epoch = Some(epoch);
@@ -152,14 +158,14 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
     }
     let system = System::with_tokio_rt(move || runtime(fast).expect("a tokio runtime"));
     let result = system.block_on(async move {
-        let mut stop = Stop::new()?;
+        let mut stop = Stop::new().map_err(Error::System)?;
         let mut running = harvester::begin(&h, !fast, trace.into_iter().collect()).await?;
         let mut reported = 0;
         let bridge = match &iface {
             Some(name) => {
                 let b = bus_runtime::backend::socketcan::bridge(running.hub.clone(), name)
                     .await
-                    .map_err(|e| BadInput(e.to_string()))?;
+                    .map_err(Error::Interface)?;
                 eprintln!("harvemu: bridged to CAN interface {name}");
                 Some(b)
             }
@@ -229,10 +235,10 @@ pub fn run(args: &Args) -> anyhow::Result<Ended> {
                 .map(|(name, state)| (name, serde_json::json!(state)))
                 .collect();
             let text = serde_json::to_string_pretty(&serde_json::json!({ "nodes": nodes }))
-                .map_err(|e| anyhow::anyhow!("state dump: {e}"))?;
+                ?;
             crate::output::write_whole(path, format!("{text}\n").as_bytes())?;
         }
-        anyhow::Ok(Ended {
+        Ok::<_, Error>(Ended {
             expectations_failed: false,
             node_down: report_down(&running),
         })

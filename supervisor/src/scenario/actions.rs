@@ -8,7 +8,7 @@
 
 use super::babbler::Babblers;
 use super::model::{Action, ErrorKind, Hits, SeenBy, Target};
-use crate::BadInput;
+use crate::Error;
 use crate::harvester::Running;
 use bus::candump::parse_frame;
 use bus::engine::{BitPosition, Effect, NodeId, Rule, RuleId, Schedule};
@@ -42,8 +42,8 @@ impl Actions {
         running: &mut Running,
         index: usize,
         action: Action,
-    ) -> anyhow::Result<()> {
-        let id = |n: &str| running.node(n).ok_or_else(|| anyhow::anyhow!("no node {n}"));
+    ) -> crate::Result<()> {
+        let id = |n: &str| running.node(n).ok_or_else(|| Error::NoNode(n.into()));
         match action {
             Action::BitErrors {
                 target,
@@ -126,11 +126,7 @@ impl Actions {
             }
             Action::Plant { input, value } => {
                 let now = running.now();
-                running
-                    .plant
-                    .borrow_mut()
-                    .set_input_at(now, &input, value)
-                    .map_err(|e| anyhow::anyhow!("{e}"))?;
+                running.plant.borrow_mut().set_input_at(now, &input, value)?;
             }
             Action::PowerCycle => running.power_cycle().await?,
         }
@@ -138,7 +134,7 @@ impl Actions {
     }
 
     /// Ends the bit errors or overloads of timeline entry `index`, if they still run.
-    pub(super) async fn end_rule(&mut self, running: &Running, index: usize) -> anyhow::Result<()> {
+    pub(super) async fn end_rule(&mut self, running: &Running, index: usize) -> crate::Result<()> {
         if let Some(id) = self.rules.remove(&index) {
             running.hub.send(Control::RemoveRule(id)).await??;
         }
@@ -146,11 +142,11 @@ impl Actions {
     }
 
     /// Ends the flood of a babbling idiot, if one runs.
-    pub(super) async fn end_babble(&mut self, running: &Running) -> anyhow::Result<()> {
+    pub(super) async fn end_babble(&mut self, running: &Running) -> crate::Result<()> {
         self.babblers.stop(running).await
     }
 
-    async fn add_rule(&mut self, running: &Running, index: usize, rule: Rule) -> anyhow::Result<()> {
+    async fn add_rule(&mut self, running: &Running, index: usize, rule: Rule) -> crate::Result<()> {
         if let Some(r) = running.hub.send(Control::AddRule(rule)).await?? {
             self.rules.insert(index, r);
         }
@@ -160,10 +156,10 @@ impl Actions {
 
 /// Hands a fault to a node's logic, from now on; a refusal is an error naming the step (`at`), the
 /// node and the fault.
-async fn inject(running: &Running, at: &str, node: &str, fault: NodeFault) -> anyhow::Result<()> {
+async fn inject(running: &Running, at: &str, node: &str, fault: NodeFault) -> crate::Result<()> {
     let actor = running
         .actor(node)
-        .ok_or_else(|| BadInput(format!("no node {node}")))?;
+        .ok_or_else(|| Error::BadInput(format!("no node {node}")))?;
     let now = running.now();
     let (answer, taken) = std::sync::mpsc::channel();
     let described = describe(&fault);
@@ -175,10 +171,12 @@ async fn inject(running: &Running, at: &str, node: &str, fault: NodeFault) -> an
         .await?;
     match taken.try_recv() {
         Ok(Ok(())) => Ok(()),
-        Ok(Err(refused)) => Err(BadInput(format!("{at}: node {node} refused {described}: {refused}")).into()),
-        Err(e) => Err(anyhow::anyhow!(
+        Ok(Err(refused)) => Err(Error::BadInput(format!(
+            "{at}: node {node} refused {described}: {refused}"
+        ))),
+        Err(e) => Err(Error::Internal(format!(
             "{at}: node {node} did not answer {described}: {e}"
-        )),
+        ))),
     }
 }
 
@@ -193,13 +191,13 @@ fn describe(fault: &NodeFault) -> String {
 /// The engine's form of the frames a fault targets.
 fn engine_target(
     target: &Target,
-    id: &dyn Fn(&str) -> anyhow::Result<NodeId>,
-) -> anyhow::Result<bus::engine::Target> {
+    id: &dyn Fn(&str) -> crate::Result<NodeId>,
+) -> crate::Result<bus::engine::Target> {
     Ok(match target {
         Target::Any => bus::engine::Target::Any,
         Target::Node(n) => bus::engine::Target::Node(id(n)?),
         Target::Id(text) => bus::engine::Target::Id {
-            id: u32::from_str_radix(text, 16)?,
+            id: u32::from_str_radix(text, 16).map_err(|e| Error::Internal(e.to_string()))?,
             mask: 0x1FFF_FFFF,
         },
         Target::Priority(p) => {

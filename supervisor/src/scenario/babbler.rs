@@ -48,7 +48,7 @@ pub(super) struct Babblers {
 
 impl Babblers {
     /// Starts flooding the bus with `frame` from now on.
-    pub(super) async fn start(&mut self, running: &Running, frame: Frame) -> anyhow::Result<()> {
+    pub(super) async fn start(&mut self, running: &Running, frame: Frame) -> crate::Result<()> {
         let logic = Babbler {
             frame,
             next: running.now(),
@@ -88,7 +88,7 @@ impl Babblers {
     }
 
     /// Stops the flood, if one runs.
-    pub(super) async fn stop(&mut self, running: &Running) -> anyhow::Result<()> {
+    pub(super) async fn stop(&mut self, running: &Running) -> crate::Result<()> {
         if let Some(node) = self.active.take() {
             park(running, node, &mut self.parked).await?;
         }
@@ -97,7 +97,7 @@ impl Babblers {
 }
 
 /// Takes a babbler off the bus, to wait for the next flood.
-async fn park(running: &Running, node: NodeId, parked: &mut Vec<NodeId>) -> anyhow::Result<()> {
+async fn park(running: &Running, node: NodeId, parked: &mut Vec<NodeId>) -> crate::Result<()> {
     running.hub.send(Control::SetConnected(node, false)).await??;
     running.hub.send(Control::SetHung(node, true)).await??;
     parked.push(node);

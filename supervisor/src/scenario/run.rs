@@ -89,7 +89,7 @@ fn schedule(s: &Scenario) -> Vec<(BusTime, usize, Todo)> {
 }
 
 /// Runs a loaded scenario in virtual time. `progress` is called with bus seconds reached.
-pub fn run(l: &Loaded, trace: Option<Box<dyn Sink>>, progress: impl FnMut(f64)) -> anyhow::Result<Outcome> {
+pub fn run(l: &Loaded, trace: Option<Box<dyn Sink>>, progress: impl FnMut(f64)) -> crate::Result<Outcome> {
     let started = std::time::Instant::now();
     // Counting the trace costs a record per frame: only when it is written anyway or checked.
     let count_trace = trace.is_some()
@@ -115,10 +115,10 @@ async fn play(
     sinks: Vec<Box<dyn Sink>>,
     tally: Option<Rc<RefCell<TraceTally>>>,
     mut progress: impl FnMut(f64),
-) -> anyhow::Result<Outcome> {
+) -> crate::Result<Outcome> {
     let (s, h) = (&l.scenario, &l.harvester);
     let mut p = Playing {
-        stop: Stop::new()?,
+        stop: Stop::new().map_err(crate::Error::System)?,
         running: harvester::begin(h, false, sinks).await?,
         series: Series::default(),
         interrupted: None,
@@ -204,7 +204,7 @@ struct Playing {
 impl Playing {
     /// Runs to `target`, stopping at each whole second on the way to sample the series, or
     /// until a stop signal comes.
-    async fn run_to(&mut self, target: BusTime) -> anyhow::Result<()> {
+    async fn run_to(&mut self, target: BusTime) -> crate::Result<()> {
         loop {
             let until = self.series.next_stop(self.running.now(), target);
             tokio::select! {
@@ -226,7 +226,7 @@ impl Playing {
 }
 
 /// Reads the plant, the monitor's display and the error counters, without moving anything on.
-async fn sample(running: &Running) -> anyhow::Result<series::Sample> {
+async fn sample(running: &Running) -> crate::Result<series::Sample> {
     let counters = running.hub.send(GetErrorCounters).await?;
     // The plant is read as of its last step (nodes advance it as they run): advancing it here
     // could change when a node's input takes effect.

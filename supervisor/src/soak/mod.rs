@@ -9,10 +9,9 @@
 
 pub mod memory;
 
-use crate::BadInput;
+use crate::Error;
 use crate::configs;
 use crate::exit::Ended;
-use crate::harvester;
 use crate::scenario::{self, random};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::collections::BTreeMap;
@@ -44,15 +43,18 @@ pub struct Args {
 
 /// Runs `harvemu soak`: expectations failed unless every expectation passed and memory stayed
 /// flat.
-pub fn run(args: &Args) -> anyhow::Result<Ended> {
+pub fn run(args: &Args) -> crate::Result<Ended> {
     let duration = match args.hours {
         Some(h) if h.is_finite() && h > 0.0 => Some(h * 3600.0),
-        Some(h) => return Err(BadInput(format!("--hours {h}: must be a positive number of hours")).into()),
+        Some(h) => {
+            return Err(Error::BadInput(format!(
+                "--hours {h}: must be a positive number of hours"
+            )));
+        }
         None => None,
     };
     let before = memory::vm_rss_kib();
-    let mut loaded = scenario::load_with(&configs::by_name(&args.scenario, "soak"), args.seed, duration)
-        .map_err(harvester::bad)?;
+    let mut loaded = scenario::load_with(&configs::by_name(&args.scenario, "soak"), args.seed, duration)?;
     let epoch = crate::record::epoch(args.start_time, false);
     loaded.harvester.epoch = Some(epoch);
     let (trace, recording) = crate::record::create_opt(args.record.as_ref(), epoch)?;

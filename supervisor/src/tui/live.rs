@@ -6,7 +6,7 @@
 //! panic message is printed).
 
 use super::{Clock, RateMeter, Sources, View, draw, quits};
-use crate::BadInput;
+use crate::Error;
 use crate::harvester::Running;
 use bus::time::{BusDuration, BusTime};
 use bus_runtime::hub::GetSnapshot;
@@ -24,11 +24,11 @@ const FAST_STEP_MS: u64 = 500;
 const REFRESH: Duration = Duration::from_millis(250);
 
 /// Refuses `--tui` when standard output is not a terminal (a pipe or a file).
-pub fn require_terminal() -> Result<(), BadInput> {
+pub fn require_terminal() -> crate::Result<()> {
     if std::io::stdout().is_terminal() {
         Ok(())
     } else {
-        Err(BadInput(
+        Err(Error::BadInput(
             "--tui needs a terminal, and standard output is not one (leave out --tui to get a summary line)"
                 .into(),
         ))
@@ -74,14 +74,14 @@ pub async fn live(
     machine: &str,
     fast: bool,
     end: Option<BusTime>,
-) -> anyhow::Result<()> {
+) -> crate::Result<()> {
     let _restore = Restore;
-    let mut terminal = ratatui::try_init()?;
+    let mut terminal = ratatui::try_init().map_err(Error::System)?;
     let clock = if fast { Clock::Virtual } else { Clock::RealTime };
     let mut rates = RateMeter::default();
     let mut last_draw: Option<Instant> = None;
     let step = BusDuration::from_millis(if fast { FAST_STEP_MS } else { STEP_MS });
-    let mut stop = crate::stop::Stop::new()?;
+    let mut stop = crate::stop::Stop::new().map_err(Error::System)?;
     while end.is_none_or(|e| running.now() < e) {
         let t = running.now();
         let next = t.next_multiple_of(step);
@@ -91,7 +91,7 @@ pub async fn live(
             // A signal from outside (the keyboard's Ctrl-C arrives as a key in raw mode).
             _ = stop.wait() => return Ok(()),
         }
-        let asked = input(Duration::ZERO)?;
+        let asked = input(Duration::ZERO).map_err(Error::System)?;
         if asked == Input::Quit {
             return Ok(());
         }
@@ -106,10 +106,10 @@ pub async fn live(
         // in virtual time; in real time a socketcand client or a bridge may still be served, so
         // the runtime gets to run between short looks.
         let asked = if fast {
-            input(REFRESH)?
+            input(REFRESH).map_err(Error::System)?
         } else {
             tokio::time::sleep(Duration::from_millis(STEP_MS)).await;
-            input(Duration::ZERO)?
+            input(Duration::ZERO).map_err(Error::System)?
         };
         match asked {
             Input::Quit => return Ok(()),
@@ -127,7 +127,7 @@ async fn redraw(
     machine: &str,
     clock: Clock,
     finished: bool,
-) -> anyhow::Result<()> {
+) -> crate::Result<()> {
     let snapshot = running.hub.send(GetSnapshot).await?;
     rates.update(&snapshot);
     let display = running.display.as_ref().map(|d| d.borrow());
@@ -142,6 +142,6 @@ async fn redraw(
         rates,
         events: &running.events,
     });
-    terminal.draw(|frame| draw(frame, &view))?;
+    terminal.draw(|frame| draw(frame, &view)).map_err(Error::System)?;
     Ok(())
 }

@@ -110,3 +110,31 @@ pub fn listing(dir: &Path) -> Vec<String> {
     names.sort();
     names
 }
+
+/// Starts `harvemu run --socketcand 127.0.0.1:0` with `args` after it, and waits for the line
+/// "harvemu: socketcand gateway on ADDR, ..." on its standard error: the running child, to kill
+/// when done, and ADDR. The rest of standard error is read on a thread, so that the child never
+/// blocks on a full pipe.
+pub fn socketcand_gateway(args: &[&str]) -> (std::process::Child, String) {
+    use std::io::BufRead;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_harvemu"))
+        .current_dir(root())
+        .args(["run", "--socketcand", "127.0.0.1:0"])
+        .args(args)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("start harvemu");
+    let stderr = child.stderr.take().expect("harvemu's standard error");
+    let mut lines = std::io::BufReader::new(stderr).lines();
+    let addr = lines
+        .by_ref()
+        .map_while(Result::ok)
+        .find_map(|l| {
+            l.strip_prefix("harvemu: socketcand gateway on ")
+                .and_then(|rest| rest.split(',').next())
+                .map(str::to_string)
+        })
+        .expect("the gateway's address on stderr");
+    std::thread::spawn(move || lines.for_each(drop));
+    (child, addr)
+}
