@@ -93,7 +93,7 @@ impl Harvester {
                 return Ok(NodeFile::Firmware(Arc::new(spec)));
             }
             nodes::script::from_file_text(&file, &found.path, &text, &signals, &found.reader())
-                .map(NodeFile::Script)
+                .map(|s| NodeFile::Script(Box::new(s)))
         })
     }
 
@@ -106,7 +106,7 @@ impl Harvester {
         mut script: impl FnMut(&Path) -> Result<NodeScript, Error>,
     ) -> Result<Harvester, Error> {
         Harvester::parse(&Source::file(path), text, |s| {
-            script(&s.path).map(NodeFile::Script)
+            script(&s.path).map(|s| NodeFile::Script(Box::new(s)))
         })
     }
 
@@ -174,7 +174,7 @@ impl Harvester {
         for (i, rel) in config.nodes.iter().enumerate() {
             match script(&source.beside(rel)) {
                 Ok(NodeFile::Script(s)) => {
-                    scripts.push(s);
+                    scripts.push(*s);
                     places.push(format!("nodes[{i}] ({rel})"));
                 }
                 Ok(NodeFile::Firmware(f)) => {
@@ -291,7 +291,7 @@ fn clashes(file: &str, scripts: &[NodeScript], places: &[String]) -> Vec<Problem
 /// What a node file holds: a behaviour script or a firmware node.
 pub enum NodeFile {
     /// A behaviour script (or an instance of a template).
-    Script(NodeScript),
+    Script(Box<NodeScript>),
     /// A firmware image on an emulated CPU.
     Firmware(Arc<FirmwareSpec>),
 }
@@ -409,6 +409,23 @@ struct Member {
     down: bool,
 }
 
+/// Where lines of text go, one call each.
+pub type LineSink = Rc<RefCell<dyn FnMut(&str)>>;
+
+/// An instruction trace asked for (`harvemu run --trace-cpu`): the node, the window, and where
+/// its lines go. A node rebuilt after a crash or a power cycle is traced again.
+#[derive(Clone)]
+pub struct CpuTraceRequest {
+    /// The firmware node.
+    pub node: String,
+    /// First instant traced.
+    pub from: BusTime,
+    /// Last instant traced.
+    pub to: BusTime,
+    /// Takes each line.
+    pub out: LineSink,
+}
+
 /// A harvester running on a hub.
 pub struct Running {
     /// The hub.
@@ -426,6 +443,8 @@ pub struct Running {
     now: BusTime,
     /// When the time relay powers up the field nodes, until they are attached.
     field_nodes_at: Option<BusTime>,
+    /// An instruction trace of a firmware node, set before the field nodes are attached.
+    pub cpu_trace: Option<CpuTraceRequest>,
 }
 
 fn build(
@@ -434,17 +453,25 @@ fn build(
     plant: &PlantHandle,
     display: &Option<DisplayHandle>,
     power_on: BusTime,
+    cpu_trace: Option<&CpuTraceRequest>,
 ) -> Box<dyn bus::node::NodeLogic> {
     match spec {
         Spec::Monitor => {
             let display = display.clone().unwrap_or_default();
             Box::new(Monitor::with_display(h.config.monitor.clone(), display, power_on))
         }
-        Spec::Firmware(spec) => Box::new(FirmwareNode::new(
-            spec.clone(),
-            power_on,
-            f64::from(h.config.bitrate),
-        )),
+        Spec::Firmware(spec) => {
+            let mut node = FirmwareNode::new(spec.clone(), power_on, f64::from(h.config.bitrate));
+            if let Some(t) = cpu_trace.filter(|t| t.node == spec.name) {
+                let out = t.out.clone();
+                node.trace_cpu(nodes::firmware::CpuTrace {
+                    from: t.from,
+                    to: t.to,
+                    sink: Box::new(move |line| (out.borrow_mut())(line)),
+                });
+            }
+            Box::new(node)
+        }
         Spec::Script(script) => {
             let env: SharedEnv = plant.clone();
             let seed = h.config.seed ^ (u64::from(script.address) << 32) ^ power_on.as_nanos();
@@ -494,6 +521,7 @@ pub async fn begin(h: &Harvester, paced: bool, sinks: Vec<Box<dyn Sink>>) -> cra
         members: Vec::new(),
         now: BusTime::ZERO,
         field_nodes_at: Some(h.relay()),
+        cpu_trace: None,
     };
     if c.monitor.enabled {
         running
@@ -512,7 +540,14 @@ impl Running {
         power_on: BusTime,
     ) -> crate::Result<()> {
         let controller = controller(name, &spec)?;
-        let logic = build(&self.harvester, &spec, &self.plant, &self.display, power_on);
+        let logic = build(
+            &self.harvester,
+            &spec,
+            &self.plant,
+            &self.display,
+            power_on,
+            self.cpu_trace.as_ref(),
+        );
         let actor = NodeActor::new(name, logic).start();
         let id = self
             .hub
@@ -700,6 +735,7 @@ impl Running {
             &self.plant,
             &self.display,
             power_on,
+            self.cpu_trace.as_ref(),
         );
         let actor = NodeActor::new(self.members[i].name.clone(), logic).start();
         self.hub

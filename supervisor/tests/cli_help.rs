@@ -11,8 +11,9 @@ const SUBCOMMANDS: [&str; 10] = [
 ];
 
 /// Every placeholder a help may use: files are `<FILE>`, durations `<DURATION>`, counts `<N>`.
-const PLACEHOLDERS: [&str; 15] = [
+const PLACEHOLDERS: [&str; 16] = [
     "<FILE>",
+    "<FROM..TO>",
     "<DIR>",
     "<COMMAND>",
     "<TIME>",

@@ -36,6 +36,7 @@ const SHIPPED: &[(&str, &[&str])] = &[
     ("wrong_frames.ron", &["SendFrame"]),
     ("local_crc_errors.ron", &["BitErrors"]),
     ("overload.ron", &["Overload"]),
+    ("lab_bus_off.ron", &["BitErrors"]),
 ];
 
 /// Longest run the scenario glob may hold: a day of virtual time lives in `configs/soak/`, for

@@ -154,12 +154,17 @@ impl Machine {
     }
 
     /// Executes one instruction (or enters an interrupt), as [`Machine::run`] would.
-    pub fn step(&mut self) -> Result<(), mcs51::Error> {
-        self.cpu.step(&mut self.board)?;
+    pub fn step(&mut self) -> Result<mcs51::Step, mcs51::Error> {
+        let step = self.cpu.step(&mut self.board)?;
+        if let (Some(mcs51::XAccess::Write { addr, value }), Some(log)) = (step.xdata, &mut self.writes)
+            && let Some((i, register)) = self.board.decode(addr)
+        {
+            log.push((self.cpu.cycles(), self.board.chips[i].spec.base, register, value));
+        }
         if self.board.stop {
             self.sync_pins();
         }
-        Ok(())
+        Ok(step)
     }
 
     /// What the bus did for chip `i`.

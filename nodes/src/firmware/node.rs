@@ -96,6 +96,18 @@ pub struct FirmwareNode {
     state: ErrorState,
     serial: Vec<u8>,
     stats: RunStats,
+    trace: Option<CpuTrace>,
+}
+
+/// An instruction trace of one node over a window of bus time: each instruction that starts in
+/// `[from, to]` is a line given to `sink` (see [`FirmwareNode::trace_cpu`]).
+pub struct CpuTrace {
+    /// First instant traced.
+    pub from: BusTime,
+    /// Last instant traced.
+    pub to: BusTime,
+    /// Takes each line, without its line break.
+    pub sink: Box<dyn FnMut(&str)>,
 }
 
 impl FirmwareNode {
@@ -120,9 +132,17 @@ impl FirmwareNode {
             state: ErrorState::Active,
             serial: Vec::new(),
             stats: RunStats::default(),
+            trace: None,
         };
         node.run_ahead();
         node
+    }
+
+    /// Traces the instructions it executes from now on within `trace`'s window: bus time, cycle
+    /// count, address, bytes, the instruction and its machine cycles, one line each, and
+    /// interrupt entries. Only the path the node takes is traced, once.
+    pub fn trace_cpu(&mut self, trace: CpuTrace) {
+        self.trace = Some(trace);
     }
 
     /// Its spec.
@@ -235,6 +255,9 @@ impl FirmwareNode {
         if self.failed.is_some() {
             return;
         }
+        if let Some(last) = self.traced_until(n) {
+            self.step_traced(last);
+        }
         let p = self.project(n);
         match p.path {
             Path::Here => {}
@@ -252,6 +275,71 @@ impl FirmwareNode {
         self.now = p.machine;
         self.serial();
         self.log_writes();
+    }
+
+    /// The last cycle before `n` to trace instruction by instruction, when the trace window
+    /// meets the stretch from `now` to `n`.
+    fn traced_until(&self, n: u64) -> Option<u64> {
+        let t = self.trace.as_ref()?;
+        let start = self.now.cpu.cycles();
+        let (from, to) = (self.cycle_at(t.from), self.cycle_at(t.to));
+        (start < n && start <= to && n > from).then(|| n.min(to.saturating_add(1)))
+    }
+
+    /// Steps `now` to cycle `last`, tracing the instructions in the window: the same path as
+    /// [`FirmwareNode::project`] takes, one instruction at a time.
+    fn step_traced(&mut self, last: u64) {
+        let Some(mut trace) = self.trace.take() else {
+            return;
+        };
+        let code = &self.spec.image.code;
+        let mut m = self.now.clone();
+        let mut actions = Vec::new();
+        while m.cpu.cycles() < last {
+            let (pc, start) = (m.cpu.pc(), m.cpu.cycles());
+            let step = match m.step() {
+                Ok(step) => step,
+                Err(e) => {
+                    self.failed = Some(format!("{}: {e}", self.spec.name));
+                    break;
+                }
+            };
+            actions.extend(m.take_actions());
+            let at = self.time_of(start);
+            if at < trace.from || at > trace.to {
+                continue;
+            }
+            let line = match step.interrupt {
+                Some(vector) => format!(
+                    "{at} {start:>10} {pc:04X}  -> interrupt, vector {vector:04X}H ({} cycles)",
+                    step.cycles
+                ),
+                None => {
+                    let (text, len) = mcs51::disasm(code, pc);
+                    let bytes: Vec<String> = (0..len)
+                        .map(|i| {
+                            format!(
+                                "{:02X}",
+                                code.get(usize::from(pc.wrapping_add(i))).copied().unwrap_or(0xFF)
+                            )
+                        })
+                        .collect();
+                    format!(
+                        "{at} {start:>10} {pc:04X}  {:<9} {text:<22} {} cycle(s)",
+                        bytes.join(" "),
+                        step.cycles
+                    )
+                }
+            };
+            (trace.sink)(&line);
+        }
+        self.trace = Some(trace);
+        self.command(actions);
+        self.now = m;
+        self.serial();
+        self.log_writes();
+        // What ran ahead of the old `now` is not the path from here.
+        self.run_ahead();
     }
 
     /// The firmware's writes to its controllers' registers, at debug level, once each: only

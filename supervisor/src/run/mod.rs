@@ -1,6 +1,7 @@
 //! `harvemu run`: the emulated harvester on the virtual hub, in real time or as fast as possible.
 
 mod console;
+pub mod cpu_trace;
 pub mod summary;
 
 pub use console::{PLAIN_EVERY, PLAIN_LINES, plain_period};
@@ -64,15 +65,24 @@ pub struct Args {
     start_time: Option<bus::time::Epoch>,
     /// At the end of the run, write each firmware node's state (CPU, internal RAM, SFRs, CAN
     /// controllers) to this JSON file (docs/FIRMWARE.md).
-    #[arg(long, value_name = "FILE.json")]
+    #[arg(long, value_name = "FILE")]
     dump_state: Option<PathBuf>,
+    /// Write the instructions a firmware node executes to standard output: bus time, machine
+    /// cycles since reset, address, bytes, instruction and its cycles, one line each.
+    #[arg(long, value_name = "NODE")]
+    trace_cpu: Option<String>,
+    /// The stretch of bus time --trace-cpu covers (default: the whole run), e.g. 0.5s..600ms.
+    #[arg(long, value_name = "FROM..TO", value_parser = cpu_trace::parse_window, requires = "trace_cpu")]
+    trace_cpu_window: Option<(BusTime, BusTime)>,
 }
 
-/// Parses `120s`, `10m`, `1h`, `500ms` or a plain number of seconds.
+/// Parses `120s`, `10m`, `1h`, `500ms`, `250us` or a plain number of seconds.
 pub fn parse_duration(text: &str) -> Result<Duration, String> {
     let t = text.trim();
     let (number, scale) = if let Some(n) = t.strip_suffix("ms") {
         (n, 1e-3)
+    } else if let Some(n) = t.strip_suffix("us").or_else(|| t.strip_suffix("µs")) {
+        (n, 1e-6)
     } else if let Some(n) = t.strip_suffix('s') {
         (n, 1.0)
     } else if let Some(n) = t.strip_suffix('m') {
@@ -126,6 +136,14 @@ pub fn run(args: &Args) -> crate::Result<Ended> {
             "--fast needs --for: virtual time would otherwise run for ever".into(),
         ));
     }
+    let cpu_trace = match &args.trace_cpu {
+        Some(node) => {
+            let window = args.trace_cpu_window.unwrap_or((BusTime::ZERO, BusTime::NEVER));
+            Some(cpu_trace::request(&h, node, window)?)
+        }
+        None => None,
+    };
+    let cpu_trace_out = cpu_trace.as_ref().map(|(_, out)| out.clone());
     let epoch = crate::record::epoch(args.start_time, !args.fast);
     h.epoch = Some(epoch);
     let (trace, recording) = crate::record::create_opt(args.record.as_ref(), epoch)?;
@@ -160,6 +178,7 @@ pub fn run(args: &Args) -> crate::Result<Ended> {
     let result = system.block_on(async move {
         let mut stop = Stop::new().map_err(Error::System)?;
         let mut running = harvester::begin(&h, !fast, trace.into_iter().collect()).await?;
+        running.cpu_trace = cpu_trace.map(|(request, _)| request);
         let mut reported = 0;
         let bridge = match &iface {
             Some(name) => {
@@ -245,8 +264,10 @@ pub fn run(args: &Args) -> crate::Result<Ended> {
     });
     // The trace is ended whatever happened: a failed run still leaves what it recorded.
     let finished = recording.map_or(Ok(()), |r| r.finish(crate::stop::received()));
+    let traced = cpu_trace_out.map_or(Ok(()), |out| out.borrow_mut().finish());
     let ended = result?;
     finished?;
+    traced?;
     Ok(ended)
 }
 

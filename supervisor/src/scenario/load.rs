@@ -90,5 +90,6 @@ pub(super) fn node_names(h: &Harvester) -> Vec<String> {
     monitor
         .into_iter()
         .chain(h.scripts.iter().map(|s| s.name.clone()))
+        .chain(h.firmware.iter().map(|f| f.name.clone()))
         .collect()
 }
