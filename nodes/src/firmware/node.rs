@@ -24,8 +24,13 @@ use bus::time::BusTime;
 use std::collections::VecDeque;
 use std::sync::Arc;
 
-/// Cycles between kept copies of a run ahead.
+/// Fewest cycles between kept copies of a run ahead; a long run ahead keeps about
+/// [`COPIES`] of them.
 pub const CHUNK: u64 = 1000;
+/// Copies kept of a run ahead at its longest horizon.
+const COPIES: u64 = 16;
+/// Most chunks between two looks for a loop whose state repeats, when looks keep finding none.
+const LOOK_BACKOFF: u32 = 64;
 /// The shortest and longest horizon of a run ahead, cycles: it doubles while runs ahead are
 /// not cut short by an input and halves when they are, so a node that hears frames often
 /// wastes little and a quiet one is seldom woken.
@@ -97,6 +102,11 @@ pub struct FirmwareNode {
     serial: Vec<u8>,
     stats: RunStats,
     trace: Option<CpuTrace>,
+    /// Chunks to run before the next look for a repeating loop, and how many to wait after a
+    /// look that finds none: a node that is busy (delay loops count their registers down) pays
+    /// for a look seldom, one that idles is found at once.
+    look_in: u32,
+    look_backoff: u32,
 }
 
 /// An instruction trace of one node over a window of bus time: each instruction that starts in
@@ -133,6 +143,8 @@ impl FirmwareNode {
             serial: Vec::new(),
             stats: RunStats::default(),
             trace: None,
+            look_in: 0,
+            look_backoff: 1,
         };
         node.run_ahead();
         node
@@ -186,15 +198,27 @@ impl FirmwareNode {
         }
         let mut m = self.now.clone();
         let limit = m.cpu.cycles().saturating_add(self.horizon);
+        let chunk = (self.horizon / COPIES).max(CHUNK);
+        // An input may have moved the firmware on to a loop that waits: look at once.
+        self.look_in = 0;
         self.stop = loop {
             self.checkpoints.push(m.clone());
-            match find_loop(&mut m) {
-                Err(e) => break Stop::Failed(e.to_string()),
-                Ok(Some(period)) => break Stop::Parked(period),
-                Ok(None) if !m.board.actions.is_empty() => break Stop::Actions,
-                Ok(None) => {}
+            if self.look_in == 0 {
+                match find_loop(&mut m) {
+                    Err(e) => break Stop::Failed(e.to_string()),
+                    Ok(Some(period)) => {
+                        self.look_backoff = 1;
+                        break Stop::Parked(period);
+                    }
+                    Ok(None) if !m.board.actions.is_empty() => break Stop::Actions,
+                    Ok(None) => {
+                        self.look_backoff = (self.look_backoff * 2).min(LOOK_BACKOFF);
+                        self.look_in = self.look_backoff;
+                    }
+                }
             }
-            let target = m.cpu.cycles().saturating_add(CHUNK).min(limit);
+            self.look_in -= 1;
+            let target = m.cpu.cycles().saturating_add(chunk).min(limit);
             if let Err(e) = m.run(target) {
                 break Stop::Failed(e.to_string());
             }

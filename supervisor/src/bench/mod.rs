@@ -17,6 +17,7 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
 
+mod cpu;
 mod harvester;
 mod realtime;
 mod saturated;
@@ -51,7 +52,15 @@ pub struct Args {
     /// Virtual seconds of each harvester in the many-harvester scenario.
     #[arg(long, value_name = "SECONDS", default_value_t = 120.0)]
     many_seconds: f64,
-    /// Run only these scenarios (saturated, saturated-multi, harvester, realtime).
+    /// Machine cycles of the firmware-cpu scenario (an 80C51 busy loop on one core).
+    #[arg(long, value_name = "N", default_value_t = 200_000_000)]
+    cpu_cycles: u64,
+    /// Virtual seconds of the firmware-lab scenario (the seed lab: two 80C51 benches with
+    /// SJA1000s, configs/firmware/seed_lab.ron).
+    #[arg(long, value_name = "SECONDS", default_value_t = 600.0)]
+    lab_seconds: f64,
+    /// Run only these scenarios (saturated, saturated-multi, harvester, realtime, firmware-cpu,
+    /// firmware-lab).
     #[arg(long, value_name = "SCENARIO,...", value_delimiter = ',')]
     only: Vec<String>,
     /// Run the harvester in real time for this many seconds and measure period jitter against
@@ -214,7 +223,14 @@ pub fn measure(
     })
 }
 
-const SCENARIOS: [&str; 4] = ["saturated", "saturated-multi", "harvester", "realtime"];
+const SCENARIOS: [&str; 6] = [
+    "saturated",
+    "saturated-multi",
+    "harvester",
+    "realtime",
+    "firmware-cpu",
+    "firmware-lab",
+];
 
 /// Runs `harvemu bench`.
 pub fn run(args: &Args) -> crate::Result<()> {
@@ -222,6 +238,7 @@ pub fn run(args: &Args) -> crate::Result<()> {
         ("--seconds", args.seconds),
         ("--harvester-seconds", args.harvester_seconds),
         ("--many-seconds", args.many_seconds),
+        ("--lab-seconds", args.lab_seconds),
         ("--realtime", args.realtime.unwrap_or(1.0)),
     ] {
         if !(v > 0.0 && v.is_finite()) {
@@ -266,6 +283,16 @@ pub fn run(args: &Args) -> crate::Result<()> {
             plan.push(("harvester", w.clone(), n, args.threads, args.many_seconds));
         }
     }
+    if wanted("firmware-lab") {
+        let lab = crate::harvester::Harvester::load(std::path::Path::new("configs/firmware/seed_lab.ron"))?;
+        plan.push((
+            "firmware-lab",
+            Workload::Harvester(Arc::new(lab)),
+            1,
+            1,
+            args.lab_seconds,
+        ));
+    }
     if !args.json {
         crate::output::stdout(&format!(
             "{:<16} {:>5} {:>7} {:>8} {:>8} {:>11} {:>12} {:>9} {:>6} {:>9}\n",
@@ -308,6 +335,25 @@ pub fn run(args: &Args) -> crate::Result<()> {
         let threads = threads.clamp(1, buses.max(1));
         eprintln!("bench: {name}, {buses} bus(es) on {threads} thread(s), {seconds} s of virtual time ...");
         print(&measure(name, &workload, buses, threads, seconds).map_err(crate::Error::Internal)?)?;
+    }
+    if wanted("firmware-cpu") {
+        eprintln!(
+            "bench: firmware-cpu, {} machine cycles of an 80C51 busy loop ...",
+            args.cpu_cycles
+        );
+        let m = cpu::measure(args.cpu_cycles).map_err(crate::Error::Internal)?;
+        if args.json {
+            crate::output::stdout(&format!("{}\n", serde_json::to_string(&m)?))?;
+        } else {
+            crate::output::stdout(&format!(
+                "firmware-cpu: {:.1} million 80C51 machine cycles per second on one core, busy \
+                 ({} cycles in {:.2} s): {:.0} chips at 12 MHz\n",
+                m.cycles_per_second / 1e6,
+                m.cycles,
+                m.wall_seconds,
+                m.chips_at_12_mhz
+            ))?;
+        }
     }
     if let (Some(seconds), Some(h)) = (realtime, &harvester) {
         eprintln!("bench: realtime, the harvester for {seconds} s of wall-clock time ...");
