@@ -544,6 +544,7 @@ impl Hub {
         if report.every_event != self.slots[i].every_event {
             self.slots[i].every_event = report.every_event;
             self.register_level = self.slots.iter().filter(|s| s.every_event).count();
+            self.bus.report_arbitration(self.register_level > 0);
         }
         for command in report.commands {
             self.apply(i, command, now);

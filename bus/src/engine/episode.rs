@@ -320,11 +320,13 @@ impl Bus {
             Detected::Nothing | Detected::Sof => {}
             Detected::LostArbitration(at_bit) => {
                 self.controllers[i].counters.arbitration_lost += 1;
-                events.push(Event::ArbitrationLost {
-                    node,
-                    at: next,
-                    bit: at_bit,
-                });
+                if self.arbitration_events {
+                    events.push(Event::ArbitrationLost {
+                        node,
+                        at: next,
+                        bit: at_bit,
+                    });
+                }
             }
             Detected::Error(found) => {
                 let c = &mut self.controllers[i];

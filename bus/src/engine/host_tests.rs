@@ -55,6 +55,7 @@ fn stuff_bits_move_later_bits_on_the_wire() {
 #[test]
 fn losers_hear_where_they_lost() {
     let mut b = Bus::new(BusConfig::default()).unwrap();
+    b.report_arbitration(true);
     let n: Vec<NodeId> = (0..3)
         .map(|i| b.attach(ControllerConfig::named(format!("n{i}"))))
         .collect();

@@ -341,6 +341,9 @@ pub struct Bus {
     next_token: u64,
     late_submissions: u64,
     transmitters: Vec<usize>,
+    /// Give [`Event::ArbitrationLost`] events (off unless asked: they cost time on a busy bus
+    /// and only a register-level controller reads them).
+    arbitration_events: bool,
 }
 
 impl Bus {
@@ -366,6 +369,7 @@ impl Bus {
             next_token: 1,
             late_submissions: 0,
             transmitters: Vec::new(),
+            arbitration_events: false,
         })
     }
 
@@ -387,6 +391,11 @@ impl Bus {
         self.controllers.push(c);
         id
     }
+    /// Gives [`Event::ArbitrationLost`] events from now on (or no longer).
+    pub fn report_arbitration(&mut self, on: bool) {
+        self.arbitration_events = on;
+    }
+
     /// A controller.
     pub fn controller(&self, node: NodeId) -> Option<&Controller> {
         self.controllers.get(node.index())
@@ -753,6 +762,9 @@ impl Bus {
                 let c = &mut self.controllers[starters[k]];
                 if c.tx.front().is_some_and(|p| p.frame == frame) {
                     k += 1;
+                } else if !self.arbitration_events {
+                    c.counters.arbitration_lost += 1;
+                    starters.swap_remove(k);
                 } else {
                     c.counters.arbitration_lost += 1;
                     let own = c.tx.front().map(|p| p.frame);

@@ -733,6 +733,8 @@ fn bit_by_bit_and_closed_form_agree_on_clean_frames() {
     ];
     let run_all = |bit_level: bool| {
         let mut b = bus();
+        // Lost arbitration is among the events that must agree.
+        b.report_arbitration(true);
         let tx = b.attach(ControllerConfig::named("tx"));
         let rx: Vec<NodeId> = (0..3)
             .map(|i| b.attach(ControllerConfig::named(format!("rx{i}"))))
