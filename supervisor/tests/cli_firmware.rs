@@ -202,3 +202,51 @@ fn bad_node_files_are_refused_with_file_and_line() {
     let out = run_bad("missing", &receiver("nothing.hex", CPU, CHIP), &hex);
     assert_refused(&out, &["receiver.ron", "image", "nothing.hex"]);
 }
+
+/// The first instructions of the lab program, as the listing has them, with the cycle counts of
+/// the Intel MCS-51 User's Manual: LJMP, MOV direct,#data and LCALL take 2 cycles, MOV Rn,#data
+/// 1. At 12 MHz a machine cycle is 1 µs.
+#[test]
+fn trace_cpu_writes_the_instructions_of_a_window() {
+    let out = harvemu(&[
+        "run",
+        "configs/firmware/seed_lab.ron",
+        "--fast",
+        "--for",
+        "100ms",
+        "--trace-cpu",
+        "RECEIVER",
+        "--trace-cpu-window",
+        "0s..6us",
+    ]);
+    assert!(out.status.success(), "{}", text(&out));
+    let lines: Vec<Vec<String>> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| l.split_whitespace().map(str::to_string).collect())
+        .collect();
+    // time, cycle, address, then the instruction; the last two words are "N cycle(s)".
+    let wanted: [(&str, &str, &str, &str, &str); 4] = [
+        ("0", "4000", "02 40 80", "LJMP 4080H", "2"),
+        ("2", "4080", "75 83 D3", "MOV DPH,#0D3H", "2"),
+        ("4", "4083", "78 AA", "MOV R0,#0AAH", "1"),
+        ("5", "4085", "12 40 BE", "LCALL 40BEH", "2"),
+    ];
+    assert_eq!(lines.len(), wanted.len(), "{:?}", lines);
+    for (line, (cycle, pc, bytes, instruction, cycles)) in lines.iter().zip(wanted) {
+        let joined = line.join(" ");
+        assert_eq!(&line[1], cycle, "{joined}");
+        assert_eq!(&line[2], pc, "{joined}");
+        assert!(joined.contains(&format!("{pc} {bytes} {instruction} {cycles} cycle(s)")), "{joined}");
+    }
+    // An unknown node is bad input; a full disk is a failed output.
+    let out = harvemu(&["run", "configs/firmware/seed_lab.ron", "--fast", "--for", "1s", "--trace-cpu", "F5"]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out));
+    assert!(text(&out).contains("firmware nodes: SENDER, RECEIVER"), "{}", text(&out));
+    let full = Command::new(env!("CARGO_BIN_EXE_harvemu"))
+        .current_dir(root())
+        .args(["run", "configs/firmware/seed_lab.ron", "--fast", "--for", "1s", "--trace-cpu", "SENDER"])
+        .stdout(std::fs::File::create("/dev/full").expect("/dev/full"))
+        .output()
+        .expect("run harvemu");
+    assert_eq!(full.status.code(), Some(3), "{}", text(&full));
+}
