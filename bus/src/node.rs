@@ -4,9 +4,15 @@
 //! Calling contract (quinn-proto style): the driver feeds inputs in time order —
 //! [`NodeLogic::handle_frame`] for each received frame, [`NodeLogic::handle_event`] for
 //! controller notifications, [`NodeLogic::handle_timeout`] when the time from
-//! [`NodeLogic::poll_timeout`] has come — then drains [`NodeLogic::poll_transmit`] until it returns
-//! `None`, and asks `poll_timeout` for the next deadline. Logic never reads a clock: `now` is bus
-//! time, passed in.
+//! [`NodeLogic::poll_timeout`] has come — then drains [`NodeLogic::poll_command`] and
+//! [`NodeLogic::poll_transmit`] until they return `None`, and asks `poll_timeout` for the next
+//! deadline. Logic never reads a clock: `now` is bus time, passed in.
+//!
+//! A logic that models its controller's registers (a firmware node) also gives its controller
+//! commands (join or leave the bus, abort, counters, bus-off recovery, whether its bit timing
+//! can read the bus), hears of every controller event as it happens
+//! ([`NodeLogic::wants_every_event`]), may stop for good ([`NodeLogic::failed`]) and shows its
+//! hardware for state dumps ([`NodeLogic::hardware`]).
 
 use crate::Frame;
 use crate::engine::{BusError, Location, Received};

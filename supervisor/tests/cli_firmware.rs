@@ -236,15 +236,38 @@ fn trace_cpu_writes_the_instructions_of_a_window() {
         let joined = line.join(" ");
         assert_eq!(&line[1], cycle, "{joined}");
         assert_eq!(&line[2], pc, "{joined}");
-        assert!(joined.contains(&format!("{pc} {bytes} {instruction} {cycles} cycle(s)")), "{joined}");
+        assert!(
+            joined.contains(&format!("{pc} {bytes} {instruction} {cycles} cycle(s)")),
+            "{joined}"
+        );
     }
     // An unknown node is bad input; a full disk is a failed output.
-    let out = harvemu(&["run", "configs/firmware/seed_lab.ron", "--fast", "--for", "1s", "--trace-cpu", "F5"]);
+    let out = harvemu(&[
+        "run",
+        "configs/firmware/seed_lab.ron",
+        "--fast",
+        "--for",
+        "1s",
+        "--trace-cpu",
+        "F5",
+    ]);
     assert_eq!(out.status.code(), Some(2), "{}", text(&out));
-    assert!(text(&out).contains("firmware nodes: SENDER, RECEIVER"), "{}", text(&out));
+    assert!(
+        text(&out).contains("firmware nodes: SENDER, RECEIVER"),
+        "{}",
+        text(&out)
+    );
     let full = Command::new(env!("CARGO_BIN_EXE_harvemu"))
         .current_dir(root())
-        .args(["run", "configs/firmware/seed_lab.ron", "--fast", "--for", "1s", "--trace-cpu", "SENDER"])
+        .args([
+            "run",
+            "configs/firmware/seed_lab.ron",
+            "--fast",
+            "--for",
+            "1s",
+            "--trace-cpu",
+            "SENDER",
+        ])
         .stdout(std::fs::File::create("/dev/full").expect("/dev/full"))
         .output()
         .expect("run harvemu");

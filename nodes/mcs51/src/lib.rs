@@ -4,7 +4,8 @@
 //! caller advances it with [`Cpu::step`] or [`Cpu::run`] to a cycle count of its own (virtual
 //! time). External data memory (MOVX) goes through the caller's [`Xdata`], so peripherals live
 //! outside the core; [`Cpu::run`] stops right after every MOVX write so a caller can react to
-//! it (a write may be a CAN transmit request). Port pins are inputs the caller sets with
+//! it (a write may be a CAN transmit request), and after a MOVX read when the external data
+//! space asks to ([`Xdata::wants_stop`]: a peripheral moved its interrupt output). Port pins are inputs the caller sets with
 //! [`Cpu::set_pin`]; serial output is collected for [`Cpu::take_serial`].
 //!
 //! We write our own core rather than use the `i8051` crate because its recent versions count no
@@ -41,8 +42,10 @@
 //! form, never past `until` and, when interrupts are enabled, never past the next timer overflow
 //! or serial event nor while a request waits out the instruction after RETI or an IE/IP write,
 //! so the result is exactly that of stepping (pins change only between calls). For other idle loops (polling a
-//! flag that only an interrupt or a pin changes) a caller can compare [`Cpu::snapshot`]s taken
-//! at the loop head: equal snapshots and no pending event mean the loop repeats unchanged.
+//! flag that only an interrupt or a pin changes) a caller can compare the core with a copy taken
+//! at the loop head ([`Cpu::same_state`]: equal snapshots, pins, no timer or serial event under
+//! way): then the loop repeats unchanged until an input changes something, and
+//! [`Cpu::skip_cycles`] moves the cycle count over as many turns as it likes.
 
 #![warn(missing_docs)]
 

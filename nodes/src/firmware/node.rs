@@ -24,8 +24,7 @@ use bus::time::BusTime;
 use std::collections::VecDeque;
 use std::sync::Arc;
 
-/// Fewest cycles between kept copies of a run ahead; a long run ahead keeps about
-/// [`COPIES`] of them.
+/// Fewest cycles between kept copies of a run ahead; a long run ahead keeps about sixteen.
 pub const CHUNK: u64 = 1000;
 /// Copies kept of a run ahead at its longest horizon.
 const COPIES: u64 = 16;

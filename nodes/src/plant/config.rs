@@ -40,11 +40,11 @@ pub struct PlantConfig {
     /// `fault.rowN_clutch_slip` = 1 (the fault's value scales it).
     pub clutch_slip_fraction: f64,
 
-    /// Basket capacity [kg]; `basket.fill` is the mass in percent of it.
+    /// Basket capacity (kg); `basket.fill` is the mass in percent of it.
     pub basket_capacity_kg: f64,
     /// Rate at which unloading empties the basket with the conveyor belt at full speed [kg/s].
     pub unload_rate_kg_per_s: f64,
-    /// Cotton in the basket at start [kg].
+    /// Cotton in the basket at start (kg).
     pub basket_initial_kg: f64,
 
     /// Engine speed with the picking units disengaged [rpm].
@@ -70,24 +70,24 @@ pub struct PlantConfig {
     /// Time constant of the drum speeds [s].
     pub drum_time_constant_s: f64,
 
-    /// Ambient temperature, where oil and coolant start [degC].
+    /// Ambient temperature, where oil and coolant start (degC).
     pub ambient_temperature_c: f64,
-    /// Hydraulic oil working temperature [degC].
+    /// Hydraulic oil working temperature (degC).
     pub oil_working_temperature_c: f64,
     /// Rise of the oil's target temperature at `fault.oil_overheat` = 1 [K].
     pub oil_overheat_rise_c: f64,
     /// Time constant of the oil temperature [s].
     pub oil_time_constant_s: f64,
-    /// Engine coolant working temperature [degC].
+    /// Engine coolant working temperature (degC).
     pub engine_working_temperature_c: f64,
     /// Rise of the coolant's target temperature at `fault.engine_overheat` = 1 [K].
     pub engine_overheat_rise_c: f64,
     /// Time constant of the coolant temperature [s].
     pub engine_temperature_time_constant_s: f64,
 
-    /// Spindle-moistener water pressure with a healthy supply [kPa].
+    /// Spindle-moistener water pressure with a healthy supply (kPa).
     pub water_pressure_kpa: f64,
-    /// Water pressure with the supply failed (`fault.low_water` = 1 or an empty tank) [kPa].
+    /// Water pressure with the supply failed (`fault.low_water` = 1 or an empty tank) (kPa).
     pub water_failed_pressure_kpa: f64,
     /// Time constant of the water pressure [s].
     pub water_pressure_time_constant_s: f64,

@@ -31,30 +31,30 @@
 //! Outputs and their models (v = `speed.actual`):
 //! - `speed.actual` [km/h]: lag (`speed_time_constant_s`) toward `speed.setpoint_in_force`, which is
 //!   `operator.speed` in manual, `speed.setpoint` in cruise, 0 while unloading; `speed.mode`
-//!   0 manual, 1 cruise, 2 unloading. `wheel.pulses` [Hz] = v / 3.6 × `pulses_per_metre`.
+//!   0 manual, 1 cruise, 2 unloading. `wheel.pulses` (Hz) = v / 3.6 × `pulses_per_metre`.
 //! - `engine.rpm`: lag toward `engine_load_rpm` − `engine_droop_rpm_per_kg_s` × total flow [kg/s]
-//!   while picking, `engine_idle_rpm` otherwise. `engine.temperature` [degC] (coolant): lag from
+//!   while picking, `engine_idle_rpm` otherwise. `engine.temperature` (degC) (coolant): lag from
 //!   ambient toward `engine_working_temperature_c` + fault × `engine_overheat_rise_c`.
 //! - `fan.rpm`: lag toward `fan_rpm` × engine rpm / `engine_load_rpm`, 0 with the main clutch open.
 //! - `drum.front_rpm`: mean over rows of each row's drum speed, which lags toward
 //!   (`drum_base_rpm` + `drum_rpm_per_kmh` × v) × (1 − slip) while picking, 0 otherwise;
 //!   `drum.rear_rpm` = front × `rear_drum_ratio`. slip = fault × `clutch_slip_fraction`.
-//! - `water.pressure` [kPa]: lag toward `water_pressure_kpa` − failure × (that −
+//! - `water.pressure` (kPa): lag toward `water_pressure_kpa` − failure × (that −
 //!   `water_failed_pressure_kpa`), failure = `fault.low_water` (1 once the tank is empty);
 //!   `water.level` [%] falls by `water_use_percent_per_hour` while picking.
-//! - `oil.temperature` [degC]: lag from ambient toward `oil_working_temperature_c` + fault ×
+//! - `oil.temperature` (degC): lag from ambient toward `oil_working_temperature_c` + fault ×
 //!   `oil_overheat_rise_c`.
 //! - `lubricant.rate` [mL/min] = `lubricant_ml_per_min_per_rpm` × `drum.front_rpm`;
 //!   `lubricant.level` [%] falls with what is injected (tank `lubricant_tank_l`) and with the
 //!   leak `lubricant_leak_percent_per_s` × `fault.lubricant_low`. Levels never refill.
 //! - `belt.speed` [m/s]: lag toward `belt_speed_m_s` × (1 − `fault.belt_stop`).
-//! - `basket.mass` [kg]: grows with the cotton reaching it; while unloading it falls at
+//! - `basket.mass` (kg): grows with the cotton reaching it; while unloading it falls at
 //!   `unload_rate_kg_per_s` × belt speed / `belt_speed_m_s`. `basket.fill` [%] = mass /
-//!   `basket_capacity_kg` (at most 100); `basket.level` [mV] = 500 + 40 × fill.
-//! - `duct.vacuum` [mV] = 500 + 3000 × (fan / `fan_rpm`)² × (1 − 0.8 × `fault.duct_blocked`);
-//!   `duct.holdup` [kg]: cotton held by a blocked duct (it reaches the basket when the duct
-//!   clears). `clutch.pressure` [mV]: lag toward 3500 − 150 per slipping row, 500 with the main
-//!   clutch open. `supply.voltage` [mV]: 27600 with the engine above 500 rpm.
+//!   `basket_capacity_kg` (at most 100); `basket.level` (mV) = 500 + 40 × fill.
+//! - `duct.vacuum` (mV) = 500 + 3000 × (fan / `fan_rpm`)² × (1 − 0.8 × `fault.duct_blocked`);
+//!   `duct.holdup` (kg): cotton held by a blocked duct (it reaches the basket when the duct
+//!   clears). `clutch.pressure` (mV): lag toward 3500 − 150 per slipping row, 500 with the main
+//!   clutch open. `supply.voltage` (mV): 27600 with the engine above 500 rpm.
 //! - Switches (0/1): `doorN.open`, `rowN.clutch_slip`, `main_clutch.open`, `duct.blocked` follow
 //!   their faults; `belt.stopped` below 20 % of the belt speed; `basket.full` at fill ≥ 95 %;
 //!   `basket.raised` while unloading; `water.low_pressure` below 150 kPa; `oil.overheat` above
@@ -69,7 +69,7 @@
 //!   `field.density` = mean over rows.
 //! - Cotton: picked = density × v [m/s] × `pick_efficiency` × (1 − slip), 0 unless picking
 //!   (main clutch closed and basket down). `rowN.flow` [g/s] = picked, 0 with the row's door open
-//!   (then it counts into `harvested.lost` [kg]). `rowN.harvested` [kg] = ∫ of what reached the
+//!   (then it counts into `harvested.lost` (kg)). `rowN.harvested` (kg) = ∫ of what reached the
 //!   basket; `harvested.total` = their sum.
 //! - Flow sensors (see `sensor.rs`): `rowN.refK`, `rowN.unitK` [counts]; a monitor recovers
 //!   `rowN.flow` as mean_K(unitK / refK) / `attenuation_per_g_s`.

@@ -18,11 +18,11 @@ use super::sensor::FlowSensors;
 use super::signals::Output;
 use super::{ROWS, UNITS};
 
-/// Water pressure below which the low-pressure switch closes [kPa].
+/// Water pressure below which the low-pressure switch closes (kPa).
 pub(crate) const LOW_WATER_PRESSURE_KPA: f64 = 150.0;
-/// Oil temperature above which the overheat switch closes [degC].
+/// Oil temperature above which the overheat switch closes (degC).
 pub(crate) const OIL_OVERHEAT_C: f64 = 95.0;
-/// Coolant temperature above which the engine overheat switch closes [degC].
+/// Coolant temperature above which the engine overheat switch closes (degC).
 pub(crate) const ENGINE_OVERHEAT_C: f64 = 105.0;
 /// Lubricant level below which the low-level switch closes [%].
 pub(crate) const LUBRICANT_LOW_PERCENT: f64 = 10.0;
@@ -30,22 +30,22 @@ pub(crate) const LUBRICANT_LOW_PERCENT: f64 = 10.0;
 pub(crate) const BASKET_FULL_PERCENT: f64 = 95.0;
 /// The belt motion switch reports "stopped" below this fraction of the running speed.
 const BELT_STOPPED_FRACTION: f64 = 0.2;
-/// Hydraulic clutch pressure sensor with the main clutch engaged and released [mV].
+/// Hydraulic clutch pressure sensor with the main clutch engaged and released (mV).
 const CLUTCH_ENGAGED_MV: f64 = 3500.0;
 const CLUTCH_RELEASED_MV: f64 = 500.0;
-/// Clutch pressure lost per fully slipping row clutch (a slipping clutch bleeds the circuit) [mV].
+/// Clutch pressure lost per fully slipping row clutch (a slipping clutch bleeds the circuit) (mV).
 const CLUTCH_SLIP_LOSS_MV: f64 = 150.0;
 /// Time constant of the clutch pressure [s].
 const CLUTCH_TIME_CONSTANT_S: f64 = 0.3;
 /// Duct vacuum sensor: offset, span at the nominal fan speed, and the share of the span a
-/// blocked duct takes away (the sensor sits upstream of the blockage, on the heads' side) [mV].
+/// blocked duct takes away (the sensor sits upstream of the blockage, on the heads' side) (mV).
 const VACUUM_OFFSET_MV: f64 = 500.0;
 const VACUUM_SPAN_MV: f64 = 3000.0;
 const VACUUM_BLOCKED_LOSS: f64 = 0.8;
-/// Basket level sensor: 0.5 V empty to 4.5 V full [mV].
+/// Basket level sensor: 0.5 V empty to 4.5 V full (mV).
 const BASKET_LEVEL_EMPTY_MV: f64 = 500.0;
 const BASKET_LEVEL_FULL_MV: f64 = 4500.0;
-/// Supply voltage with the alternator charging, and of the battery alone [mV].
+/// Supply voltage with the alternator charging, and of the battery alone (mV).
 const SUPPLY_CHARGING_MV: f64 = 27600.0;
 const SUPPLY_BATTERY_MV: f64 = 24000.0;
 /// Engine speed from which the alternator charges [rpm].
@@ -73,7 +73,7 @@ pub(crate) struct State {
     pub belt_speed_m_s: f64,
     pub clutch_pressure_mv: f64,
     pub basket_kg: f64,
-    /// Cotton held in the blocked duct, per row [kg].
+    /// Cotton held in the blocked duct, per row (kg).
     pub holdup_kg: [f64; ROWS],
     pub harvested_kg: [f64; ROWS],
     pub lost_kg: f64,
