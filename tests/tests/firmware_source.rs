@@ -260,3 +260,18 @@ fn the_parser_rejects_a_bad_checksum() {
     let bad = std::panic::catch_unwind(|| parse_hex(":03400000024080FC\n:00000001FF\n", "bad"));
     assert!(bad.is_err());
 }
+
+#[test]
+fn as31_makes_the_shipped_irq_receiver_hex() {
+    let source = std::fs::read_to_string(root().join("configs/firmware/irq_receiver.asm")).unwrap();
+    let made = parse_hex(&harvemu_e2e::assemble(&source), "irq_receiver.hex made by as31");
+    let text = std::fs::read_to_string(root().join("configs/firmware/irq_receiver.hex")).unwrap();
+    assert_eq!(
+        made,
+        parse_hex(&text, "irq_receiver.hex"),
+        "rebuild it with as31 (configs/firmware/README.md)"
+    );
+    // The reset vector jumps to START at 0030H, the INT0 vector (0003H) to the handler.
+    assert_eq!(bytes_at(&made, 0x0000, 3), [0x02, 0x00, 0x30]);
+    assert_eq!(made.get(&0x0003), Some(&0x02));
+}

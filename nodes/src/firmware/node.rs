@@ -202,7 +202,7 @@ impl FirmwareNode {
         self.look_in = 0;
         self.stop = loop {
             self.checkpoints.push(m.clone());
-            if self.look_in == 0 {
+            if self.look_in == 0 && self.spec.skip_idle_loops {
                 match find_loop(&mut m) {
                     Err(e) => break Stop::Failed(e.to_string()),
                     Ok(Some(period)) => {
@@ -216,7 +216,7 @@ impl FirmwareNode {
                     }
                 }
             }
-            self.look_in -= 1;
+            self.look_in = self.look_in.saturating_sub(1);
             let target = m.cpu.cycles().saturating_add(chunk).min(limit);
             if let Err(e) = m.run(target) {
                 break Stop::Failed(e.to_string());

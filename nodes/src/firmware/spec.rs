@@ -103,6 +103,9 @@ pub struct FirmwareSpec {
     pub cycle: BusDuration,
     /// The CAN controllers.
     pub chips: Vec<ChipSpec>,
+    /// Look for loops that change nothing and skip them (always, but for a benchmark that
+    /// measures what the skipping saves).
+    pub skip_idle_loops: bool,
 }
 
 /// Reads a file beside the node file (the image): its name for messages and its text.
@@ -215,6 +218,7 @@ pub fn load(file: &str, path: &Path, text: &str, read: Reader) -> Result<Firmwar
             clock_hz,
             cycle,
             chips,
+            skip_idle_loops: true,
         }),
         _ => Err(Error::Invalid(problems)),
     }

@@ -56,7 +56,8 @@ pub struct Args {
     #[arg(long, value_name = "N", default_value_t = 200_000_000)]
     cpu_cycles: u64,
     /// Virtual seconds of the firmware-lab scenario (the seed lab: two 80C51 benches with
-    /// SJA1000s, configs/firmware/seed_lab.ron).
+    /// SJA1000s, configs/firmware/seed_lab.ron) and of the interrupt-driven lab
+    /// (configs/firmware/irq_lab.ron) with and without the skipping of idle loops.
     #[arg(long, value_name = "SECONDS", default_value_t = 600.0)]
     lab_seconds: f64,
     /// Run only these scenarios (saturated, saturated-multi, harvester, realtime, firmware-cpu,
@@ -292,10 +293,20 @@ pub fn run(args: &Args) -> crate::Result<()> {
             1,
             args.lab_seconds,
         ));
+        // The sender with a receiver that idles in `SJMP $` between interrupts: with and
+        // without the skipping of loops that change nothing.
+        let irq = crate::harvester::Harvester::load(std::path::Path::new("configs/firmware/irq_lab.ron"))?;
+        let mut stepped = irq.clone();
+        for f in &mut stepped.firmware {
+            Arc::make_mut(f).skip_idle_loops = false;
+        }
+        for (name, h) in [("firmware-irq", irq), ("firmware-irq-noskip", stepped)] {
+            plan.push((name, Workload::Harvester(Arc::new(h)), 1, 1, args.lab_seconds));
+        }
     }
     if !args.json {
         crate::output::stdout(&format!(
-            "{:<16} {:>5} {:>7} {:>8} {:>8} {:>11} {:>12} {:>9} {:>6} {:>9}\n",
+            "{:<20} {:>5} {:>7} {:>8} {:>8} {:>11} {:>12} {:>9} {:>6} {:>9}\n",
             "scenario",
             "buses",
             "threads",
@@ -313,7 +324,7 @@ pub fn run(args: &Args) -> crate::Result<()> {
             crate::output::stdout(&format!("{}\n", serde_json::to_string(m)?))?;
         } else {
             crate::output::stdout(&format!(
-                "{:<16} {:>5} {:>7} {:>8.0} {:>8.2} {:>11} {:>12.0} {:>8.1}x {:>5.1}% {:>5.1} MiB\n",
+                "{:<20} {:>5} {:>7} {:>8.0} {:>8.2} {:>11} {:>12.0} {:>8.1}x {:>5.1}% {:>5.1} MiB\n",
                 m.scenario,
                 m.buses,
                 m.threads,
