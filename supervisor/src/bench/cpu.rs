@@ -37,15 +37,18 @@ pub struct CpuMeasurement {
     pub chips_at_12_mhz: f64,
 }
 
-/// Runs the busy loop for `cycles` machine cycles on this thread.
-pub fn measure(cycles: u64) -> Result<CpuMeasurement, String> {
+/// The busy loop as a 64 KB code memory.
+fn image() -> mcs51::Image {
     let mut code = BUSY.to_vec();
     code.resize(0x10000, 0xFF);
-    let image = mcs51::Image {
-        code,
-        written: vec![0..BUSY.len() as u32],
-    };
-    let mut cpu = mcs51::Cpu::new(mcs51::Variant::I8051, &image);
+    let mut written = Vec::new();
+    written.push(0..BUSY.len() as u32);
+    mcs51::Image { code, written }
+}
+
+/// Runs the busy loop for `cycles` machine cycles on this thread.
+pub fn measure(cycles: u64) -> Result<CpuMeasurement, String> {
+    let mut cpu = mcs51::Cpu::new(mcs51::Variant::I8051, &image());
     let started = Instant::now();
     while cpu.cycles() < cycles {
         cpu.run(&mut mcs51::NoXdata, cycles).map_err(|e| e.to_string())?;
@@ -70,13 +73,7 @@ mod tests {
         // MOV A,#00H (1 cycle), then turns of 8 cycles: 1 + 8 * 1000 after 1000 turns.
         let m = measure(1 + 8 * 1000).unwrap();
         assert_eq!(m.cycles, 8001);
-        let mut code = BUSY.to_vec();
-        code.resize(0x10000, 0xFF);
-        let image = mcs51::Image {
-            code,
-            written: vec![0..12],
-        };
-        let mut cpu = mcs51::Cpu::new(mcs51::Variant::I8051, &image);
+        let mut cpu = mcs51::Cpu::new(mcs51::Variant::I8051, &image());
         cpu.run(&mut mcs51::NoXdata, 8001).unwrap();
         assert_eq!(cpu.skipped_cycles(), 0);
         // MOVC replaces A each turn; from the 11th turn on, A + DPTR points past the loop, where
