@@ -41,8 +41,7 @@ pub struct CpuMeasurement {
 fn image() -> mcs51::Image {
     let mut code = BUSY.to_vec();
     code.resize(0x10000, 0xFF);
-    let mut written = Vec::new();
-    written.push(0..BUSY.len() as u32);
+    let written = std::iter::once(0..BUSY.len() as u32).collect();
     mcs51::Image { code, written }
 }
 
