@@ -168,8 +168,30 @@ pub fn assemble(source: &str) -> String {
 /// `lab.hex`. Returns the trace, each node's hardware at the end (`None` for a node that
 /// crashed) and the crashes.
 pub fn run_firmware(benches: &[(String, String)], seconds: u64) -> FirmwareRun {
-    use bus::engine::{BusConfig, ControllerConfig, Filter, Recovery};
-    use bus_runtime::hub::{Attach, GetCrashed, Hub, HubConfig};
+    run_firmware_with(benches, BusTime::from_secs(seconds), None)
+}
+
+/// Every frame node `node` sends is corrupted (a bit error) from `from` to `to`.
+#[derive(Clone, Copy, Debug)]
+pub struct BitErrorsOf {
+    /// The node's index in the benches.
+    pub node: usize,
+    /// When the corruption begins.
+    pub from: BusTime,
+    /// When it ends.
+    pub to: BusTime,
+}
+
+/// [`run_firmware`] to bus time `end`, with `fault` on the way.
+pub fn run_firmware_with(
+    benches: &[(String, String)],
+    end: BusTime,
+    fault: Option<BitErrorsOf>,
+) -> FirmwareRun {
+    use bus::engine::{
+        BitPosition, BusConfig, ControllerConfig, Filter, NodeId, Recovery, Rule, Schedule, Target,
+    };
+    use bus_runtime::hub::{Attach, Control, GetCrashed, Hub, HubConfig};
     use bus_runtime::node::{Apply, NodeActor};
     use nodes::firmware::FirmwareNode;
     use std::sync::Arc;
@@ -210,7 +232,26 @@ pub fn run_firmware(benches: &[(String, String)], seconds: u64) -> FirmwareRun {
             .expect("attach");
             actors.push(actor);
         }
-        let end = BusTime::from_secs(seconds);
+        if let Some(f) = fault.filter(|f| f.from < end) {
+            hub.send(RunUntil(f.from)).await.expect("hub").expect("run");
+            let target = Target::Node(NodeId(f.node as u16));
+            let rule = Rule::bit_errors(target, Schedule::Always, BitPosition::Random);
+            let id = hub
+                .send(Control::AddRule(rule))
+                .await
+                .expect("hub")
+                .expect("rule");
+            hub.send(RunUntil(f.to.min(end)))
+                .await
+                .expect("hub")
+                .expect("run");
+            if let Some(id) = id {
+                hub.send(Control::RemoveRule(id))
+                    .await
+                    .expect("hub")
+                    .expect("rule");
+            }
+        }
         hub.send(RunUntil(end)).await.expect("hub").expect("run");
         let crashed: Vec<(usize, String)> = hub
             .send(GetCrashed)

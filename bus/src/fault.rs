@@ -305,6 +305,11 @@ impl FaultConfinement {
         self.recovery_seen
     }
 
+    /// Recessive bits of the current run that do not yet make a whole sequence (0 to 10).
+    pub fn recovery_run(&self) -> u32 {
+        self.recovery_run
+    }
+
     /// How many more consecutive recessive bits, continuing the current run, would bring a
     /// bus-off node back to error active: `(128 - recovery_progress()) * 11` minus the bits of
     /// the current run already counted towards the next sequence. 0 when the node is not bus

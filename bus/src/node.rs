@@ -52,6 +52,9 @@ pub enum ControllerEvent {
     /// It lost arbitration at this bit of the arbitration field, 0 being the first identifier
     /// bit (only to a logic that asks for every event).
     ArbitrationLost(u16),
+    /// Bus off and recovering on its host's request, it has counted this many of the 128
+    /// sequences of 11 recessive bits (only to a logic that asks for every event).
+    RecoveryProgress(u8),
 }
 
 /// What a node asks of its controller, for a logic that models its controller's registers

@@ -454,6 +454,9 @@ impl Hub {
                 Event::ArbitrationLost { node, at, bit } if every(node) => {
                     (node, at, Some(ControllerEvent::ArbitrationLost(bit)), true)
                 }
+                Event::RecoveryProgress { node, at, sequences } if every(node) => {
+                    (node, at, Some(ControllerEvent::RecoveryProgress(sequences)), true)
+                }
                 _ => continue,
             };
             if let Some(slot) = self.slots.get_mut(node.index()) {

@@ -286,6 +286,8 @@ impl Bus {
 
     /// A bus-off controller counts the bit towards recovery (rule 12).
     fn count_recovery(&mut self, i: usize, sampled: bool, next: BusTime, events: &mut Vec<Event>) {
+        let before = self.controllers[i].fault.recovery_progress();
+        let from = self.events.len();
         let c = &mut self.controllers[i];
         let changes = if sampled == wire::REC {
             c.fault.recessive_bits(1)
@@ -301,6 +303,8 @@ impl Bus {
             c.mac_at = next;
             c.ready_at = c.ready_at.max(next);
         }
+        self.progress(i, next, before);
+        events.extend(self.events.drain(from..));
         self.note_into(NodeId(i as u16), next, changes, events);
     }
 

@@ -165,6 +165,18 @@ fn an_sja1000_recovers_only_when_its_host_asks() {
         state_changes(&events),
         [(1_000_000_000 + recovery_bits * BIT, ErrorState::Active)]
     );
+    // It tells of every sequence of 11 recessive bits on the way: the k-th at 11 k bits.
+    let progress: Vec<(u64, u8)> = events
+        .iter()
+        .filter_map(|e| match e {
+            Event::RecoveryProgress { at, sequences, .. } => Some((at.as_nanos(), *sequences)),
+            _ => None,
+        })
+        .collect();
+    let expected: Vec<(u64, u8)> = (1..128u8)
+        .map(|k| (1_000_000_000 + 11 * u64::from(k) * BIT, k))
+        .collect();
+    assert_eq!(progress, expected);
     // Once recovered, it asks again for the next bus off.
     b.set_counters(a, 256, 0, at(2_000_000_000)).unwrap();
     let events = run(&mut b, 3_000_000_000);

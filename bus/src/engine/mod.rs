@@ -267,6 +267,17 @@ pub enum Event {
         /// REC after the change.
         rec: u16,
     },
+    /// A bus-off controller set to recover on request ([`Recovery::OnRequest`]) has counted
+    /// this many of the 128 sequences of 11 recessive bits (the SJA1000 counts its TXERR down
+    /// with them). The last one is an [`Event::State`] instead.
+    RecoveryProgress {
+        /// The node.
+        node: NodeId,
+        /// When the sequence was complete.
+        at: BusTime,
+        /// Sequences counted, 1 to 127.
+        sequences: u8,
+    },
     /// A node's controller was reset (a node restart or a power cycle).
     Restarted {
         /// The node.
@@ -305,6 +316,7 @@ impl Event {
             | Event::Warning { at, .. }
             | Event::BusError { at, .. }
             | Event::ArbitrationLost { at, .. }
+            | Event::RecoveryProgress { at, .. }
             | Event::Overload { at, .. } => at,
         }
     }
@@ -572,8 +584,15 @@ impl Bus {
             .enumerate()
             .filter(|(_, c)| c.counts_recovery())
             .map(|(i, c)| {
-                let at = c.recessive_since + u64::from(c.fault.recovery_bits_remaining()) * self.bit;
-                (at, i)
+                // A controller that reports its progress stops at every sequence.
+                let bits = if c.config.recovery == Recovery::OnRequest {
+                    c.fault
+                        .recovery_bits_remaining()
+                        .min(crate::fault::RECOVERY_SEQUENCE_BITS - c.fault.recovery_run())
+                } else {
+                    c.fault.recovery_bits_remaining()
+                };
+                (c.recessive_since + u64::from(bits) * self.bit, i)
             })
             .min()
     }
@@ -624,14 +643,40 @@ impl Bus {
         let node = NodeId(i as u16);
         let c = &mut self.controllers[i];
         let bits = c.fault.recovery_bits_remaining();
+        let bits = if c.config.recovery == Recovery::OnRequest {
+            bits.min(crate::fault::RECOVERY_SEQUENCE_BITS - c.fault.recovery_run())
+        } else {
+            bits
+        };
+        let before = c.fault.recovery_progress();
         let changes = c.fault.recessive_bits(bits);
         c.recessive_since = at;
+        if c.fault.state() == ErrorState::BusOff {
+            self.progress(i, at, before);
+            return;
+        }
         c.recovery_requested = false;
         // Back on the bus from here: an idle bus, and nothing sent before the recovery.
         c.ready_at = c.ready_at.max(at);
         c.mac = wire::Mac::default();
         c.mac_at = at;
         self.note(node, at, changes);
+    }
+
+    /// Tells of a controller's recovery progress since `before` sequences, when it reports it.
+    pub(crate) fn progress(&mut self, i: usize, at: BusTime, before: u8) {
+        let c = &self.controllers[i];
+        let sequences = c.fault.recovery_progress();
+        if c.config.recovery == Recovery::OnRequest
+            && c.fault.state() == ErrorState::BusOff
+            && sequences != before
+        {
+            self.events.push(Event::RecoveryProgress {
+                node: NodeId(i as u16),
+                at,
+                sequences,
+            });
+        }
     }
 
     /// Records fault-confinement changes as events and, when there are any, in the history.
@@ -681,12 +726,15 @@ impl Bus {
     /// Bus-off nodes see a dominant bit at `sof`: the recessive run they were counting ends.
     fn break_recessive_runs(&mut self, sof: BusTime, resume: BusTime) {
         let bit_ns = self.bit;
-        for c in &mut self.controllers {
+        for i in 0..self.controllers.len() {
+            let c = &mut self.controllers[i];
             if c.connected && c.counts_recovery() {
                 let bits = (sof - c.recessive_since) / bit_ns;
+                let before = c.fault.recovery_progress();
                 c.fault.recessive_bits(bits as u32);
                 c.fault.dominant_bit();
                 c.recessive_since = resume;
+                self.progress(i, sof, before);
             }
         }
     }

@@ -486,6 +486,12 @@ impl NodeLogic for FirmwareNode {
             ControllerEvent::ArbitrationLost(bit) => side.push(BusSide::ArbitrationLost {
                 bit: u8::try_from(bit).unwrap_or(u8::MAX),
             }),
+            // The SJA1000 counts TXERR down from 127 with the sequences of recovery.
+            ControllerEvent::RecoveryProgress(sequences) => side.push(BusSide::Counters {
+                tec: 127u16.saturating_sub(u16::from(sequences)),
+                rec: 0,
+                state: ErrorState::BusOff,
+            }),
             // The chip keeps its own receive FIFO and counts its own overruns.
             ControllerEvent::Overrun => {}
         }
