@@ -3,7 +3,7 @@
 //! Time: machine cycle `c` after power-on is bus time `power_on + c · cycle`, exactly (the
 //! clock's period is a whole number of bus-clock ticks). The CPU runs ahead of the bus
 //! optimistically: after every input it runs on from the present, keeping a copy of its state
-//! every [`CHUNK`] cycles, until a chip asks the bus for something (a transmit request, a mode
+//! every [`CHUNK`] cycles or more (about sixteen copies a run), until a chip asks the bus for something (a transmit request, a mode
 //! change), until a horizon, or until it is found in a loop whose whole state repeats. It asks
 //! to be woken when it stopped. An input that arrives before that moment (a frame, a
 //! confirmation) sends it back to the last copy before the input, from where it runs to the
@@ -71,7 +71,7 @@ struct Projection {
     path: Path,
 }
 
-/// Counters of how the node spent its time, for benchmarks and the state dump.
+/// Counters of how the node spent its time ([`FirmwareNode::stats`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct RunStats {
     /// Cycles passed in loops found repeating, without running them.
@@ -89,7 +89,7 @@ pub struct FirmwareNode {
     bitrate_hz: f64,
     /// The hardware as of the last input.
     now: Machine,
-    /// Copies every [`CHUNK`] cycles from `now` on; the run ahead; how it ended.
+    /// Copies of the run ahead from `now` on, oldest first; the run ahead; how it ended.
     checkpoints: Vec<Machine>,
     ahead: Machine,
     stop: Stop,
