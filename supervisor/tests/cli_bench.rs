@@ -14,17 +14,28 @@ fn bench_json_reports_every_scenario() {
             "2",
             "--many-seconds",
             "2",
+            "--cpu-cycles",
+            "100000",
+            "--lab-seconds",
+            "2",
         ])
         .arg("--config")
         .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/../configs/harvester.ron"))
         .output()
         .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let rows: Vec<Value> = String::from_utf8(out.stdout)
+    let mut rows: Vec<Value> = String::from_utf8(out.stdout)
         .unwrap()
         .lines()
         .map(|l| serde_json::from_str(l).unwrap())
         .collect();
+    // The CPU alone: machine cycles, not buses. The busy loop runs whole instructions, so it
+    // stops within an instruction (at most 4 cycles) past what was asked.
+    let cpu = rows.pop().unwrap();
+    assert_eq!(cpu["scenario"], "firmware-cpu", "{cpu}");
+    let cycles = cpu["cycles"].as_u64().unwrap();
+    assert!((100_000..100_004).contains(&cycles), "{cpu}");
+    assert!(cpu["cycles_per_second"].as_f64().unwrap() > 0.0, "{cpu}");
     let shape: Vec<(&str, u64)> = rows
         .iter()
         .map(|r| (r["scenario"].as_str().unwrap(), r["buses"].as_u64().unwrap()))
@@ -36,7 +47,10 @@ fn bench_json_reports_every_scenario() {
             ("saturated-multi", 1),
             ("saturated-multi", 3),
             ("harvester", 1),
-            ("harvester", 2)
+            ("harvester", 2),
+            ("firmware-lab", 1),
+            ("firmware-irq", 1),
+            ("firmware-irq-noskip", 1),
         ]
     );
     for r in &rows {
@@ -58,6 +72,17 @@ fn bench_json_reports_every_scenario() {
             let load = r["bus_load"].as_f64().unwrap();
             assert!(load > 0.05 && load < 0.9, "{r}");
             assert!(r["frames"].as_u64().unwrap() > 0 && r["wakes"].as_u64().unwrap() > 0);
+            continue;
+        }
+        if r["scenario"].as_str().unwrap().starts_with("firmware-") {
+            // The lab's sender ends a frame 4.003 ms in and then every 99.916 ms (its program's
+            // loop, counted with s51): twenty end within 2 s, and the one under way at 2 s is
+            // counted too; the one receiver takes each.
+            assert_eq!(
+                (r["frames"].as_u64(), r["deliveries"].as_u64()),
+                (Some(21), Some(21)),
+                "{r}"
+            );
             continue;
         }
         // A saturated bus is busy all the time: 0.5 s at 250 kbit/s is 125,000 bits, and a frame
