@@ -212,6 +212,10 @@ pub fn validate(args: &ValidateArgs) -> crate::Result<()> {
                     .map(|_| "node script from a template")
             }
             Some("Template") => nodes::script::check_template(&name, &text).map(|_| "node script template"),
+            Some("Firmware") => {
+                nodes::firmware::load(&name, &source.path, &text, &source.reader()).map(|_| "firmware node")
+            }
+            Some("Network") => Harvester::open(&source).map(|_| "network config"),
             _ => Harvester::open(&source).map(|_| "harvester config"),
         };
         match result {

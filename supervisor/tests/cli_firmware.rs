@@ -273,3 +273,20 @@ fn trace_cpu_writes_the_instructions_of_a_window() {
         .expect("run harvemu");
     assert_eq!(full.status.code(), Some(3), "{}", text(&full));
 }
+
+#[test]
+fn validate_knows_firmware_nodes_and_networks() {
+    let out = harvemu(&[
+        "validate",
+        "configs/firmware/seed_lab.ron",
+        "configs/firmware/sender.ron",
+        "configs/firmware/irq_receiver.ron",
+    ]);
+    assert!(out.status.success(), "{}", text(&out));
+    assert_eq!(
+        String::from_utf8_lossy(&out.stdout),
+        "configs/firmware/seed_lab.ron: ok (network config)\n\
+         configs/firmware/sender.ron: ok (firmware node)\n\
+         configs/firmware/irq_receiver.ron: ok (firmware node)\n"
+    );
+}
