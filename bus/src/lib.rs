@@ -21,6 +21,9 @@
 //!   slips after a stall instead of bursting); it is given the wall clock, it does not read it.
 //! - [`sja1000`] is the SJA1000 stand-alone CAN controller at register level (BasicCAN and
 //!   PeliCAN), sans-IO: a CPU reads and writes its registers, the bus answers its actions.
+//! - [`at89c51cc`] is the AT89C51CC03's on-chip CAN controller at register level (15 message
+//!   objects behind CANPAGE), sans-IO, speaking the same [`sja1000::Action`] and
+//!   [`sja1000::BusSide`] as the SJA1000.
 //! - [`text::quote`] cuts input quoted in error messages to a few dozen characters.
 //!
 //! Nothing here does I/O, reads a clock, runs an async runtime or an actor, or panics on input;
@@ -30,6 +33,7 @@
 //! `bus-runtime` crate; the harvester's own protocol is the `protocol` crate.
 #![warn(missing_docs)]
 
+pub mod at89c51cc;
 pub mod bits;
 pub mod candump;
 pub mod engine;

@@ -209,7 +209,7 @@ impl Sja1000 {
             self.actions.push(Action::Online {
                 listen_only,
                 self_test,
-                filter: self.filter(),
+                filter: Some(self.filter()),
             });
         }
     }

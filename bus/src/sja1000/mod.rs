@@ -30,6 +30,7 @@ mod tests;
 
 pub use fifo::FIFO_BYTES;
 pub use timing::BitTiming;
+pub(crate) use timing::iso_tolerance;
 
 use crate::Frame;
 use crate::engine::{BusError, Location};
@@ -119,16 +120,18 @@ pub enum Mode {
 /// What the bus must do for the chip, in the order the chip asks.
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
 pub enum Action {
-    /// The CPU left reset mode: take part in the bus (after 11 recessive bits) with the counters
-    /// of the last [`Action::SetCounters`] or as the bus last reported them. `filter` is the
-    /// acceptance filter now in force, for the bus's own bookkeeping; the chip filters itself.
+    /// The CPU left reset mode (or, on the AT89C51CC03, set CANGCON.ENA): take part in the bus
+    /// (after 11 recessive bits) with the counters of the last [`Action::SetCounters`] or as the
+    /// bus last reported them. `filter` is the acceptance filter now in force, for the bus's own
+    /// bookkeeping; the chip filters itself.
     Online {
         /// MOD.LOM: receive and never drive the bus (no ACK, no error flags).
         listen_only: bool,
         /// MOD.STM: a transmission succeeds without an acknowledge.
         self_test: bool,
-        /// The acceptance filter in force.
-        filter: Sja1000Filter,
+        /// The single acceptance filter in force (the SJA1000's); `None` for a controller with a
+        /// filter per message object, such as the AT89C51CC03 ([`crate::at89c51cc`]).
+        filter: Option<Sja1000Filter>,
     },
     /// Reset mode entered (by the CPU or by bus-off): leave the bus and drop the pending frame
     /// without reporting it.

@@ -112,7 +112,7 @@ fn example_init_sequence_goes_online_with_its_filter() {
             Action::Online {
                 listen_only: false,
                 self_test: false,
-                filter
+                filter: Some(filter)
             }
         ]
     );
@@ -465,7 +465,7 @@ fn basiccan_receive_and_transmit() {
         vec![Action::Online {
             listen_only: false,
             self_test: false,
-            filter
+            filter: Some(filter)
         }]
     );
     assert_eq!(c.read(4), 0xFF); // ACR reads FFh in operating mode

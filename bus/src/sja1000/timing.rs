@@ -78,13 +78,12 @@ impl BitTiming {
     /// takes part of TSEG1. With TSEG1 ≥ TSEG2, as usual, the minimum is PS2 and the choice does
     /// not matter.
     pub fn tolerance(&self) -> f64 {
-        let nbt = f64::from(self.quanta_per_bit());
-        let sjw = f64::from(self.sjw) + 1.0;
-        let ps1 = f64::from(self.tseg1) + 1.0;
-        let ps2 = f64::from(self.tseg2) + 1.0;
-        let jump = sjw / (20.0 * nbt);
-        let phase = ps1.min(ps2) / (2.0 * (13.0 * nbt - ps2));
-        jump.min(phase)
+        iso_tolerance(
+            u32::from(self.sjw) + 1,
+            u32::from(self.tseg1) + 1,
+            u32::from(self.tseg2) + 1,
+            self.quanta_per_bit(),
+        )
     }
 
     /// True when this node's bit rate is within [`tolerance`](BitTiming::tolerance) of
@@ -96,4 +95,13 @@ impl BitTiming {
         let deviation = (self.bit_rate_hz() - nominal_bit_rate_hz).abs() / nominal_bit_rate_hz;
         deviation <= self.tolerance()
     }
+}
+
+/// The ISO 11898-1 / Bosch CAN 2.0 oscillator tolerance of a bit timing, all lengths in time
+/// quanta: the smaller of `SJW / (20 · NBT)` and `min(PS1, PS2) / (2 · (13 · NBT − PS2))`.
+pub(crate) fn iso_tolerance(sjw: u32, ps1: u32, ps2: u32, nbt: u32) -> f64 {
+    let (sjw, ps1, ps2, nbt) = (f64::from(sjw), f64::from(ps1), f64::from(ps2), f64::from(nbt));
+    let jump = sjw / (20.0 * nbt);
+    let phase = ps1.min(ps2) / (2.0 * (13.0 * nbt - ps2));
+    jump.min(phase)
 }

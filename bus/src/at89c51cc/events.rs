@@ -1,0 +1,176 @@
+//! The bus side: what the bus reports, transmission scheduling, reception into the channels,
+//! errors and the CAN timer.
+
+use super::{CHANNELS, CanController, conch, git, stch};
+use crate::engine::BusError;
+use crate::fault::ErrorState;
+use crate::filter::AcceptanceFilter;
+use crate::sja1000::{Action, BusSide};
+use crate::{ExtendedId, Frame, Id, StandardId};
+
+/// CAN clock periods per CAN timer tick before the CANTCON prescaler (see docs/AT89C51CC03.md).
+const TIMER_DIVIDER: u64 = 6;
+
+impl CanController {
+    /// Takes what the bus did for this controller. Call [`set_time`](CanController::set_time)
+    /// first so that time stamps carry the moment of the event.
+    pub fn on_event(&mut self, event: BusSide) {
+        match event {
+            BusSide::Received(frame) => self.received(&frame),
+            BusSide::Transmitted => {
+                if let Some(c) = self.pending.take() {
+                    self.en &= !(1 << c);
+                    let stamp = self.timer;
+                    let ch = &mut self.channels[c];
+                    ch.stch |= stch::TXOK;
+                    ch.stmp = stamp;
+                    self.schedule();
+                }
+            }
+            BusSide::Aborted => {
+                // The channel's enable was cleared by whoever asked for the abort (ABRQ, or a
+                // CONCH write); the model sets no flag (the data sheet names none).
+                if self.pending.take().is_some() {
+                    self.schedule();
+                }
+            }
+            // The controller has no arbitration-lost register; the frame stays pending.
+            BusSide::ArbitrationLost { .. } => {}
+            BusSide::BusError {
+                error, transmitting, ..
+            } => self.bus_error(error, transmitting),
+            BusSide::Counters { tec, rec, state } => {
+                self.tec = tec;
+                self.rec = rec;
+                self.state = state;
+            }
+            BusSide::RecoveryDone => {
+                self.tec = 0;
+                self.rec = 0;
+                self.state = ErrorState::Active;
+            }
+        }
+    }
+
+    /// The time now, in CAN clock periods since power-on. The CAN timer counts while the
+    /// controller is enabled, one tick every 6 · (CANTCON + 1) periods; passing 0xFFFF to 0
+    /// sets OVRTIM. Times earlier than the last one are ignored.
+    pub fn set_time(&mut self, can_clock_periods: u64) {
+        let elapsed = can_clock_periods.saturating_sub(self.now);
+        self.now = self.now.max(can_clock_periods);
+        if !self.enabled || elapsed == 0 {
+            return;
+        }
+        let period = TIMER_DIVIDER * (u64::from(self.tcon) + 1);
+        let total = self.timer_frac + elapsed;
+        self.timer_frac = total % period;
+        let ticks = total / period;
+        let sum = u64::from(self.timer) + ticks;
+        if sum > 0xFFFF {
+            self.git |= git::OVRTIM;
+        }
+        self.timer = (sum & 0xFFFF) as u16;
+    }
+
+    /// Offers the lowest-numbered channel enabled for transmission to the bus, when the
+    /// controller is enabled and the bus holds none of its frames.
+    pub(super) fn schedule(&mut self) {
+        if !self.enabled || self.pending.is_some() || self.gcon & super::gcon::AUTBAUD != 0 {
+            return;
+        }
+        let next = (0..CHANNELS).find(|&c| self.en & (1 << c) != 0 && self.channels[c].mode() == conch::TX);
+        let Some(c) = next else {
+            return;
+        };
+        match self.channel_frame(c) {
+            Some(frame) => {
+                self.pending = Some(c);
+                self.actions.push(Action::Transmit {
+                    frame,
+                    self_reception: false,
+                    single_shot: false,
+                });
+            }
+            // Unreachable with the masks used, but never panic: leave the channel unsent.
+            None => self.en &= !(1 << c),
+        }
+    }
+
+    /// The frame a channel describes: identifier from CANIDT by CONCH.IDE, RTR from RTRTAG,
+    /// DLC from CONCH (above 8 sends 8 bytes and DLC 8), data from CANMSG.
+    fn channel_frame(&self, c: usize) -> Option<Frame> {
+        let ch = &self.channels[c];
+        let image = u32::from_be_bytes(ch.idt);
+        let id: Id = if ch.conch & conch::IDE != 0 {
+            ExtendedId::new(image >> 3)?.into()
+        } else {
+            StandardId::new((image >> 21) as u16)?.into()
+        };
+        let dlc = usize::from(ch.conch & conch::DLC).min(8);
+        let frame = if ch.idt[3] & 0x04 != 0 {
+            Frame::new_remote(id, dlc)
+        } else {
+            Frame::new_data(id, &ch.msg[..dlc])
+        };
+        frame.ok()
+    }
+
+    /// A frame received correctly: the lowest-numbered enabled receiving channel whose filter
+    /// accepts it stores it. A buffer channel that was the last of the buffer sets OVRBUF.
+    fn received(&mut self, frame: &Frame) {
+        if !self.enabled {
+            return;
+        }
+        let hit = (0..CHANNELS).find(|&c| {
+            let ch = &self.channels[c];
+            self.en & (1 << c) != 0
+                && matches!(ch.mode(), conch::RX | conch::RX_BUFFER)
+                && ch.filter().accepts(frame)
+        });
+        let Some(c) = hit else {
+            return;
+        };
+        self.en &= !(1 << c);
+        let stamp = self.timer;
+        let ch = &mut self.channels[c];
+        let expected = ch.conch & conch::DLC;
+        let ide = if frame.is_extended() { conch::IDE } else { 0 };
+        ch.conch = (ch.conch & (conch::MASK | conch::RPLV)) | ide | frame.dlc();
+        if expected != frame.dlc() {
+            ch.stch |= stch::DLCW;
+        }
+        ch.stch |= stch::RXOK;
+        // The identifier as received replaces the tag (bits the mask ignores included); the
+        // reserved bits read 0 as the bus sends them dominant.
+        ch.idt = crate::filter::canidt_bytes(frame.id(), frame.is_remote());
+        let data = frame.data();
+        ch.msg[..data.len()].copy_from_slice(data);
+        ch.stmp = stamp;
+        if ch.mode() == conch::RX_BUFFER {
+            let buffer_left =
+                (0..CHANNELS).any(|b| self.en & (1 << b) != 0 && self.channels[b].mode() == conch::RX_BUFFER);
+            if !buffer_left {
+                self.git |= git::OVRBUF;
+            }
+        }
+    }
+
+    /// A bus error: the general flag of its kind (none for bit errors) and, while transmitting,
+    /// the error bit of the channel the bus holds.
+    fn bus_error(&mut self, error: BusError, transmitting: bool) {
+        if !self.enabled {
+            return;
+        }
+        let (general, channel) = match error {
+            BusError::Bit => (0, stch::BERR),
+            BusError::Stuff => (git::SERG, stch::SERR),
+            BusError::Crc => (git::CERG, stch::CERR),
+            BusError::Form => (git::FERG, stch::FERR),
+            BusError::Ack => (git::AERG, stch::AERR),
+        };
+        self.git |= general;
+        if transmitting && let Some(c) = self.pending {
+            self.channels[c].stch |= channel;
+        }
+    }
+}
