@@ -15,7 +15,8 @@
 //! counts, SFR reset values, interrupt polling and latency, timers, serial port). Choices where
 //! the manual leaves freedom, kept consistent with the `s51` simulator (uCsim) where it has one:
 //!
-//! - Unimplemented SFR addresses read 00h and ignore writes (s51 shows them as 00h). Timer 2 and
+//! - SFR addresses the core does not implement go to [`Xdata::sfr_read`]/[`Xdata::sfr_write`];
+//!   by default they read 00h and ignore writes (s51 shows them as 00h). Timer 2 and
 //!   its SFRs are not implemented on [`Variant::I8052`] (they are on the AT89C51CC03), which differs from the 80C51 only by its
 //!   256 bytes of internal RAM.
 //! - On [`Variant::I8051`] the upper 128 bytes of internal RAM do not exist: indirect reads at
