@@ -15,8 +15,9 @@
 //! counts, SFR reset values, interrupt polling and latency, timers, serial port). Choices where
 //! the manual leaves freedom, kept consistent with the `s51` simulator (uCsim) where it has one:
 //!
-//! - Unimplemented SFR addresses read 00h and ignore writes (s51 shows them as 00h). Timer 2 and
-//!   its SFRs are not implemented on [`Variant::I8052`], which differs from the 80C51 only by its
+//! - SFR addresses the core does not implement go to [`Xdata::sfr_read`]/[`Xdata::sfr_write`];
+//!   by default they read 00h and ignore writes (s51 shows them as 00h). Timer 2 and
+//!   its SFRs are not implemented on [`Variant::I8052`] (they are on the AT89C51CC03), which differs from the 80C51 only by its
 //!   256 bytes of internal RAM.
 //! - On [`Variant::I8051`] the upper 128 bytes of internal RAM do not exist: indirect reads at
 //!   80h–FFh return 00h and indirect writes there do nothing (the dump shows zeros).
@@ -38,6 +39,12 @@
 //!   ([`Cpu::set_interrupt_entry_cycles`] selects, the s51 comparisons use 1). s51 also sends
 //!   in serial mode 2 at twice the manual's rate; we follow the manual.
 //!
+//! The AT89C51CC03 ([`Variant::At89c51cc03`]) adds timer 2, X2 mode, the on-chip XRAM, the
+//! 10-bit ADC, the watchdog and its interrupt system (four levels, eleven sources); the
+//! repository's `docs/FIRMWARE.md` ("The AT89C51CC03") lists the facts and what is not
+//! modelled. SFRs the core does not implement reach the caller through [`Xdata::sfr_read`]
+//! and [`Xdata::sfr_write`], outside interrupt requests through [`Xdata::irq`].
+//!
 //! Idle skipping: [`Cpu::run`] executes a `DJNZ Rn,$` or `DJNZ direct,$` delay loop in closed
 //! form, never past `until` and, when interrupts are enabled, never past the next timer overflow
 //! or serial event nor while a request waits out the instruction after RETI or an IE/IP write,
@@ -54,18 +61,41 @@ mod disasm;
 mod error;
 pub mod hex;
 
+pub use cpu::cc03::XRAM_BYTES;
 pub use cpu::{Cpu, RunEnd, Snapshot, Step, XAccess};
 pub use disasm::disasm;
 pub use error::Error;
 pub use hex::Image;
 
-/// Which part: the 80C51 (128 bytes of internal RAM) or the 8052 (256 bytes).
+/// Which part: the 80C51 (128 bytes of internal RAM), the 8052 (256 bytes) or the Atmel
+/// AT89C51CC03.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Variant {
     /// 80C51/8051: internal RAM 00h–7Fh.
     I8051,
     /// 8052: internal RAM 00h–FFh, the upper half reached only indirectly (@Ri, stack).
     I8052,
+    /// Atmel AT89C51CC03: 256 bytes of internal RAM, 2048 bytes of on-chip XRAM (AUXR),
+    /// timer 2, X2 mode (CKCON), the 10-bit ADC, the watchdog, four interrupt priority levels
+    /// and eleven interrupt sources. Its CAN controller, PCA, SPI, ports P4 and the flash
+    /// registers are the caller's, reached through [`Xdata::sfr_read`]/[`Xdata::sfr_write`]
+    /// and requesting interrupts through [`Xdata::irq`] (see [`irq`]).
+    At89c51cc03,
+}
+
+/// Interrupt request bits returned by [`Xdata::irq`] for sources that live outside the core
+/// (AT89C51CC03 only; the other variants ignore them). Level-sensitive: a source requests
+/// while its bit is 1, and the core never clears it (the handler must make the peripheral
+/// drop it, as on the chip).
+pub mod irq {
+    /// PCA (CF or CCFn), vector 0033h, enabled by IEN0.EC.
+    pub const PCA: u8 = 0x01;
+    /// CAN controller (CANGIT.CANIT), vector 003Bh, enabled by IEN1.ECAN.
+    pub const CAN: u8 = 0x02;
+    /// CAN timer overrun (CANGIT.OVRTIM), vector 004Bh, enabled by IEN1.ETIM.
+    pub const CAN_TIMER: u8 = 0x04;
+    /// SPI, vector 0053h, enabled by IEN1.ESPI.
+    pub const SPI: u8 = 0x08;
 }
 
 /// External data memory and memory-mapped peripherals, reached by MOVX.
@@ -79,6 +109,26 @@ pub trait Xdata {
     /// read too, as it always does after a MOVX write.
     fn wants_stop(&self) -> bool {
         false
+    }
+    /// Reads an SFR the core does not implement for its variant. `None` keeps the core's own
+    /// behaviour (the address reads 00h). Reached by direct addressing, by bit instructions
+    /// on bit-addressable SFRs (a read of the whole byte, then for a write a write of it) and
+    /// by PUSH. The value read is not the port-pin/latch distinction: the hook sees one read.
+    fn sfr_read(&mut self, _addr: u8) -> Option<u8> {
+        None
+    }
+    /// Writes an SFR the core does not implement for its variant (direct addressing, bit
+    /// instructions, POP). Returns false when nothing there takes it (the write is ignored,
+    /// the core's own behaviour). After a hooked access [`Cpu::run`] returns
+    /// [`RunEnd::Peripheral`] if [`Xdata::wants_stop`] says so, as after a MOVX read.
+    fn sfr_write(&mut self, _addr: u8, _value: u8) -> bool {
+        false
+    }
+    /// Interrupt requests of outside sources, as [`irq`] bits (level-sensitive). The core
+    /// reads it when [`Cpu::step`] or [`Cpu::run`] starts and after every MOVX or hooked SFR
+    /// access, so a peripheral's request may change only then (or between calls).
+    fn irq(&self) -> u8 {
+        0
     }
 }
 

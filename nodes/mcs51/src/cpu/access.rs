@@ -2,7 +2,7 @@
 //! addresses, the stack, and the flag arithmetic of ADD/ADDC/SUBB.
 
 use super::{ACC, Cpu, DPH, DPL, P2, PSW, SP};
-use crate::Error;
+use crate::{Error, Xdata};
 
 const CY: u8 = 0x80;
 pub(super) const AC: u8 = 0x40;
@@ -43,25 +43,25 @@ impl Cpu {
     pub(super) fn rn(&self, n: u8) -> usize {
         ((self.sfr[(PSW - 0x80) as usize] & 0x18) | n) as usize
     }
-    pub(super) fn direct(&mut self, addr: u8) -> u8 {
+    pub(super) fn direct(&mut self, x: &mut dyn Xdata, addr: u8) -> u8 {
         if addr < 0x80 {
             self.iram[addr as usize]
         } else {
-            self.read_sfr(addr, true)
+            self.read_sfr(x, addr, true)
         }
     }
-    pub(super) fn latch(&mut self, addr: u8) -> u8 {
+    pub(super) fn latch(&mut self, x: &mut dyn Xdata, addr: u8) -> u8 {
         if addr < 0x80 {
             self.iram[addr as usize]
         } else {
-            self.read_sfr(addr, false)
+            self.read_sfr(x, addr, false)
         }
     }
-    pub(super) fn set_direct(&mut self, addr: u8, v: u8) {
+    pub(super) fn set_direct(&mut self, x: &mut dyn Xdata, addr: u8, v: u8) {
         if addr < 0x80 {
             self.iram[addr as usize] = v;
         } else {
-            self.write_sfr(addr, v);
+            self.write_sfr(x, addr, v);
         }
     }
     pub(super) fn indirect(&self, addr: u8) -> u8 {
@@ -77,14 +77,15 @@ impl Cpu {
         let byte = if bit < 0x80 { 0x20 + (bit >> 3) } else { bit & 0xF8 };
         (byte, 1 << (bit & 7))
     }
-    pub(super) fn bit(&mut self, bit: u8) -> bool {
+    pub(super) fn bit(&mut self, x: &mut dyn Xdata, bit: u8) -> bool {
         let (byte, mask) = Self::bit_loc(bit);
-        self.direct(byte) & mask != 0
+        self.direct(x, byte) & mask != 0
     }
-    pub(super) fn set_bit(&mut self, bit: u8, v: bool) {
+    /// Read-modify-write of the whole byte, so a hooked SFR sees a read and then a write.
+    pub(super) fn set_bit(&mut self, x: &mut dyn Xdata, bit: u8, v: bool) {
         let (byte, mask) = Self::bit_loc(bit);
-        let old = self.latch(byte);
-        self.set_direct(byte, if v { old | mask } else { old & !mask });
+        let old = self.latch(x, byte);
+        self.set_direct(x, byte, if v { old | mask } else { old & !mask });
     }
     pub(crate) fn push(&mut self, v: u8) -> Result<(), Error> {
         let sp = self.sfr[(SP - 0x80) as usize];
@@ -157,21 +158,21 @@ impl Cpu {
     /// Second operand of ADD/ADDC/ORL/ANL/XRL/SUBB A,<src> (x4 #data, x5 direct, x6/x7 @Ri,
     /// x8–xF Rn).
     #[inline(always)]
-    pub(super) fn alu_operand(&mut self, op: u8) -> u8 {
+    pub(super) fn alu_operand(&mut self, x: &mut dyn Xdata, op: u8) -> u8 {
         if op & 0x0F == 4 {
             self.fetch()
         } else {
-            self.src_operand(op)
+            self.src_operand(x, op)
         }
     }
 
     /// Source operand by the low opcode bits: x5 direct, x6/x7 @Ri, x8–xF Rn.
     #[inline(always)]
-    pub(super) fn src_operand(&mut self, op: u8) -> u8 {
+    pub(super) fn src_operand(&mut self, x: &mut dyn Xdata, op: u8) -> u8 {
         match op & 0x0F {
             5 => {
                 let d = self.fetch();
-                self.direct(d)
+                self.direct(x, d)
             }
             6 | 7 => self.indirect(self.iram[self.rn(op & 1)]),
             _ => self.iram[self.rn(op & 7)],

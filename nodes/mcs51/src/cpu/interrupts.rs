@@ -7,12 +7,39 @@
 //! write to IE or IP (the next instruction runs first). The hardware call takes 2 machine cycles
 //! (settable: s51 takes 1, see [`Cpu::set_interrupt_entry_cycles`]) and clears IE0/IE1 (edge
 //! mode only) and TF0/TF1, never RI/TI.
+//!
+//! The AT89C51CC03 (data sheet, "Interrupt System") has eleven sources with four priority
+//! levels each, IPHx:IPLx = 00 (lowest) to 11 (highest). A request interrupts a handler of a
+//! lower level only. In polling order within a level: INT0 (03h), TF0 (0Bh), INT1 (13h),
+//! TF1 (1Bh), PCA (33h), serial (23h), timer 2 TF2|EXF2 (2Bh), CAN (3Bh), ADC ADEOC (43h), CAN
+//! timer overrun (4Bh), SPI (53h). IEN0 = IE (EA 7, EC 6, ET2 5, ES 4, ET1 3, EX1 2, ET0 1,
+//! EX0 0) with IPL0 = IP and IPH0 using the same bit positions; IEN1 (ESPI 3, ETIM 2, EADC 1,
+//! ECAN 0) with IPL1/IPH1 likewise. Vectoring clears only what the 80C51 clears; TF2, EXF2
+//! and ADEOC stay for the handler to clear, and the outside sources ([`crate::irq`]) are
+//! levels the caller's peripheral drops.
 
-use super::{Cpu, IE, IP, SCON, TCON};
-use crate::Error;
+use super::cc03::{IEN1, IPH0, IPH1, IPL1};
+use super::{Cpu, IE, IP, SCON, TCON, adc::ADCON, timer2::T2CON};
+use crate::{Error, irq};
 
 /// Vectors by IE bit: IE0, TF0, IE1, TF1, RI|TI.
 const VECTORS: [u16; 5] = [0x03, 0x0B, 0x13, 0x1B, 0x23];
+
+/// AT89C51CC03 sources in polling order: (vector, register set 0 = IEN0/IPL0/IPH0 or
+/// 1 = IEN1/IPL1/IPH1, bit).
+const CC03_SOURCES: [(u16, usize, u8); 11] = [
+    (0x03, 0, 0),
+    (0x0B, 0, 1),
+    (0x13, 0, 2),
+    (0x1B, 0, 3),
+    (0x33, 0, 6),
+    (0x23, 0, 4),
+    (0x2B, 0, 5),
+    (0x3B, 1, 0),
+    (0x43, 1, 1),
+    (0x4B, 1, 2),
+    (0x53, 1, 3),
+];
 
 impl Cpu {
     /// The requests that are pending and enabled, as IE bits (EA ignored).
@@ -37,9 +64,47 @@ impl Cpu {
     /// Whether a pending, enabled request is not held off by a handler in service (the
     /// one-instruction delay after RETI or an IE/IP write aside).
     pub(crate) fn request_takeable(&self) -> bool {
+        if self.cc03() {
+            return self.cc03_choice().is_some();
+        }
         let req = self.requests();
         let ip = self.sfr[(IP - 0x80) as usize];
         (req & ip != 0 && self.in_service & 2 == 0) || (req & !ip != 0 && self.in_service == 0)
+    }
+
+    /// The AT89C51CC03 request to take now, as (polling index, level), if any: the highest
+    /// level pending and enabled, first in polling order, if no handler of that level or
+    /// above runs.
+    fn cc03_choice(&self) -> Option<(usize, u8)> {
+        let r = |a: u8| self.sfr[(a - 0x80) as usize];
+        let (tcon, scon, ext) = (r(TCON), r(SCON), self.ext_irq);
+        let pending = [
+            tcon & 0x02 != 0,
+            tcon & 0x20 != 0,
+            tcon & 0x08 != 0,
+            tcon & 0x80 != 0,
+            ext & irq::PCA != 0,
+            scon & 0x03 != 0,
+            r(T2CON) & 0xC0 != 0,
+            ext & irq::CAN != 0,
+            r(ADCON) & 0x10 != 0,
+            ext & irq::CAN_TIMER != 0,
+            ext & irq::SPI != 0,
+        ];
+        let en = [r(IE), r(IEN1)];
+        let ipl = [r(IP), r(IPL1)];
+        let iph = [r(IPH0), r(IPH1)];
+        let mut best: Option<(usize, u8)> = None;
+        for (k, &(_, set, bit)) in CC03_SOURCES.iter().enumerate() {
+            if !pending[k] || en[set] >> bit & 1 == 0 {
+                continue;
+            }
+            let level = (iph[set] >> bit & 1) << 1 | (ipl[set] >> bit & 1);
+            if best.is_none_or(|(_, l)| level > l) {
+                best = Some((k, level));
+            }
+        }
+        best.filter(|&(_, level)| self.in_service >> level == 0)
     }
 
     /// Enters the highest-priority pending interrupt, if one may be taken now.
@@ -50,20 +115,27 @@ impl Cpu {
             self.inhibit = false;
             return Ok(None);
         }
-        let req = self.requests();
-        if req == 0 {
-            return Ok(None);
-        }
-        let ip = self.sfr[(IP - 0x80) as usize];
-        let (level, chosen) = if req & ip != 0 && self.in_service & 2 == 0 {
-            (2, req & ip)
-        } else if req & !ip != 0 && self.in_service == 0 {
-            (1, req & !ip)
+        let (index, level, vector) = if self.cc03() {
+            match self.cc03_choice() {
+                Some((k, level)) => (k, 1 << level, CC03_SOURCES[k].0),
+                None => return Ok(None),
+            }
         } else {
-            return Ok(None);
+            let req = self.requests();
+            if req == 0 {
+                return Ok(None);
+            }
+            let ip = self.sfr[(IP - 0x80) as usize];
+            let (level, chosen) = if req & ip != 0 && self.in_service & 2 == 0 {
+                (2, req & ip)
+            } else if req & !ip != 0 && self.in_service == 0 {
+                (1, req & !ip)
+            } else {
+                return Ok(None);
+            };
+            let index = chosen.trailing_zeros() as usize;
+            (index, level, VECTORS[index])
         };
-        let index = chosen.trailing_zeros() as usize;
-        let vector = VECTORS[index];
         self.op_pc = self.pc;
         let [lo, hi] = self.pc.to_le_bytes();
         self.push(lo)?;
@@ -87,10 +159,8 @@ impl Cpu {
 
     /// RETI: the highest level in service ends.
     pub(crate) fn end_of_interrupt(&mut self) {
-        if self.in_service & 2 != 0 {
-            self.in_service &= !2;
-        } else {
-            self.in_service = 0;
+        if self.in_service != 0 {
+            self.in_service &= !(0x80 >> self.in_service.leading_zeros());
         }
         self.inhibit = true;
     }

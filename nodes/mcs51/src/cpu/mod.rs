@@ -1,9 +1,15 @@
 //! The core's state, its memory spaces and the public stepping API.
 
 mod access;
+mod adc;
+pub(crate) mod cc03;
 mod interrupts;
 mod ops;
+mod timer2;
 mod timers;
+mod types;
+
+pub use types::{RunEnd, Snapshot, Step, XAccess};
 
 use crate::{Error, Image, Variant, Xdata};
 use std::sync::Arc;
@@ -59,65 +65,6 @@ const TIMED: [bool; 128] = {
     t
 };
 
-/// One MOVX access, as reported by [`Step`] and [`RunEnd`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum XAccess {
-    /// MOVX A,@DPTR or MOVX A,@Ri read `addr`.
-    Read {
-        /// External address.
-        addr: u16,
-    },
-    /// MOVX @DPTR,A or MOVX @Ri,A wrote `value` at `addr`.
-    Write {
-        /// External address.
-        addr: u16,
-        /// The byte written.
-        value: u8,
-    },
-}
-
-/// What one [`Cpu::step`] did.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Step {
-    /// Machine cycles taken (1, 2 or 4; 2 for an interrupt entry unless set otherwise).
-    pub cycles: u8,
-    /// The MOVX access of the instruction, if it was one.
-    pub xdata: Option<XAccess>,
-    /// The vector called, if this step was an interrupt entry rather than an instruction.
-    pub interrupt: Option<u16>,
-}
-
-/// Why [`Cpu::run`] returned.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum RunEnd {
-    /// The cycle count reached `until`.
-    Reached,
-    /// The instruction just executed was a MOVX read after which the external data space
-    /// asked to stop ([`Xdata::wants_stop`]).
-    Peripheral,
-    /// The instruction just executed was a MOVX write.
-    XdataWrite {
-        /// External address.
-        addr: u16,
-        /// The byte written.
-        value: u8,
-    },
-}
-
-/// The state that decides what the core does next (everything but the cycle count and the
-/// serial output), comparable for equality to detect a loop whose state repeats.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Snapshot {
-    /// Program counter.
-    pub pc: u16,
-    /// Internal RAM.
-    pub iram: [u8; 256],
-    /// SFRs 80h–FFh as [`Cpu::sfr`] shows them.
-    pub sfr: [u8; 128],
-    /// Interrupt levels in service (bit 0 low, bit 1 high).
-    pub in_service: u8,
-}
-
 /// Transmission in progress: what still has to pass before TI is set.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Tx {
@@ -154,6 +101,28 @@ pub struct Cpu {
     pub(crate) fault: Option<u16>,
     pub(crate) entry_cycles: u8,
     pub(crate) skipped: u64,
+    /// SFRs the core implements for its variant; the others go to [`Xdata::sfr_read`] and
+    /// [`Xdata::sfr_write`].
+    pub(crate) own: &'static [bool; 128],
+    /// SFRs brought up to date with the timers before an access.
+    pub(crate) timed: &'static [bool; 128],
+    /// On-chip XRAM (AT89C51CC03), empty otherwise; its presence marks that variant.
+    pub(crate) xram: Vec<u8>,
+    /// Outside interrupt requests ([`Xdata::irq`]) as last read.
+    pub(crate) ext_irq: u8,
+    /// The executing instruction reached an SFR through the hook.
+    pub(crate) hooked: bool,
+    /// Cycle at which the ADC conversion under way ends (u64::MAX: none).
+    pub(crate) adc_end: u64,
+    pub(crate) analog: [u16; 8],
+    /// Cycle at which the watchdog resets the core (u64::MAX: not running).
+    pub(crate) wdt_deadline: u64,
+    /// The last WDTRST write was 1Eh.
+    pub(crate) wdt_armed: bool,
+    pub(crate) wdt_resets: u64,
+    /// (cycles, oscillator clocks) when X2 last changed.
+    pub(crate) clock_base: (u64, u64),
+    pub(crate) clock_changed: bool,
 }
 
 impl Cpu {
@@ -182,14 +151,41 @@ impl Cpu {
             fault: None,
             entry_cycles: 2,
             skipped: 0,
+            own: if variant == Variant::At89c51cc03 {
+                &cc03::CC03_OWN
+            } else {
+                &WRITABLE
+            },
+            timed: if variant == Variant::At89c51cc03 {
+                &cc03::CC03_TIMED
+            } else {
+                &TIMED
+            },
+            xram: if variant == Variant::At89c51cc03 {
+                vec![0; cc03::XRAM_BYTES]
+            } else {
+                Vec::new()
+            },
+            ext_irq: 0,
+            hooked: false,
+            adc_end: u64::MAX,
+            analog: [0; 8],
+            wdt_deadline: u64::MAX,
+            wdt_armed: false,
+            wdt_resets: 0,
+            clock_base: (0, 0),
+            clock_changed: false,
         };
         cpu.reset();
         cpu
     }
 
-    /// Hardware reset: SP 07h, ports FFh, PC and other SFRs 0, no interrupt in service, a
-    /// fault cleared; internal RAM is kept (as on a warm reset), the cycle count too.
+    /// Hardware reset: SP 07h, ports FFh, PC and other SFRs 0 (AUXR on the AT89C51CC03: see
+    /// its section in the crate docs), no interrupt in service, a fault cleared, no ADC
+    /// conversion, the watchdog stopped; internal RAM and XRAM are kept (as on a warm reset),
+    /// the cycle count too.
     pub fn reset(&mut self) {
+        self.clock_base = (self.cycles, self.clocks());
         self.sfr = [0; 128];
         for p in [P0, P1, P2, P3] {
             self.sfr[(p - 0x80) as usize] = 0xFF;
@@ -200,6 +196,9 @@ impl Cpu {
         self.inhibit = false;
         self.tx = Tx::Idle;
         self.fault = None;
+        if self.cc03() {
+            self.reset_cc03();
+        }
         self.synced = self.cycles;
         self.sync_ext_ints();
         self.plan();
@@ -252,12 +251,15 @@ impl Cpu {
             iram: self.iram,
             sfr: self.sfr(),
             in_service: self.in_service,
+            xram: self.xram.clone(),
+            analog: self.analog,
         }
     }
 
     /// True when `other` is in the same state as `self` but for the cycle count: the same
-    /// [`Snapshot`], pin levels and interrupt inhibit, and neither has a timer or the serial
-    /// port under way. A loop that comes back to such a state repeats for ever until an input
+    /// [`Snapshot`] (XRAM and analog inputs included), pin levels, outside interrupt requests
+    /// and interrupt inhibit, and neither has a timer, the serial port, an ADC conversion or
+    /// the watchdog under way (each is an event to come). A loop that comes back to such a state repeats for ever until an input
     /// changes it, so its cycles can be skipped ([`Cpu::skip_cycles`]).
     pub fn same_state(&self, other: &Cpu) -> bool {
         self.next_event == u64::MAX
@@ -267,7 +269,13 @@ impl Cpu {
             && self.fault == other.fault
             && self.ext == other.ext
             && self.inhibit == other.inhibit
-            && self.snapshot() == other.snapshot()
+            && self.ext_irq == other.ext_irq
+            && self.pc == other.pc
+            && self.in_service == other.in_service
+            && self.iram == other.iram
+            && self.sfr() == other.sfr()
+            && self.xram == other.xram
+            && self.analog == other.analog
     }
 
     /// Moves the cycle count on by `cycles` with nothing else changing, for a caller that found
@@ -286,18 +294,20 @@ impl Cpu {
     }
 
     /// Drives external pin `bit` of port `port` (0–3) to `level`. A pin reads as its latch AND
-    /// this level. Falling edges on P3.2/P3.3 (INT0/INT1, edge mode) and P3.4/P3.5 (T0/T1) count.
-    /// Out-of-range ports or bits are ignored.
+    /// this level. Falling edges on P3.2/P3.3 (INT0/INT1, edge mode) and P3.4/P3.5 (T0/T1) count,
+    /// on the AT89C51CC03 also P1.0/P1.1 (T2/T2EX). Out-of-range ports or bits are ignored.
     pub fn set_pin(&mut self, port: u8, bit: u8, level: bool) {
         if port > 3 || bit > 7 {
             return;
         }
         self.sync(self.cycles);
-        let before = self.pins(3);
+        let before = self.pins(port as usize);
         let p = &mut self.ext[port as usize];
         *p = if level { *p | 1 << bit } else { *p & !(1 << bit) };
         if port == 3 {
             self.p3_changed(before);
+        } else if port == 1 && self.cc03() {
+            self.p1_changed(before);
         }
         self.plan();
     }
@@ -308,6 +318,10 @@ impl Cpu {
             return Err(Error::Stopped { pc });
         }
         self.xaccess = None;
+        self.ext_irq = x.irq();
+        if self.watchdog_due() {
+            self.watchdog_reset();
+        }
         if let Some(vector) = self.poll_interrupt()? {
             self.sync(self.cycles);
             return Ok(Step {
@@ -331,8 +345,14 @@ impl Cpu {
         if let Some(pc) = self.fault {
             return Err(Error::Stopped { pc });
         }
+        self.ext_irq = x.irq();
         while self.cycles < until {
+            if self.watchdog_due() {
+                self.watchdog_reset();
+                return Ok(RunEnd::WatchdogReset);
+            }
             self.xaccess = None;
+            self.hooked = false;
             if self.poll_interrupt()?.is_some() {
                 continue;
             }
@@ -345,9 +365,14 @@ impl Cpu {
                 self.sync(self.cycles);
                 return Ok(RunEnd::XdataWrite { addr, value });
             }
-            if self.xaccess.is_some() && x.wants_stop() {
+            if (self.xaccess.is_some() || self.hooked) && x.wants_stop() {
                 self.sync(self.cycles);
                 return Ok(RunEnd::Peripheral);
+            }
+            if self.clock_changed {
+                self.clock_changed = false;
+                self.sync(self.cycles);
+                return Ok(RunEnd::ClockChanged);
             }
         }
         self.sync(self.cycles);
@@ -370,9 +395,17 @@ impl Cpu {
         self.sfr[0x10 * n] & self.ext[n]
     }
 
-    /// Reads an SFR; `pins` selects the port pins rather than the latches.
-    pub(crate) fn read_sfr(&mut self, addr: u8, pins: bool) -> u8 {
-        if TIMED[(addr - 0x80) as usize] {
+    /// Reads an SFR; `pins` selects the port pins rather than the latches. An SFR the core
+    /// does not implement goes to the hook.
+    pub(crate) fn read_sfr(&mut self, x: &mut dyn Xdata, addr: u8, pins: bool) -> u8 {
+        let i = (addr - 0x80) as usize;
+        if !self.own[i] {
+            let v = x.sfr_read(addr);
+            self.hooked = true;
+            self.ext_irq = x.irq();
+            return v.unwrap_or(0);
+        }
+        if self.timed[i] {
             self.sync(self.effect_at);
         }
         match addr {
@@ -382,16 +415,18 @@ impl Cpu {
         }
     }
 
-    pub(crate) fn write_sfr(&mut self, addr: u8, v: u8) {
+    pub(crate) fn write_sfr(&mut self, x: &mut dyn Xdata, addr: u8, v: u8) {
         let i = (addr - 0x80) as usize;
-        if !TIMED[i] {
-            match addr {
-                IE | IP => {
-                    self.sfr[i] = v;
-                    self.inhibit = true;
-                }
-                _ if WRITABLE[i] => self.sfr[i] = v,
-                _ => {}
+        if !self.own[i] {
+            x.sfr_write(addr, v);
+            self.hooked = true;
+            self.ext_irq = x.irq();
+            return;
+        }
+        if !self.timed[i] {
+            self.sfr[i] = v;
+            if cc03::is_interrupt_register(addr) {
+                self.inhibit = true;
             }
             return;
         }
@@ -407,6 +442,7 @@ impl Cpu {
                 self.sfr[i] = v;
                 self.sync_ext_ints();
             }
+            _ if self.cc03() => self.write_cc03(addr, v),
             _ => self.sfr[i] = v,
         }
         self.plan();

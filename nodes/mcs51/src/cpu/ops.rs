@@ -4,7 +4,7 @@
 //! CPL/CLR/SETB bit, MOV bit,C) read a port's latch; every other read of a port reads its pins.
 
 use super::access::AC;
-use super::{B, Cpu, DPH, DPL, PSW, XAccess};
+use super::{B, Cpu, DPH, DPL, PSW};
 use crate::{Error, Xdata};
 
 /// Machine cycles per opcode.
@@ -112,8 +112,9 @@ impl Cpu {
             0x14 => self.set_a(self.a().wrapping_sub(1)),
             0x05 | 0x15 => {
                 let d = self.fetch();
-                let v = self.latch(d);
+                let v = self.latch(x, d);
                 self.set_direct(
+                    x,
                     d,
                     if op == 0x05 {
                         v.wrapping_add(1)
@@ -147,12 +148,12 @@ impl Cpu {
                 let rel = self.fetch();
                 let set = if op == 0x10 {
                     let (byte, mask) = Self::bit_loc(bit);
-                    self.latch(byte) & mask != 0
+                    self.latch(x, byte) & mask != 0
                 } else {
-                    self.bit(bit)
+                    self.bit(x, bit)
                 };
                 if op == 0x10 && set {
-                    self.set_bit(bit, false);
+                    self.set_bit(x, bit, false);
                 }
                 if set == (op != 0x30) {
                     self.jump_rel(rel);
@@ -172,7 +173,7 @@ impl Cpu {
                 }
             }
             0x24..=0x2F | 0x34..=0x3F | 0x44..=0x4F | 0x54..=0x5F | 0x64..=0x6F | 0x94..=0x9F => {
-                let v = self.alu_operand(op);
+                let v = self.alu_operand(x, op);
                 match op >> 4 {
                     0x2 => self.add(v, false),
                     0x3 => self.add(v, self.cy()),
@@ -185,17 +186,17 @@ impl Cpu {
             0x42 | 0x43 | 0x52 | 0x53 | 0x62 | 0x63 => {
                 let d = self.fetch();
                 let v = if op & 1 == 0 { self.a() } else { self.fetch() };
-                let old = self.latch(d);
+                let old = self.latch(x, d);
                 let r = match op >> 4 {
                     0x4 => old | v,
                     0x5 => old & v,
                     _ => old ^ v,
                 };
-                self.set_direct(d, r);
+                self.set_direct(x, d, r);
             }
             0x72 | 0x82 | 0xA0 | 0xB0 => {
                 let b = self.fetch();
-                let v = self.bit(b);
+                let v = self.bit(x, b);
                 let c = self.cy();
                 self.set_cy(match op {
                     0x72 => c | v,
@@ -212,7 +213,7 @@ impl Cpu {
             0x75 => {
                 let d = self.fetch();
                 let v = self.fetch();
-                self.set_direct(d, v);
+                self.set_direct(x, d, v);
             }
             0x76 | 0x77 => {
                 let v = self.fetch();
@@ -247,13 +248,13 @@ impl Cpu {
             0x85 => {
                 let src = self.fetch();
                 let dst = self.fetch();
-                let v = self.direct(src);
-                self.set_direct(dst, v);
+                let v = self.direct(x, src);
+                self.set_direct(x, dst, v);
             }
             0x86..=0x8F => {
-                let v = self.src_operand(op);
+                let v = self.src_operand(x, op);
                 let d = self.fetch();
-                self.set_direct(d, v);
+                self.set_direct(x, d, v);
             }
             0x90 => {
                 let hi = self.fetch();
@@ -263,11 +264,11 @@ impl Cpu {
             }
             0x92 => {
                 let b = self.fetch();
-                self.set_bit(b, self.cy());
+                self.set_bit(x, b, self.cy());
             }
             0xA2 => {
                 let b = self.fetch();
-                let v = self.bit(b);
+                let v = self.bit(x, b);
                 self.set_cy(v);
             }
             0xA3 => {
@@ -278,13 +279,13 @@ impl Cpu {
             0xA5 => return Err(self.fail(Error::ReservedOpcode { pc: self.op_pc })),
             0xA6 | 0xA7 => {
                 let d = self.fetch();
-                let v = self.direct(d);
+                let v = self.direct(x, d);
                 let r = self.iram[self.rn(op & 1)];
                 self.set_indirect(r, v);
             }
             0xA8..=0xAF => {
                 let d = self.fetch();
-                let v = self.direct(d);
+                let v = self.direct(x, d);
                 let r = self.rn(op & 7);
                 self.iram[r] = v;
             }
@@ -293,12 +294,12 @@ impl Cpu {
                 let v = match op {
                     0xB2 => {
                         let (byte, mask) = Self::bit_loc(b);
-                        self.latch(byte) & mask == 0
+                        self.latch(x, byte) & mask == 0
                     }
                     0xC2 => false,
                     _ => true,
                 };
-                self.set_bit(b, v);
+                self.set_bit(x, b, v);
             }
             0xB3 => self.set_cy(!self.cy()),
             0xC3 => self.set_cy(false),
@@ -309,7 +310,7 @@ impl Cpu {
             }
             0xB5 => {
                 let d = self.fetch();
-                let v = self.direct(d);
+                let v = self.direct(x, d);
                 self.cjne(self.a(), v);
             }
             0xB6 | 0xB7 => {
@@ -324,20 +325,20 @@ impl Cpu {
             }
             0xC0 => {
                 let d = self.fetch();
-                let v = self.direct(d);
+                let v = self.direct(x, d);
                 self.push(v)?;
             }
             0xD0 => {
                 let d = self.fetch();
                 let v = self.pop();
-                self.set_direct(d, v);
+                self.set_direct(x, d, v);
             }
             0xC4 => self.set_a(self.a().rotate_left(4)),
             0xC5 => {
                 let d = self.fetch();
-                let v = self.direct(d);
+                let v = self.direct(x, d);
                 let a = self.a();
-                self.set_direct(d, a);
+                self.set_direct(x, d, a);
                 self.set_a(v);
             }
             0xC6 | 0xC7 => {
@@ -369,8 +370,8 @@ impl Cpu {
             0xD5 => {
                 let d = self.fetch();
                 let rel = self.fetch();
-                let v = self.latch(d).wrapping_sub(1);
-                self.set_direct(d, v);
+                let v = self.latch(x, d).wrapping_sub(1);
+                self.set_direct(x, d, v);
                 if v != 0 {
                     self.jump_rel(rel);
                 }
@@ -396,8 +397,8 @@ impl Cpu {
                 } else {
                     self.movx_addr_ri(op)
                 };
-                self.set_a(x.read(addr));
-                self.xaccess = Some(XAccess::Read { addr });
+                let v = self.movx_read(x, addr);
+                self.set_a(v);
             }
             0xF0 | 0xF2 | 0xF3 => {
                 let addr = if op == 0xF0 {
@@ -405,19 +406,17 @@ impl Cpu {
                 } else {
                     self.movx_addr_ri(op)
                 };
-                let value = self.a();
-                x.write(addr, value);
-                self.xaccess = Some(XAccess::Write { addr, value });
+                self.movx_write(x, addr, self.a());
             }
             0xE4 => self.set_a(0),
             0xF4 => self.set_a(!self.a()),
             0xE5..=0xEF => {
-                let v = self.src_operand(op);
+                let v = self.src_operand(x, op);
                 self.set_a(v);
             }
             0xF5 => {
                 let d = self.fetch();
-                self.set_direct(d, self.a());
+                self.set_direct(x, d, self.a());
             }
             0xF6 | 0xF7 => {
                 let r = self.iram[self.rn(op & 1)];

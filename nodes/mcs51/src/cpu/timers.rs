@@ -93,6 +93,14 @@ impl Cpu {
                 self.sfr[(TCON - 0x80) as usize] |= 0x80;
             }
         }
+        if self.cc03() {
+            let ov2 = self.advance_timer2(cycles, false);
+            self.adc_tick();
+            if self.tx_on_timer2() {
+                self.serial_tick(cycles, ov2);
+                return;
+            }
+        }
         self.serial_tick(cycles, ov1);
     }
 
@@ -142,12 +150,18 @@ impl Cpu {
         let smod = self.r(PCON) & 0x80 != 0;
         let tmod = self.r(TMOD);
         let t1_runs = tmod >> 4 & 3 != 3 && (tmod & 3 == 3 || self.r(TCON) & 0x40 != 0);
+        // Timer 2 as baud-rate generator (TCLK): 16 overflows per bit, SMOD does not apply.
+        let (runs, per_bit) = if self.tx_on_timer2() {
+            (self.timer2_runs(), 16)
+        } else {
+            (t1_runs, if smod { 16 } else { 32 })
+        };
         self.tx = match scon >> 6 {
             0 => Tx::Cycles(8),
             2 => Tx::Cycles(if smod { 30 } else { 59 }), // 11 bits × 32 or 64 clocks / 12
-            mode if t1_runs => {
+            mode if runs => {
                 let bits = if mode == 1 { 10 } else { 11 };
-                Tx::Overflows(bits * if smod { 16 } else { 32 })
+                Tx::Overflows(bits * per_bit)
             }
             _ => {
                 self.w(SCON, scon | 0x02);
@@ -157,7 +171,9 @@ impl Cpu {
         self.plan();
     }
 
-    fn serial_tick(&mut self, n: u64, ov1: u64) {
+    /// `n` machine cycles and `ov1` overflows of the transmitter's clock (timer 1, or timer 2
+    /// with TCLK) passed.
+    pub(crate) fn serial_tick(&mut self, n: u64, ov1: u64) {
         let left = match self.tx {
             Tx::Idle => return,
             Tx::Cycles(c) => (c as u64).saturating_sub(n),
@@ -199,6 +215,18 @@ impl Cpu {
         if let Tx::Cycles(c) = self.tx {
             d = d.min(c as u64);
         }
+        if self.cc03() {
+            let tx_waits = matches!(self.tx, Tx::Overflows(_)) && self.tx_on_timer2();
+            if let Some(t2) = self.timer2_cycles_to_event(tx_waits) {
+                d = d.min(t2);
+            }
+            // The ADC's end and the watchdog's time-out are absolute cycles.
+            for at in [self.adc_end, self.wdt_deadline] {
+                if at != u64::MAX {
+                    d = d.min(at.saturating_sub(self.synced).max(1));
+                }
+            }
+        }
         (d != u64::MAX).then_some(d)
     }
 
@@ -227,6 +255,8 @@ impl Cpu {
             // The iteration whose cycles reach the event is the last one that runs unpolled.
             k = k.min(self.next_event.saturating_sub(self.cycles).div_ceil(2));
         }
+        // The watchdog resets the core whether or not interrupts are enabled.
+        k = k.min(self.wdt_deadline.saturating_sub(self.cycles).div_ceil(2));
         if k < 2 {
             return false;
         }
