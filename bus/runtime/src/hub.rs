@@ -25,6 +25,11 @@
 //! A node is woken at its deadline (`poll_timeout`), and a reaction time after a frame reaches its
 //! receive FIFO, after a receive overrun or after an error-state change. Transmit confirmations
 //! (sent, aborted, refused) do not wake a node by themselves: they ride along with its next wake.
+//! A node whose logic models its controller's registers (a firmware node,
+//! [`bus::node::NodeLogic::wants_every_event`]) is woken by every event of its controller as it
+//! happens instead (confirmations, counters, bus errors, lost arbitration, bus-off recovery), and
+//! its commands (join or leave the bus, abort, counters, recovery, tuning) act at its wake's
+//! time (`hub/commands.rs`).
 //! A hung node (fault injection) is never woken, so its FIFO fills and overruns as a real one
 //! would.
 
