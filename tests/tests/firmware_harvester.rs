@@ -32,6 +32,7 @@ fn a_firmware_node_takes_a_scripted_nodes_place() {
     let mut h = default_harvester();
     h.scripts.retain(|s| s.name != "C3");
     h.firmware.push(Arc::new(spec));
+    let relay = h.relay();
     let trace = Shared::default();
     let t = trace.clone();
     let end = BusTime::from_secs(20);
@@ -58,13 +59,8 @@ fn a_firmware_node_takes_a_scripted_nodes_place() {
     assert_eq!((hw.controllers[0].tec, hw.controllers[0].rec), (0, 0));
     // Its handler counted in R5 every frame that ended after the chip joined the bus (a few
     // hundred microseconds after the time relay powered it up), modulo 256.
-    let joined = BusTime::from_millis(h_relay_ms()) + bus::time::BusDuration::from_millis(1);
+    let joined = relay + bus::time::BusDuration::from_millis(1);
     let heard = frames.iter().filter(|f| f.at > joined && f.at <= end).count();
     let r5 = u8::from_str_radix(&hw.cpu.iram[10..12], 16).expect("hex");
     assert_eq!(r5, (heard % 256) as u8, "{heard} frames after {joined}");
-}
-
-/// The default harvester's time relay, from its config.
-fn h_relay_ms() -> u64 {
-    default_harvester().config.time_relay_ms
 }

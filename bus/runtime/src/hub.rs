@@ -430,7 +430,10 @@ impl Hub {
                     due = Some(due.map_or(d, |x| x.min(d)));
                 }
             }
-            let every = |n: NodeId| self.slots.get(n.index()).is_some_and(|s| s.every_event);
+            // No register-level node (the usual case): no slot lookup on the per-frame path.
+            let every = |n: NodeId| {
+                self.register_level > 0 && self.slots.get(n.index()).is_some_and(|s| s.every_event)
+            };
             let (node, at, input, wakes) = match event {
                 Event::Delivered { node, at } => (node, at, None, true),
                 Event::Overrun { node, at } => (node, at, Some(ControllerEvent::Overrun), true),

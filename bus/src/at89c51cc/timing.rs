@@ -1,7 +1,7 @@
 //! The bit timing of CANBT1–3 with the CAN clock (T89C51CC01 data sheet, "Bit Timing and Baud
 //! Rate"; AT89C51CC03 data sheet, the same section and the CANBT1–3 tables).
 
-use crate::sja1000::iso_tolerance;
+use crate::sja1000::{iso_tolerance, within_tolerance};
 use crate::time::{BusDuration, TICKS_PER_SEC};
 
 /// The bit timing programmed in CANBT1–3, with the CAN clock.
@@ -86,10 +86,6 @@ impl BitTiming {
     /// True when this bit rate is within [`tolerance`](BitTiming::tolerance) of
     /// `nominal_bit_rate_hz`.
     pub fn samples_correctly(&self, nominal_bit_rate_hz: f64) -> bool {
-        if nominal_bit_rate_hz <= 0.0 || !nominal_bit_rate_hz.is_finite() {
-            return false;
-        }
-        let deviation = (self.bit_rate_hz() - nominal_bit_rate_hz).abs() / nominal_bit_rate_hz;
-        deviation <= self.tolerance()
+        within_tolerance(self.bit_rate_hz(), nominal_bit_rate_hz, self.tolerance())
     }
 }

@@ -30,7 +30,7 @@ mod tests;
 
 pub use fifo::FIFO_BYTES;
 pub use timing::BitTiming;
-pub(crate) use timing::iso_tolerance;
+pub(crate) use timing::{iso_tolerance, within_tolerance};
 
 use crate::Frame;
 use crate::engine::{BusError, Location};

@@ -89,11 +89,7 @@ impl BitTiming {
     /// True when this node's bit rate is within [`tolerance`](BitTiming::tolerance) of
     /// `nominal_bit_rate_hz`: `|f_node − f_nominal| / f_nominal ≤ df_max`.
     pub fn samples_correctly(&self, nominal_bit_rate_hz: f64) -> bool {
-        if nominal_bit_rate_hz <= 0.0 || !nominal_bit_rate_hz.is_finite() {
-            return false;
-        }
-        let deviation = (self.bit_rate_hz() - nominal_bit_rate_hz).abs() / nominal_bit_rate_hz;
-        deviation <= self.tolerance()
+        within_tolerance(self.bit_rate_hz(), nominal_bit_rate_hz, self.tolerance())
     }
 }
 
@@ -104,4 +100,14 @@ pub(crate) fn iso_tolerance(sjw: u32, ps1: u32, ps2: u32, nbt: u32) -> f64 {
     let jump = sjw / (20.0 * nbt);
     let phase = ps1.min(ps2) / (2.0 * (13.0 * nbt - ps2));
     jump.min(phase)
+}
+
+/// True when a node's bit rate `rate_hz` is within `tolerance` (relative) of the bus's
+/// `nominal_hz`: `|f_node − f_nominal| / f_nominal ≤ df_max`. A nominal rate that is not a
+/// positive number is never met.
+pub(crate) fn within_tolerance(rate_hz: f64, nominal_hz: f64, tolerance: f64) -> bool {
+    if nominal_hz <= 0.0 || !nominal_hz.is_finite() {
+        return false;
+    }
+    (rate_hz - nominal_hz).abs() / nominal_hz <= tolerance
 }

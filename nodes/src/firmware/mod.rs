@@ -18,5 +18,5 @@ mod node;
 mod spec;
 
 pub use dump::hex;
-pub use node::{CHUNK, CpuTrace, FirmwareNode, RunStats};
+pub use node::{CHUNK, CpuTrace, FirmwareNode};
 pub use spec::{CHIP_WINDOW, ChipSpec, FirmwareSpec, MAX_CLOCK_HZ, MAX_XTAL_HZ, Pin, Reader, load};

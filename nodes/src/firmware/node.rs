@@ -57,8 +57,8 @@ enum Path {
     Here,
     /// From the run ahead, which had got that far.
     Ahead,
-    /// From the run ahead parked in a loop, skipping this many cycles of it.
-    Skipped(u64),
+    /// From the run ahead parked in a loop, skipping whole turns of it.
+    Skipped,
     /// From a copy before the run ahead went past it.
     Back,
 }
@@ -69,17 +69,6 @@ struct Projection {
     actions: Vec<Request>,
     failed: Option<String>,
     path: Path,
-}
-
-/// Counters of how the node spent its time ([`FirmwareNode::stats`]).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
-pub struct RunStats {
-    /// Cycles passed in loops found repeating, without running them.
-    pub skipped_cycles: u64,
-    /// Runs ahead sent back by an input that came first.
-    pub rollbacks: u64,
-    /// Runs ahead started.
-    pub runs_ahead: u64,
 }
 
 /// A firmware node.
@@ -99,7 +88,6 @@ pub struct FirmwareNode {
     /// Error state as last heard, to tell the end of a bus-off recovery.
     state: ErrorState,
     serial: Vec<u8>,
-    stats: RunStats,
     trace: Option<CpuTrace>,
     /// Chunks to run before the next look for a repeating loop, and how many to wait after a
     /// look that finds none: a node that is busy (delay loops count their registers down) pays
@@ -140,7 +128,6 @@ impl FirmwareNode {
             failed: None,
             state: ErrorState::Active,
             serial: Vec::new(),
-            stats: RunStats::default(),
             trace: None,
             look_in: 0,
             look_backoff: 1,
@@ -161,21 +148,6 @@ impl FirmwareNode {
         &self.spec
     }
 
-    /// How it spent its time so far.
-    pub fn stats(&self) -> RunStats {
-        self.stats
-    }
-
-    /// The CPU as of the last input.
-    pub fn cpu(&self) -> &mcs51::Cpu {
-        &self.now.cpu
-    }
-
-    /// The chips as of the last input.
-    pub fn chips(&self) -> impl Iterator<Item = (&super::spec::ChipSpec, &bus::sja1000::Sja1000)> {
-        self.now.board.chips.iter().map(|c| (&c.spec, &c.sja))
-    }
-
     fn time_of(&self, cycle: u64) -> BusTime {
         self.power_on
             .checked_add(self.spec.cycle.saturating_mul(cycle))
@@ -189,7 +161,6 @@ impl FirmwareNode {
     /// Runs ahead from `now` (see the module docs).
     fn run_ahead(&mut self) {
         self.checkpoints.clear();
-        self.stats.runs_ahead += 1;
         if self.failed.is_some() {
             self.ahead = self.now.clone();
             self.stop = Stop::Parked(0);
@@ -242,7 +213,7 @@ impl FirmwareNode {
                 let loops = (n - reached) / period;
                 let mut m = self.ahead.clone();
                 m.cpu.skip_cycles(loops * period);
-                (m, Path::Skipped(loops * period))
+                (m, Path::Skipped)
             }
             _ if n >= reached => (self.ahead.clone(), Path::Ahead),
             _ => {
@@ -283,13 +254,9 @@ impl FirmwareNode {
         }
         let p = self.project(n);
         match p.path {
-            Path::Here => {}
-            Path::Skipped(cycles) => self.stats.skipped_cycles += cycles,
+            Path::Here | Path::Skipped => {}
             Path::Ahead => self.horizon = (self.horizon * 2).min(HORIZON.1),
-            Path::Back => {
-                self.stats.rollbacks += 1;
-                self.horizon = (self.horizon / 2).max(HORIZON.0);
-            }
+            Path::Back => self.horizon = (self.horizon / 2).max(HORIZON.0),
         }
         if let Some(message) = p.failed {
             self.failed = Some(format!("{}: {message}", self.spec.name));
