@@ -73,7 +73,8 @@ fuzz_target!(|input: &[u8]| {
 });
 
 /// Writes the records in their format and reads them back: same entries, times to the
-/// microsecond (both formats write microseconds).
+/// microsecond (both formats write microseconds). The ASC writer takes bus time, which ends at
+/// [`BusTime::NEVER`] (about 61.8 days), so later times come back as that end.
 fn write_back(format: Format, records: &[Record]) {
     let mut out = String::new();
     for r in records {
@@ -91,9 +92,13 @@ fn write_back(format: Format, records: &[Record]) {
     }
     let back = tracefile::read_str(&out, ErrorFrames::Keep).unwrap_or_else(|e| panic!("{e}\n{out}"));
     assert_eq!(back.len(), records.len(), "{out}");
+    let end = match format {
+        Format::Asc => BusTime::NEVER.as_nanos(),
+        Format::Candump => u64::MAX,
+    };
     for (a, b) in records.iter().zip(&back) {
         assert_eq!(a.entry, b.entry, "{out}");
-        assert_eq!(Stamp(a.at.0 / 1000 * 1000), b.at, "{out}");
+        assert_eq!(Stamp(a.at.0.min(end) / 1000 * 1000), b.at, "{out}");
     }
 }
 
