@@ -163,13 +163,14 @@ pub struct CpuState {
 /// A CAN controller's state.
 #[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
 pub struct ChipState {
-    /// The part ("SJA1000").
+    /// The part ("SJA1000", or "AT89C51CC03" for that chip's own controller).
     pub kind: String,
-    /// Where the CPU reaches it.
+    /// Where the CPU reaches it (an SJA1000's window; 0 for SFRs).
     pub base: u16,
-    /// Its register set ("BasicCAN" or "PeliCAN").
+    /// Its register set ("BasicCAN" or "PeliCAN"; "on chip").
     pub mode: String,
-    /// Registers 0–31 as the CPU would read them, as hex.
+    /// Registers as the CPU would read them, as hex: an SJA1000's 0–31, or the SFRs 80h–FFh
+    /// (00 where the controller has none).
     pub registers: String,
     /// Transmit error counter.
     pub tec: u16,

@@ -338,10 +338,15 @@ fn controller(name: &str, spec: &Spec) -> crate::Result<ControllerConfig> {
             Address::MONITOR,
         )])),
         // Its controller is the chip's: it filters itself, and leaves bus off when the firmware
-        // says so.
-        Spec::Firmware(_) => {
+        // says so (an SJA1000) or by itself (the AT89C51CC03's).
+        Spec::Firmware(f) => {
+            let recovery = if f.chips.iter().any(|c| c.recovers_by_itself()) {
+                bus::engine::Recovery::Automatic
+            } else {
+                bus::engine::Recovery::OnRequest
+            };
             return Ok(ControllerConfig {
-                recovery: bus::engine::Recovery::OnRequest,
+                recovery,
                 ..ControllerConfig::named(name).with_filter(Filter::All)
             });
         }
@@ -461,7 +466,9 @@ fn build(
             Box::new(Monitor::with_display(h.config.monitor.clone(), display, power_on))
         }
         Spec::Firmware(spec) => {
-            let mut node = FirmwareNode::new(spec.clone(), power_on, f64::from(h.config.bitrate));
+            let env: SharedEnv = plant.clone();
+            let mut node =
+                FirmwareNode::new(spec.clone(), power_on, f64::from(h.config.bitrate)).with_plant(env);
             if let Some(t) = cpu_trace.filter(|t| t.node == spec.name) {
                 let out = t.out.clone();
                 node.trace_cpu(nodes::firmware::CpuTrace {

@@ -124,6 +124,10 @@ pub trait Xdata {
     fn sfr_write(&mut self, _addr: u8, _value: u8) -> bool {
         false
     }
+    /// The oscillator clocks ([`Cpu::clocks`]) at the moment of the hooked SFR access that
+    /// follows, told before every [`Xdata::sfr_read`] and [`Xdata::sfr_write`]: a peripheral
+    /// with a timer of its own brings it up to date.
+    fn sfr_clock(&mut self, _clocks: u64) {}
     /// Interrupt requests of outside sources, as [`irq`] bits (level-sensitive). The core
     /// reads it when [`Cpu::step`] or [`Cpu::run`] starts and after every MOVX or hooked SFR
     /// access, so a peripheral's request may change only then (or between calls).

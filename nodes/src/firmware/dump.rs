@@ -1,6 +1,6 @@
 //! A machine's state as `harvemu run --dump-state` writes it.
 
-use super::machine::Machine;
+use super::machine::{Chip, Machine};
 use bus::fault::ErrorState;
 use bus::node::{ChipState, CpuState, HardwareState};
 use bus::sja1000::Mode;
@@ -12,33 +12,7 @@ pub fn hex(bytes: &[u8]) -> String {
 
 /// The dump of `m`.
 pub(crate) fn state(m: &Machine) -> HardwareState {
-    let controllers = m
-        .board
-        .chips
-        .iter()
-        .map(|c| {
-            let registers: Vec<u8> = (0..32).map(|r| c.sja.peek(r)).collect();
-            let (tec, rec, state) = c.sja.error_counters();
-            ChipState {
-                kind: "SJA1000".into(),
-                base: c.spec.base,
-                mode: match c.sja.mode() {
-                    Mode::BasicCan => "BasicCAN",
-                    Mode::PeliCan => "PeliCAN",
-                }
-                .into(),
-                registers: hex(&registers),
-                tec,
-                rec,
-                state: match state {
-                    ErrorState::Active => "active",
-                    ErrorState::Passive => "passive",
-                    ErrorState::BusOff => "bus-off",
-                }
-                .into(),
-            }
-        })
-        .collect();
+    let controllers = m.board.chips.iter().map(chip).collect();
     HardwareState {
         cpu: CpuState {
             pc: m.cpu.pc(),
@@ -47,5 +21,37 @@ pub(crate) fn state(m: &Machine) -> HardwareState {
             sfr: hex(&m.cpu.sfr()),
         },
         controllers,
+    }
+}
+
+fn chip(c: &Chip) -> ChipState {
+    let (kind, base, mode, registers, (tec, rec, state)) = match c {
+        Chip::Sja { base, sja, .. } => {
+            let registers: Vec<u8> = (0..32).map(|r| sja.peek(r)).collect();
+            let mode = match sja.mode() {
+                Mode::BasicCan => "BasicCAN",
+                Mode::PeliCan => "PeliCAN",
+            };
+            ("SJA1000", *base, mode, registers, sja.error_counters())
+        }
+        // The SFRs 80h–FFh as the CPU would read them (00 where the controller has none).
+        Chip::OnChip(can) => {
+            let registers: Vec<u8> = (0x80..=0xFF).map(|a| can.sfr_peek(a).unwrap_or(0)).collect();
+            ("AT89C51CC03", 0, "on chip", registers, can.error_counters())
+        }
+    };
+    ChipState {
+        kind: kind.into(),
+        base,
+        mode: mode.into(),
+        registers: hex(&registers),
+        tec,
+        rec,
+        state: match state {
+            ErrorState::Active => "active",
+            ErrorState::Passive => "passive",
+            ErrorState::BusOff => "bus-off",
+        }
+        .into(),
     }
 }

@@ -1,49 +1,112 @@
-//! One firmware node's hardware: the CPU and the CAN controllers in its external data space,
-//! wired together (MOVX windows, interrupt pins). Deterministic: the same inputs at the same
-//! cycles give the same state.
+//! One firmware node's hardware: the CPU and its CAN controller (an SJA1000 in its external data
+//! space, or the AT89C51CC03's own behind its SFRs), wired together (MOVX windows, SFRs,
+//! interrupt pins and sources). Deterministic: the same inputs at the same oscillator clocks
+//! give the same state.
 
 use super::spec::{CHIP_WINDOW, ChipSpec, FirmwareSpec};
-use bus::sja1000::{Action, BitTiming, BusSide, Sja1000};
+use bus::at89c51cc::CanController;
+use bus::sja1000::{Action, BusSide, Sja1000};
 use mcs51::{Cpu, RunEnd, Xdata};
 
-/// An SJA1000 where the CPU reaches it.
+/// A CAN controller where the CPU reaches it.
 #[derive(Clone, Debug, PartialEq)]
-pub(crate) struct Chip {
-    pub spec: ChipSpec,
-    pub sja: Sja1000,
+pub(crate) enum Chip {
+    /// An SJA1000 at `base` in external data space.
+    Sja {
+        base: u16,
+        irq: Option<super::Pin>,
+        sja: Sja1000,
+    },
+    /// The AT89C51CC03's controller, behind SFRs.
+    OnChip(CanController),
 }
 
-/// A chip's request, with its bit timing when it made it (which decides whether it can read the
-/// bus when it joins it).
-pub(crate) type Request = (Action, BitTiming);
+impl Chip {
+    fn new(spec: &ChipSpec, clock_hz: u64) -> Chip {
+        match *spec {
+            ChipSpec::Sja1000 { base, xtal_hz, irq } => Chip::Sja {
+                base,
+                irq,
+                sja: Sja1000::new(xtal_hz),
+            },
+            // F_CAN is the peripheral clock, F_OSC / 2 (X1 mode, as after reset).
+            ChipSpec::OnChip => Chip::OnChip(CanController::new(clock_hz / 2)),
+        }
+    }
 
-/// The CPU's external data space: the chips, and what they asked of the bus since the CPU last
+    /// Whether its timing samples a bus of `bitrate_hz` correctly.
+    fn tuned(&self, bitrate_hz: f64) -> bool {
+        match self {
+            Chip::Sja { sja, .. } => sja.bit_timing().samples_correctly(bitrate_hz),
+            Chip::OnChip(can) => can.bit_timing().samples_correctly(bitrate_hz),
+        }
+    }
+
+    fn take_actions(&mut self, bitrate_hz: f64, into: &mut Vec<Request>) {
+        let tuned = self.tuned(bitrate_hz);
+        match self {
+            Chip::Sja { sja, .. } => into.extend(sja.take_actions().map(|a| (a, tuned))),
+            Chip::OnChip(can) => into.extend(can.take_actions().map(|a| (a, tuned))),
+        }
+    }
+
+    /// Its interrupt output: the SJA1000's INT (active), the on-chip controller's CAN request.
+    fn int_active(&self) -> bool {
+        match self {
+            Chip::Sja { sja, .. } => sja.int_active(),
+            Chip::OnChip(can) => can.interrupt() || can.timer_interrupt(),
+        }
+    }
+
+    fn on_event(&mut self, event: BusSide) {
+        match self {
+            Chip::Sja { sja, .. } => sja.on_event(event),
+            Chip::OnChip(can) => can.on_event(event),
+        }
+    }
+}
+
+/// A chip's request, with whether its bit timing read the bus correctly when it made it (which
+/// decides whether it can read the bus when it joins it).
+pub(crate) type Request = (Action, bool);
+
+/// The CPU's surroundings: the chips, and what they asked of the bus since the CPU last
 /// stopped.
 #[derive(Clone, Debug, PartialEq)]
 pub(crate) struct Board {
     pub chips: Vec<Chip>,
     pub actions: Vec<Request>,
+    /// The bus's bit rate, to tell whether a controller's timing reads it.
+    bitrate_hz: f64,
     /// Something the CPU must see before it goes on: a chip asked for the bus or moved its
     /// interrupt output.
     stop: bool,
 }
 
 impl Board {
-    /// The chip whose window holds `addr`, and the register address it sees there.
+    /// The SJA1000 whose window holds `addr`, and the register address it sees there.
     fn decode(&self, addr: u16) -> Option<(usize, u8)> {
         self.chips.iter().enumerate().find_map(|(i, c)| {
-            let offset = u32::from(addr).checked_sub(u32::from(c.spec.base))?;
+            let Chip::Sja { base, .. } = c else {
+                return None;
+            };
+            let offset = u32::from(addr).checked_sub(u32::from(*base))?;
             (offset < CHIP_WINDOW).then_some((i, offset as u8))
+        })
+    }
+
+    fn on_chip(&mut self) -> Option<(usize, &mut CanController)> {
+        self.chips.iter_mut().enumerate().find_map(|(i, c)| match c {
+            Chip::OnChip(can) => Some((i, can)),
+            Chip::Sja { .. } => None,
         })
     }
 
     /// Collects chip `i`'s actions and notes a change of its interrupt output.
     fn after(&mut self, i: usize, int_before: bool) {
-        let chip = &mut self.chips[i];
         let before = self.actions.len();
-        let timing = chip.sja.bit_timing();
-        self.actions.extend(chip.sja.take_actions().map(|a| (a, timing)));
-        self.stop |= self.actions.len() > before || chip.sja.int_active() != int_before;
+        self.chips[i].take_actions(self.bitrate_hz, &mut self.actions);
+        self.stop |= self.actions.len() > before || self.chips[i].int_active() != int_before;
     }
 }
 
@@ -53,8 +116,11 @@ impl Xdata for Board {
         let Some((i, offset)) = self.decode(addr) else {
             return 0xFF;
         };
-        let int = self.chips[i].sja.int_active();
-        let value = self.chips[i].sja.read(offset);
+        let int = self.chips[i].int_active();
+        let value = match &mut self.chips[i] {
+            Chip::Sja { sja, .. } => sja.read(offset),
+            Chip::OnChip(_) => 0xFF,
+        };
         self.after(i, int);
         value
     }
@@ -62,8 +128,10 @@ impl Xdata for Board {
     /// A write no chip decodes does nothing.
     fn write(&mut self, addr: u16, value: u8) {
         if let Some((i, offset)) = self.decode(addr) {
-            let int = self.chips[i].sja.int_active();
-            self.chips[i].sja.write(offset, value);
+            let int = self.chips[i].int_active();
+            if let Chip::Sja { sja, .. } = &mut self.chips[i] {
+                sja.write(offset, value);
+            }
             self.after(i, int);
         }
     }
@@ -71,13 +139,55 @@ impl Xdata for Board {
     fn wants_stop(&self) -> bool {
         self.stop
     }
+
+    fn sfr_read(&mut self, addr: u8) -> Option<u8> {
+        let (i, can) = self.on_chip()?;
+        let int = can.interrupt() || can.timer_interrupt();
+        let value = can.sfr_read(addr)?;
+        self.after(i, int);
+        Some(value)
+    }
+
+    fn sfr_write(&mut self, addr: u8, value: u8) -> bool {
+        let Some((i, can)) = self.on_chip() else {
+            return false;
+        };
+        let int = can.interrupt() || can.timer_interrupt();
+        if !can.sfr_write(addr, value) {
+            return false;
+        }
+        self.after(i, int);
+        true
+    }
+
+    /// F_CAN = F_OSC / 2: the CAN timer and time stamps follow the CPU's clock.
+    fn sfr_clock(&mut self, clocks: u64) {
+        if let Some((_, can)) = self.on_chip() {
+            can.set_time(clocks / 2);
+        }
+    }
+
+    fn irq(&self) -> u8 {
+        self.chips.iter().fold(0, |bits, c| match c {
+            Chip::OnChip(can) => {
+                bits | if can.interrupt() { mcs51::irq::CAN } else { 0 }
+                    | if can.timer_interrupt() {
+                        mcs51::irq::CAN_TIMER
+                    } else {
+                        0
+                    }
+            }
+            Chip::Sja { .. } => bits,
+        })
+    }
 }
 
-/// A write of the CPU to a chip's register: the cycle after the instruction, the chip's base,
-/// the register and the value.
+/// A write of the CPU to a chip's register: the oscillator clock after the instruction, the
+/// chip's base (0 for SFRs), the register and the value.
 pub(crate) type Write = (u64, u16, u8, u8);
 
-/// The CPU and its board.
+/// The CPU and its board. Its time is the CPU's oscillator clocks ([`Cpu::clocks`]): a machine
+/// cycle is 12 of them, or 6 in the AT89C51CC03's X2 mode.
 #[derive(Clone, Debug)]
 pub(crate) struct Machine {
     pub cpu: Cpu,
@@ -89,22 +199,16 @@ pub(crate) struct Machine {
 impl Machine {
     /// The hardware at power-on: the CPU at reset with the image, at its entry point; the chips
     /// at hardware reset.
-    pub fn new(spec: &FirmwareSpec) -> Machine {
+    pub fn new(spec: &FirmwareSpec, bitrate_hz: f64) -> Machine {
         let mut cpu = Cpu::new(spec.variant, &spec.image);
         cpu.set_pc(spec.entry);
-        let chips = spec
-            .chips
-            .iter()
-            .map(|&c| Chip {
-                spec: c,
-                sja: Sja1000::new(c.xtal_hz),
-            })
-            .collect();
+        let chips = spec.chips.iter().map(|c| Chip::new(c, spec.clock_hz)).collect();
         let mut m = Machine {
             cpu,
             board: Board {
                 chips,
                 actions: Vec::new(),
+                bitrate_hz,
                 stop: false,
             },
             writes: None,
@@ -113,32 +217,63 @@ impl Machine {
         m
     }
 
-    /// The same state, the cycle count aside: a loop that comes back to it repeats for ever
+    /// Oscillator clocks since power-on.
+    pub fn clocks(&self) -> u64 {
+        self.cpu.clocks()
+    }
+
+    /// The same state, the clock count aside: a loop that comes back to it repeats for ever
     /// until an input changes something.
     pub fn same_state(&self, other: &Machine) -> bool {
         self.cpu.same_state(&other.cpu) && self.board == other.board
     }
 
-    /// Drives the interrupt pins from the chips' INT outputs (active low).
+    /// Moves the clock count on by `clocks` without executing anything: only for a machine in a
+    /// loop whose whole state repeats (see [`Machine::same_state`]).
+    pub fn skip_clocks(&mut self, clocks: u64) {
+        let cycles = clocks / self.cpu.clocks_per_cycle();
+        self.cpu.skip_cycles(cycles);
+    }
+
+    /// Drives the interrupt pins from the SJA1000s' INT outputs (active low), and tells the
+    /// on-chip controller the time.
     fn sync_pins(&mut self) {
-        for c in &self.board.chips {
-            if let Some(pin) = c.spec.irq {
-                let (port, bit) = pin.port_bit();
-                self.cpu.set_pin(port, bit, !c.sja.int_active());
+        let clocks = self.cpu.clocks();
+        for c in &mut self.board.chips {
+            match c {
+                Chip::Sja {
+                    irq: Some(pin), sja, ..
+                } => {
+                    let (port, bit) = pin.port_bit();
+                    self.cpu.set_pin(port, bit, !sja.int_active());
+                }
+                Chip::Sja { irq: None, .. } => {}
+                // F_CAN = F_OSC / 2.
+                Chip::OnChip(can) => can.set_time(clocks / 2),
             }
         }
         self.board.stop = false;
     }
 
-    /// Runs until the cycle count reaches `until` or a chip asks the bus for something (then
+    /// Logs a register write of the last instruction, when writes are logged.
+    fn log(&mut self, access: Option<(u16, u8)>) {
+        if let (Some((addr, value)), Some(log)) = (access, &mut self.writes)
+            && let Some((i, register)) = self.board.decode(addr)
+            && let Chip::Sja { base, .. } = &self.board.chips[i]
+        {
+            log.push((self.cpu.clocks(), *base, register, value));
+        }
+    }
+
+    /// Runs until the clock count reaches `until` or a chip asks the bus for something (then
     /// [`Machine::take_actions`] has it). Interrupt pins follow the chips as the CPU goes.
     pub fn run(&mut self, until: u64) -> Result<(), mcs51::Error> {
-        while self.cpu.cycles() < until {
-            let end = self.cpu.run(&mut self.board, until)?;
-            if let (RunEnd::XdataWrite { addr, value }, Some(log)) = (end, &mut self.writes)
-                && let Some((i, register)) = self.board.decode(addr)
-            {
-                log.push((self.cpu.cycles(), self.board.chips[i].spec.base, register, value));
+        while self.cpu.clocks() < until {
+            let per = self.cpu.clocks_per_cycle();
+            let target = self.cpu.cycles() + (until - self.cpu.clocks()).div_ceil(per);
+            let end = self.cpu.run(&mut self.board, target)?;
+            if let RunEnd::XdataWrite { addr, value } = end {
+                self.log(Some((addr, value)));
             }
             if self.board.stop {
                 self.sync_pins();
@@ -156,10 +291,8 @@ impl Machine {
     /// Executes one instruction (or enters an interrupt), as [`Machine::run`] would.
     pub fn step(&mut self) -> Result<mcs51::Step, mcs51::Error> {
         let step = self.cpu.step(&mut self.board)?;
-        if let (Some(mcs51::XAccess::Write { addr, value }), Some(log)) = (step.xdata, &mut self.writes)
-            && let Some((i, register)) = self.board.decode(addr)
-        {
-            log.push((self.cpu.cycles(), self.board.chips[i].spec.base, register, value));
+        if let Some(mcs51::XAccess::Write { addr, value }) = step.xdata {
+            self.log(Some((addr, value)));
         }
         if self.board.stop {
             self.sync_pins();
@@ -169,12 +302,10 @@ impl Machine {
 
     /// What the bus did for chip `i`.
     pub fn input(&mut self, i: usize, event: BusSide) {
+        self.sync_pins();
         if let Some(chip) = self.board.chips.get_mut(i) {
-            chip.sja.on_event(event);
-            let timing = chip.sja.bit_timing();
-            self.board
-                .actions
-                .extend(chip.sja.take_actions().map(|a| (a, timing)));
+            chip.on_event(event);
+            chip.take_actions(self.board.bitrate_hz, &mut self.board.actions);
         }
         self.sync_pins();
     }

@@ -16,7 +16,11 @@ mod dump;
 mod machine;
 mod node;
 mod spec;
+mod wiring;
 
 pub use dump::hex;
 pub use node::{CHUNK, CpuTrace, FirmwareNode};
-pub use spec::{CHIP_WINDOW, ChipSpec, FirmwareSpec, MAX_CLOCK_HZ, MAX_XTAL_HZ, Pin, Reader, load};
+pub use spec::{
+    AnalogWire, CHIP_WINDOW, ChipSpec, Direction, FirmwareSpec, MAX_CLOCK_HZ, MAX_VREF_MV, MAX_XTAL_HZ, Pin,
+    PinWire, Reader, load,
+};

@@ -1,39 +1,50 @@
-//! [`FirmwareNode`]: a firmware image as a node's logic, in machine cycles.
+//! [`FirmwareNode`]: a firmware image as a node's logic, in oscillator clocks.
 //!
-//! Time: machine cycle `c` after power-on is bus time `power_on + c · cycle`, exactly (the
-//! clock's period is a whole number of bus-clock ticks). The CPU runs ahead of the bus
+//! Time: oscillator clock `c` after power-on is bus time `power_on + c · period`, exactly (the
+//! clock's period is a whole number of bus-clock ticks); a machine cycle is 12 clocks, or 6 in
+//! the AT89C51CC03's X2 mode. The CPU runs ahead of the bus
 //! optimistically: after every input it runs on from the present, keeping a copy of its state
-//! every [`CHUNK`] cycles or more (about sixteen copies a run), until a chip asks the bus for something (a transmit request, a mode
+//! every [`CHUNK`] clocks or more (about sixteen copies a run), until a chip asks the bus for something (a transmit request, a mode
 //! change), until a horizon, or until it is found in a loop whose whole state repeats. It asks
 //! to be woken when it stopped. An input that arrives before that moment (a frame, a
 //! confirmation) sends it back to the last copy before the input, from where it runs to the
 //! input's moment again: so it never acts on what it could not yet have read, and a run is the
 //! same every time.
 //!
-//! A loop whose whole state (CPU, internal RAM, SFRs, the chips) comes back after `P` cycles
+//! A loop whose whole state (CPU, internal RAM, SFRs, the chips) comes back after `P` clocks
 //! changes nothing until an input arrives: such a node asks for no wake at all, and an input
-//! at cycle `n` finds it where `n − c₀` mod `P` cycles into the loop puts it.
+//! at clock `n` finds it where `n − c₀` mod `P` clocks into the loop puts it.
+//!
+//! Plant wiring: a node whose ADC channels or port pins are wired to the plant reads them when
+//! an input arrives and at least every [`SAMPLE_MS`] ms (it asks to be woken for it), and
+//! between those moments sees them unchanged; its output pins reach the plant at the same
+//! moments.
 
 use super::machine::{Machine, Request};
 use super::spec::FirmwareSpec;
+use super::wiring::Wiring;
+use crate::script::SharedEnv;
 use bus::Frame;
 use bus::fault::ErrorState;
 use bus::node::{ControllerCommand, ControllerEvent, HardwareState, NodeLogic};
 use bus::sja1000::{Action, BusSide, ecc_segment};
-use bus::time::BusTime;
+use bus::time::{BusDuration, BusTime};
 use std::collections::VecDeque;
 use std::sync::Arc;
 
-/// Fewest cycles between kept copies of a run ahead; a long run ahead keeps about sixteen.
-pub const CHUNK: u64 = 1000;
+/// Fewest oscillator clocks between kept copies of a run ahead (1000 machine cycles); a long
+/// run ahead keeps about sixteen.
+pub const CHUNK: u64 = 12_000;
+/// Longest stretch of bus time a node wired to the plant goes without reading it, ms.
+pub const SAMPLE_MS: u64 = 1;
 /// Copies kept of a run ahead at its longest horizon.
 const COPIES: u64 = 16;
 /// Most chunks between two looks for a loop whose state repeats, when looks keep finding none.
 const LOOK_BACKOFF: u32 = 64;
-/// The shortest and longest horizon of a run ahead, cycles: it doubles while runs ahead are
-/// not cut short by an input and halves when they are, so a node that hears frames often
-/// wastes little and a quiet one is seldom woken.
-const HORIZON: (u64, u64) = (1_000, 64_000);
+/// The shortest and longest horizon of a run ahead, oscillator clocks (1000 and 64 000 machine
+/// cycles): it doubles while runs ahead are not cut short by an input and halves when they
+/// are, so a node that hears frames often wastes little and a quiet one is seldom woken.
+const HORIZON: (u64, u64) = (12_000, 768_000);
 /// Instructions watched at the start of every chunk for a loop whose state repeats.
 const LOOP_WATCH: usize = 64;
 
@@ -44,13 +55,13 @@ enum Stop {
     Actions,
     /// The horizon.
     Horizon,
-    /// In a loop of this many cycles that changes nothing.
+    /// In a loop of this many clocks that changes nothing.
     Parked(u64),
     /// The CPU stopped with this fault.
     Failed(String),
 }
 
-/// How [`FirmwareNode::project`] reached a cycle.
+/// How [`FirmwareNode::project`] reached a clock.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Path {
     /// It was there already.
@@ -63,7 +74,7 @@ enum Path {
     Back,
 }
 
-/// The machine at some cycle, and how it got there.
+/// The machine at some clock, and how it got there.
 struct Projection {
     machine: Machine,
     actions: Vec<Request>,
@@ -75,7 +86,6 @@ struct Projection {
 pub struct FirmwareNode {
     spec: Arc<FirmwareSpec>,
     power_on: BusTime,
-    bitrate_hz: f64,
     /// The hardware as of the last input.
     now: Machine,
     /// Copies of the run ahead from `now` on, oldest first; the run ahead; how it ended.
@@ -94,6 +104,9 @@ pub struct FirmwareNode {
     /// for a look seldom, one that idles is found at once.
     look_in: u32,
     look_backoff: u32,
+    /// The plant, when its signals are wired to the node, and the next time to read them.
+    wiring: Option<Wiring>,
+    next_sample: BusTime,
 }
 
 /// An instruction trace of one node over a window of bus time: each instruction that starts in
@@ -110,7 +123,7 @@ pub struct CpuTrace {
 impl FirmwareNode {
     /// The node powered on at `power_on` on a bus of `bitrate_hz`: CPU and chips at reset.
     pub fn new(spec: Arc<FirmwareSpec>, power_on: BusTime, bitrate_hz: f64) -> FirmwareNode {
-        let mut now = Machine::new(&spec);
+        let mut now = Machine::new(&spec, bitrate_hz);
         if tracing::enabled!(tracing::Level::DEBUG) {
             now.writes = Some(Vec::new());
         }
@@ -119,7 +132,6 @@ impl FirmwareNode {
             now,
             spec,
             power_on,
-            bitrate_hz,
             checkpoints: Vec::new(),
             stop: Stop::Horizon,
             horizon: HORIZON.0,
@@ -131,9 +143,36 @@ impl FirmwareNode {
             trace: None,
             look_in: 0,
             look_backoff: 1,
+            wiring: None,
+            next_sample: power_on,
         };
         node.run_ahead();
         node
+    }
+
+    /// Wires the node's ADC channels and port pins to the plant (when its file wires any): it
+    /// reads them now and then at least every [`SAMPLE_MS`] ms of bus time.
+    pub fn with_plant(mut self, env: SharedEnv) -> FirmwareNode {
+        if self.spec.analog.is_empty() && self.spec.pins.is_empty() {
+            return self;
+        }
+        self.wiring = Some(Wiring::new(env, &self.spec));
+        let at = self.power_on;
+        self.sample(at);
+        self.run_ahead();
+        self
+    }
+
+    /// Reads the plant into `now` when it is time.
+    fn sample(&mut self, at: BusTime) {
+        let Some(w) = self.wiring.as_mut() else {
+            return;
+        };
+        if at < self.next_sample {
+            return;
+        }
+        w.sample(&self.spec, &mut self.now, at);
+        self.next_sample = at.saturating_add(BusDuration::from_millis(SAMPLE_MS));
     }
 
     /// Traces the instructions it executes from now on within `trace`'s window: bus time, cycle
@@ -148,14 +187,14 @@ impl FirmwareNode {
         &self.spec
     }
 
-    fn time_of(&self, cycle: u64) -> BusTime {
+    fn time_of(&self, clock: u64) -> BusTime {
         self.power_on
-            .checked_add(self.spec.cycle.saturating_mul(cycle))
+            .checked_add(self.spec.clock.saturating_mul(clock))
             .unwrap_or(BusTime::NEVER)
     }
 
-    fn cycle_at(&self, t: BusTime) -> u64 {
-        t.since(self.power_on).as_ticks() / self.spec.cycle.as_ticks().max(1)
+    fn clock_at(&self, t: BusTime) -> u64 {
+        t.since(self.power_on).as_ticks() / self.spec.clock.as_ticks().max(1)
     }
 
     /// Runs ahead from `now` (see the module docs).
@@ -167,7 +206,7 @@ impl FirmwareNode {
             return;
         }
         let mut m = self.now.clone();
-        let limit = m.cpu.cycles().saturating_add(self.horizon);
+        let limit = m.clocks().saturating_add(self.horizon);
         let chunk = (self.horizon / COPIES).max(CHUNK);
         // An input may have moved the firmware on to a loop that waits: look at once.
         self.look_in = 0;
@@ -188,31 +227,31 @@ impl FirmwareNode {
                 }
             }
             self.look_in = self.look_in.saturating_sub(1);
-            let target = m.cpu.cycles().saturating_add(chunk).min(limit);
+            let target = m.clocks().saturating_add(chunk).min(limit);
             if let Err(e) = m.run(target) {
                 break Stop::Failed(e.to_string());
             }
             if !m.board.actions.is_empty() {
                 break Stop::Actions;
             }
-            if m.cpu.cycles() >= limit {
+            if m.clocks() >= limit {
                 break Stop::Horizon;
             }
         };
         self.ahead = m;
     }
 
-    /// The machine at cycle `n` (not before `now`), found from the run ahead where it holds,
+    /// The machine at clock `n` (not before `now`), found from the run ahead where it holds,
     /// without changing anything: what it asked of the bus on the way, and a fault if it hit
     /// one.
     fn project(&self, n: u64) -> Projection {
-        let reached = self.ahead.cpu.cycles();
+        let reached = self.ahead.clocks();
         let (mut machine, path) = match self.stop {
-            _ if n <= self.now.cpu.cycles() => (self.now.clone(), Path::Here),
+            _ if n <= self.now.clocks() => (self.now.clone(), Path::Here),
             Stop::Parked(period) if n >= reached && period > 0 => {
                 let loops = (n - reached) / period;
                 let mut m = self.ahead.clone();
-                m.cpu.skip_cycles(loops * period);
+                m.skip_clocks(loops * period);
                 (m, Path::Skipped)
             }
             _ if n >= reached => (self.ahead.clone(), Path::Ahead),
@@ -220,7 +259,7 @@ impl FirmwareNode {
                 // An input came first: back to the last copy before it.
                 let i = self
                     .checkpoints
-                    .partition_point(|c| c.cpu.cycles() <= n)
+                    .partition_point(|c| c.clocks() <= n)
                     .saturating_sub(1);
                 (self.checkpoints.get(i).unwrap_or(&self.now).clone(), Path::Back)
             }
@@ -230,7 +269,7 @@ impl FirmwareNode {
             _ => None,
         };
         let mut actions = machine.take_actions();
-        while machine.cpu.cycles() < n && failed.is_none() {
+        while machine.clocks() < n && failed.is_none() {
             if let Err(e) = machine.run(n) {
                 failed = Some(e.to_string());
             }
@@ -244,7 +283,7 @@ impl FirmwareNode {
         }
     }
 
-    /// Brings `now` to cycle `n`.
+    /// Brings `now` to clock `n`.
     fn advance_to(&mut self, n: u64) {
         if self.failed.is_some() {
             return;
@@ -267,16 +306,16 @@ impl FirmwareNode {
         self.log_writes();
     }
 
-    /// The last cycle before `n` to trace instruction by instruction, when the trace window
+    /// The last clock before `n` to trace instruction by instruction, when the trace window
     /// meets the stretch from `now` to `n`.
     fn traced_until(&self, n: u64) -> Option<u64> {
         let t = self.trace.as_ref()?;
-        let start = self.now.cpu.cycles();
-        let (from, to) = (self.cycle_at(t.from), self.cycle_at(t.to));
+        let start = self.now.clocks();
+        let (from, to) = (self.clock_at(t.from), self.clock_at(t.to));
         (start < n && start <= to && n > from).then(|| n.min(to.saturating_add(1)))
     }
 
-    /// Steps `now` to cycle `last`, tracing the instructions in the window: the same path as
+    /// Steps `now` to clock `last`, tracing the instructions in the window: the same path as
     /// [`FirmwareNode::project`] takes, one instruction at a time.
     fn step_traced(&mut self, last: u64) {
         let Some(mut trace) = self.trace.take() else {
@@ -285,8 +324,8 @@ impl FirmwareNode {
         let code = &self.spec.image.code;
         let mut m = self.now.clone();
         let mut actions = Vec::new();
-        while m.cpu.cycles() < last {
-            let (pc, start) = (m.cpu.pc(), m.cpu.cycles());
+        while m.clocks() < last {
+            let (pc, start, clock) = (m.cpu.pc(), m.cpu.cycles(), m.clocks());
             let step = match m.step() {
                 Ok(step) => step,
                 Err(e) => {
@@ -295,7 +334,7 @@ impl FirmwareNode {
                 }
             };
             actions.extend(m.take_actions());
-            let at = self.time_of(start);
+            let at = self.time_of(clock);
             if at < trace.from || at > trace.to {
                 continue;
             }
@@ -338,8 +377,8 @@ impl FirmwareNode {
         let Some(log) = self.now.writes.as_mut() else {
             return;
         };
-        for (cycle, base, register, value) in std::mem::take(log) {
-            let at = self.time_of(cycle);
+        for (clock, base, register, value) in std::mem::take(log) {
+            let at = self.time_of(clock);
             tracing::debug!(
                 node = %self.spec.name,
                 at = %at,
@@ -350,8 +389,7 @@ impl FirmwareNode {
 
     /// Turns chip requests into controller commands.
     fn command(&mut self, actions: Vec<Request>) {
-        for (a, timing) in actions {
-            let tuned = timing.samples_correctly(self.bitrate_hz);
+        for (a, tuned) in actions {
             match a {
                 Action::Online { listen_only, .. } => {
                     self.commands.push_back(ControllerCommand::Tuned(tuned));
@@ -388,8 +426,9 @@ impl FirmwareNode {
 
     /// An input for chip 0 at `at`.
     fn input(&mut self, at: BusTime, events: &[BusSide]) {
-        let n = self.cycle_at(at);
+        let n = self.clock_at(at);
         self.advance_to(n);
+        self.sample(at);
         for &e in events {
             self.now.input(0, e);
         }
@@ -400,7 +439,7 @@ impl FirmwareNode {
 }
 
 /// Watches the first instructions of a chunk for a loop whose whole state repeats: the loop's
-/// length in cycles, with `m` one loop further on; `None` (with `m` moved on as far as it ran)
+/// length in clocks, with `m` one loop further on; `None` (with `m` moved on as far as it ran)
 /// if none was seen or a chip asked for the bus.
 fn find_loop(m: &mut Machine) -> Result<Option<u64>, mcs51::Error> {
     let head = m.clone();
@@ -410,7 +449,7 @@ fn find_loop(m: &mut Machine) -> Result<Option<u64>, mcs51::Error> {
             return Ok(None);
         }
         if m.cpu.pc() == head.cpu.pc() && m.same_state(&head) {
-            return Ok(Some(m.cpu.cycles() - head.cpu.cycles()));
+            return Ok(Some(m.clocks() - head.clocks()));
         }
     }
     Ok(None)
@@ -474,9 +513,14 @@ impl NodeLogic for FirmwareNode {
     }
 
     fn poll_timeout(&self) -> Option<BusTime> {
-        match self.stop {
+        let ahead = match self.stop {
             Stop::Parked(_) => None,
-            _ => Some(self.time_of(self.ahead.cpu.cycles())),
+            _ => Some(self.time_of(self.ahead.clocks())),
+        };
+        let sample = self.wiring.as_ref().map(|_| self.next_sample);
+        match (ahead, sample) {
+            (Some(a), Some(s)) => Some(a.min(s)),
+            (a, s) => a.or(s),
         }
     }
 
@@ -489,7 +533,7 @@ impl NodeLogic for FirmwareNode {
     }
 
     fn hardware(&self, at: BusTime) -> Option<HardwareState> {
-        Some(super::dump::state(&self.project(self.cycle_at(at)).machine))
+        Some(super::dump::state(&self.project(self.clock_at(at)).machine))
     }
 }
 

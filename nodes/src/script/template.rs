@@ -478,7 +478,7 @@ fn offset_of(text: &str, line: usize, col: usize) -> usize {
 }
 
 /// The 1-based line and character column of a byte offset.
-fn position_of(text: &str, offset: usize) -> (usize, usize) {
+pub(crate) fn position_of(text: &str, offset: usize) -> (usize, usize) {
     let mut offset = offset.min(text.len());
     while !text.is_char_boundary(offset) {
         offset -= 1;

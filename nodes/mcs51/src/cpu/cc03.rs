@@ -118,6 +118,12 @@ impl Cpu {
         clocks + (self.cycles - cycles) * self.clocks_per_cycle()
     }
 
+    /// Oscillator clocks at machine cycle `cycle` (not before the last X2 switch).
+    pub(crate) fn clocks_at(&self, cycle: u64) -> u64 {
+        let (cycles, clocks) = self.clock_base;
+        clocks + cycle.saturating_sub(cycles) * self.clocks_per_cycle()
+    }
+
     /// How many times the watchdog has reset the core.
     pub fn watchdog_resets(&self) -> u64 {
         self.wdt_resets

@@ -400,6 +400,7 @@ impl Cpu {
     pub(crate) fn read_sfr(&mut self, x: &mut dyn Xdata, addr: u8, pins: bool) -> u8 {
         let i = (addr - 0x80) as usize;
         if !self.own[i] {
+            x.sfr_clock(self.clocks_at(self.effect_at));
             let v = x.sfr_read(addr);
             self.hooked = true;
             self.ext_irq = x.irq();
@@ -418,6 +419,7 @@ impl Cpu {
     pub(crate) fn write_sfr(&mut self, x: &mut dyn Xdata, addr: u8, v: u8) {
         let i = (addr - 0x80) as usize;
         if !self.own[i] {
+            x.sfr_clock(self.clocks_at(self.effect_at));
             x.sfr_write(addr, v);
             self.hooked = true;
             self.ext_irq = x.irq();

@@ -1,0 +1,58 @@
+//! A firmware node's wires to the plant: ADC channels and input pins read plant signals, output
+//! pins drive plant inputs. Sampled at moments the node chooses (see the node's docs).
+
+use super::machine::Machine;
+use super::spec::{Direction, FirmwareSpec};
+use crate::script::SharedEnv;
+use bus::time::BusTime;
+
+/// The plant and what was last written to it.
+pub(crate) struct Wiring {
+    env: SharedEnv,
+    /// The value last written to each output pin's plant input (by index into the pins).
+    written: Vec<Option<f64>>,
+}
+
+impl Wiring {
+    pub fn new(env: SharedEnv, spec: &FirmwareSpec) -> Wiring {
+        Wiring {
+            env,
+            written: vec![None; spec.pins.len()],
+        }
+    }
+
+    /// Reads the plant at `at` into `m`'s analog inputs and input pins, and writes its output
+    /// pins' latches to the plant.
+    pub fn sample(&mut self, spec: &FirmwareSpec, m: &mut Machine, at: BusTime) {
+        let mut env = self.env.borrow_mut();
+        env.advance_to(at);
+        for a in &spec.analog {
+            let mv = env.read(&a.signal).unwrap_or(0.0) * a.scale;
+            // A negative, NaN or huge voltage reads as the converter's end of scale.
+            let mv = if mv.is_finite() {
+                mv.clamp(0.0, f64::from(u32::MAX))
+            } else {
+                0.0
+            };
+            m.cpu
+                .set_analog_millivolts(a.channel, mv.round() as u32, spec.vref_mv);
+        }
+        let latches = m.cpu.sfr();
+        for (i, p) in spec.pins.iter().enumerate() {
+            match p.direction {
+                Direction::Input => {
+                    let on = env.read(&p.signal).is_some_and(|v| v >= 0.5);
+                    m.cpu.set_pin(p.port, p.bit, on != p.active_low);
+                }
+                Direction::Output => {
+                    let high = latches[usize::from(p.port) * 0x10] >> p.bit & 1 != 0;
+                    let value = if high != p.active_low { 1.0 } else { 0.0 };
+                    if self.written[i] != Some(value) {
+                        env.write(&p.signal, value);
+                        self.written[i] = Some(value);
+                    }
+                }
+            }
+        }
+    }
+}
