@@ -22,6 +22,10 @@ pub struct ScenarioArgs {
     /// Seed for every scenario (default: the scenario's, else its config's).
     #[arg(long, value_name = "N")]
     seed: Option<u64>,
+    /// Run every scenario against this harvester config instead of the one it names (e.g.
+    /// configs/harvester-firmware-c0.ron, the harvester with C0 as firmware).
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
     /// Write a JUnit XML report here.
     #[arg(long, value_name = "FILE")]
     junit: Option<PathBuf>,
@@ -49,7 +53,12 @@ pub fn run(args: &ScenarioArgs) -> crate::Result<Ended> {
     let mut problems = Vec::new();
     let epoch = crate::record::epoch(args.start_time, false);
     for f in &args.files {
-        match scenario::load(&configs::by_name(f, "scenarios"), args.seed) {
+        match scenario::load_with(
+            &configs::by_name(f, "scenarios"),
+            args.seed,
+            None,
+            args.config.as_deref(),
+        ) {
             Ok(mut l) => {
                 l.harvester.epoch = Some(epoch);
                 loaded.push(l)
@@ -92,9 +101,14 @@ pub fn run(args: &ScenarioArgs) -> crate::Result<Ended> {
     let mut out = String::new();
     let mut all_passed = true;
     for (l, o) in loaded.iter().zip(&outcomes) {
+        let against = args
+            .config
+            .as_ref()
+            .map(|c| format!(", against {}", c.display()))
+            .unwrap_or_default();
         let _ = writeln!(
             out,
-            "{} ({}, seed {}, {:.1} s wall)",
+            "{} ({}{against}, seed {}, {:.1} s wall)",
             l.scenario.name, l.source, o.seed, o.wall_seconds
         );
         // The path alone, which finds the same file again (a built-in one too).
@@ -116,8 +130,13 @@ pub fn run(args: &ScenarioArgs) -> crate::Result<Ended> {
             all_passed = false;
             let _ = writeln!(
                 out,
-                "  failed: seed {}; reproduce with: harvemu scenario {file} --seed {}",
-                o.seed, o.seed
+                "  failed: seed {}; reproduce with: harvemu scenario {file} --seed {}{}",
+                o.seed,
+                o.seed,
+                args.config
+                    .as_ref()
+                    .map(|c| format!(" --config {}", c.display()))
+                    .unwrap_or_default()
             );
         }
     }

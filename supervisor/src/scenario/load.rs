@@ -26,14 +26,25 @@ pub struct Loaded {
 /// [`Source::read`]: from disk at most [`nodes::file::MAX_FILE`] bytes each, else the built-in
 /// copy; the harvester config of a built-in scenario is the built-in one.
 pub fn load(path: &Path, seed: Option<u64>) -> Result<Loaded, Error> {
-    load_with(path, seed, None)
+    load_with(path, seed, None, None)
 }
 
 /// [`load`], with the run's length replaced by `duration_s` when given (before the random
-/// faults are drawn, so that they cover the new length).
-pub fn load_with(path: &Path, seed: Option<u64>, duration_s: Option<f64>) -> Result<Loaded, Error> {
+/// faults are drawn, so that they cover the new length), and the harvester config `config`
+/// (a path as on the command line) in place of the one the scenario names, when given.
+pub fn load_with(
+    path: &Path,
+    seed: Option<u64>,
+    duration_s: Option<f64>,
+    config: Option<&Path>,
+) -> Result<Loaded, Error> {
     let (source, text) = Source::file(path).read()?;
-    parse(&source, &text, seed, duration_s, Harvester::open)
+    match config {
+        Some(c) => parse(&source, &text, seed, duration_s, |_| {
+            Harvester::open(&Source::file(c))
+        }),
+        None => parse(&source, &text, seed, duration_s, Harvester::open),
+    }
 }
 
 /// As [`load`] with the scenario's text already read: `path` is where it came from (problems

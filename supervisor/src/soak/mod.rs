@@ -54,7 +54,12 @@ pub fn run(args: &Args) -> crate::Result<Ended> {
         None => None,
     };
     let before = memory::vm_rss_kib();
-    let mut loaded = scenario::load_with(&configs::by_name(&args.scenario, "soak"), args.seed, duration)?;
+    let mut loaded = scenario::load_with(
+        &configs::by_name(&args.scenario, "soak"),
+        args.seed,
+        duration,
+        None,
+    )?;
     let epoch = crate::record::epoch(args.start_time, false);
     loaded.harvester.epoch = Some(epoch);
     let (trace, recording) = crate::record::create_opt(args.record.as_ref(), epoch)?;
