@@ -203,6 +203,61 @@ fn bad_node_files_are_refused_with_file_and_line() {
     assert_refused(&out, &["receiver.ron", "image", "nothing.hex"]);
 }
 
+/// An AT89C51CC03 receiver whose wires are `wires` (RON fields after `controllers`).
+fn cc03_receiver(controllers: &str, wires: &str) -> String {
+    format!(
+        "Firmware(\n    name: \"RECEIVER\",\n    image: \"can_seed.hex\",\n    entry: Some(0x4000),\n    \
+         cpu: At89c51cc03(clock_hz: 12000000),\n    controllers: [{controllers}],\n{wires})\n"
+    )
+}
+
+#[test]
+fn bad_wiring_is_refused_with_file_and_line() {
+    let hex = shipped_hex();
+    // An ADC channel wired to a signal the plant does not have: named at its line (line 7).
+    let wires = "    analog: [(channel: 0, signal: \"duct.vacum\", scale: 1.0)],\n";
+    let out = run_bad("adc-signal", &cc03_receiver("OnChip", wires), &hex);
+    assert_refused(
+        &out,
+        &[
+            "receiver.ron:7:",
+            "analog[0].signal",
+            "\"duct.vacum\" is no plant signal",
+        ],
+    );
+
+    // Channel 8 does not exist; a pin named P5.1 neither; an output to a read-only signal.
+    let wires = "    analog: [(channel: 8, signal: \"duct.vacuum\")],\n    \
+                 pins: [Input(pin: \"P5.1\", signal: \"door1.open\"), Output(pin: \"P3.5\", input: \"duct.vacuum\")],\n";
+    let out = run_bad("adc-channel", &cc03_receiver("OnChip", wires), &hex);
+    assert_refused(
+        &out,
+        &[
+            "analog[0].channel",
+            "8: the ADC has channels 0 to 7",
+            "pins[0].pin",
+            "\"P5.1\"",
+            "receiver.ron:8:",
+            "\"duct.vacuum\" is no plant input",
+        ],
+    );
+
+    // The on-chip controller and the ADC on an 80C51, which has neither.
+    let text = receiver("can_seed.hex", CPU, "        OnChip,").replace(
+        "\n)\n",
+        "\n    analog: [(channel: 0, signal: \"duct.vacuum\")],\n)\n",
+    );
+    let out = run_bad("not-cc03", &text, &hex);
+    assert_refused(
+        &out,
+        &[
+            "controllers[0]",
+            "only the AT89C51CC03 has a CAN controller on chip",
+            "only the AT89C51CC03 has an ADC",
+        ],
+    );
+}
+
 /// The first instructions of the lab program, as the listing has them, with the cycle counts of
 /// the Intel MCS-51 User's Manual: LJMP, MOV direct,#data and LCALL take 2 cycles, MOV Rn,#data
 /// 1. At 12 MHz a machine cycle is 1 µs.

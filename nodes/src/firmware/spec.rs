@@ -370,11 +370,12 @@ fn controllers(f: &File, cc03: bool, at: At, problems: &mut Vec<Problem>) -> Vec
     chips
 }
 
-/// Where `needle` first appears in `text` as a quoted string: the line and column of the
-/// problem about it.
-fn locate(mut p: Problem, text: &str, needle: &str) -> Problem {
-    if let Some(offset) = text.find(&format!("\"{needle}\"")) {
-        p.position = Some(crate::script::position_of(text, offset));
+/// Where `needle` first appears as a quoted string in `text` after `section:` (the list that
+/// holds it): the line and column of the problem about it.
+fn locate(mut p: Problem, text: &str, section: &str, needle: &str) -> Problem {
+    let from = text.find(&format!("{section}:")).unwrap_or(0);
+    if let Some(offset) = text[from..].find(&format!("\"{needle}\"")) {
+        p.position = Some(crate::script::position_of(text, from + offset));
     }
     p
 }
@@ -408,6 +409,7 @@ fn analog(f: &File, cc03: bool, text: &str, at: At, problems: &mut Vec<Problem>)
                     ),
                 ),
                 text,
+                "analog",
                 &a.signal,
             ));
         }
@@ -464,6 +466,7 @@ fn pins(f: &File, chips: &[ChipSpec], text: &str, at: At, problems: &mut Vec<Pro
                     format!("\"{signal}\" is {what} (docs/BEHAVIOUR.md lists them)"),
                 ),
                 text,
+                "pins",
                 signal,
             ));
         }
