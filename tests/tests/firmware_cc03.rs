@@ -5,6 +5,9 @@
 //! and every 10 ms of timer 0 (20 000 counts of 0.5 µs in X2) reads P2, converts channel 0 and
 //! sends 0x0400F5C1 with 31h, P2 & 3Fh and the 10-bit code (little-endian) on channel 1.
 //!
+//! It also drives P3.5 low at once, and P3.5 is wired, active low, to the plant's door 6 fault:
+//! the plant opens door 6, and the firmware reads it back on P2.5.
+//!
 //! What the test knows independently: the plant's doors (a fault input it sets itself), the
 //! duct vacuum the plant reports, the ideal converter's code ⌊1024 · mV / 5000⌋, and that a
 //! 10 ms period proves the X2 time base (at X1 the same counts take 20 ms).
@@ -22,6 +25,7 @@ const PROGRAM: &str = "
         LJMP    START
         .org    0040H
 START:  MOV     SP, #60H
+        CLR     0B5H            ; P3.5 low: opens door 6 through the plant
         MOV     8FH, #81H       ; CKCON: X2, CANX2
         MOV     0ABH, #01H      ; CANGCON: general reset
         MOV     0B4H, #02H      ; CANBT1..3: 250 kbit/s from F_CAN = 6 MHz
@@ -86,6 +90,7 @@ const NODE: &str = "Firmware(
         Input(pin: \"P2.3\", signal: \"door4.open\"),
         Input(pin: \"P2.4\", signal: \"door5.open\"),
         Input(pin: \"P2.5\", signal: \"door6.open\"),
+        Output(pin: \"P3.5\", input: \"fault.door6_open\", active_low: true),
     ],
 )";
 
@@ -148,11 +153,12 @@ fn an_at89c51cc03_node_reads_the_plant_and_sends_with_its_own_controller() {
     );
     for (at, data) in &frames {
         assert_eq!((data.len(), data[0]), (4, 0x31), "at {at}: {data:02X?}");
-        // The pins are read at most a sample (1 ms) and a loop (10.8 ms) after the door opens.
+        // The pins are read at most a sample (1 ms) and a loop (10.8 ms) after the door opens;
+        // door 6 is open from the start, by the firmware's own output.
         if *at < door_at {
-            assert_eq!(data[1], 0, "at {at}: {data:02X?}");
+            assert_eq!(data[1], 0b0010_0000, "at {at}: {data:02X?}");
         } else if *at > door_at + BusDuration::from_millis(12) {
-            assert_eq!(data[1], 0b0000_0100, "at {at}: {data:02X?}");
+            assert_eq!(data[1], 0b0010_0100, "at {at}: {data:02X?}");
         }
     }
     // The last code is the ideal converter's for the plant's vacuum, within the vacuum's
