@@ -224,13 +224,14 @@ pub fn measure(
     })
 }
 
-const SCENARIOS: [&str; 6] = [
+const SCENARIOS: [&str; 7] = [
     "saturated",
     "saturated-multi",
     "harvester",
     "realtime",
     "firmware-cpu",
     "firmware-lab",
+    "firmware-c0",
 ];
 
 /// Runs `harvemu bench`.
@@ -302,6 +303,22 @@ pub fn run(args: &Args) -> crate::Result<()> {
         }
         for (name, h) in [("firmware-irq", irq), ("firmware-irq-noskip", stepped)] {
             plan.push((name, Workload::Harvester(Arc::new(h)), 1, 1, args.lab_seconds));
+        }
+    }
+    if wanted("firmware-c0") {
+        // The default harvester with C0 as its C firmware, against the same harvester all
+        // scripts, for the same virtual time.
+        let scripts = crate::harvester::Harvester::load(std::path::Path::new("configs/harvester.ron"))?;
+        let c0 =
+            crate::harvester::Harvester::load(std::path::Path::new("configs/harvester-firmware-c0.ron"))?;
+        for (name, h) in [("harvester-scripts", scripts), ("harvester-c0-fw", c0)] {
+            plan.push((
+                name,
+                Workload::Harvester(Arc::new(h)),
+                1,
+                1,
+                args.harvester_seconds,
+            ));
         }
     }
     if !args.json {

@@ -312,6 +312,40 @@ fn one(e: &Expect, r: &Running, snap: &Snapshot, books: &Books) -> Verdict {
                 verdict(e, false, times.last().copied(), observed)
             }
         }
+        Expect::BusOffLongest { node, max_ms } => {
+            let Some(t) = timeline(r, snap, node) else {
+                return no_node(e, node);
+            };
+            let stays = t.stays(ErrorState::BusOff);
+            let longest = stays
+                .iter()
+                .map(|&(from, to)| (from, to.map(|to| to.since(from).as_secs_f64() * 1e3)))
+                .max_by(|a, b| {
+                    a.1.unwrap_or(f64::INFINITY)
+                        .total_cmp(&b.1.unwrap_or(f64::INFINITY))
+                });
+            let (observed, passed, at) = match longest {
+                None => (format!("{node} never went bus off"), false, None),
+                Some((from, None)) => (
+                    format!("{node} went bus off at {from} s and stayed"),
+                    false,
+                    Some(from),
+                ),
+                Some((from, Some(ms))) => (
+                    format!(
+                        "{node} went bus off {} time(s); the longest, from {from} s, lasted {ms:.3} ms",
+                        stays.len()
+                    ),
+                    ms <= *max_ms,
+                    Some(from),
+                ),
+            };
+            if passed {
+                judged(e, &t, node, at, observed)
+            } else {
+                verdict(e, false, at, observed)
+            }
+        }
         Expect::RecMax {
             node,
             max,

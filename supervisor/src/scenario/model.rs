@@ -337,6 +337,14 @@ pub enum Expect {
         /// At most.
         max: u32,
     },
+    /// A node went bus off at least once, and each time was back within `max_ms` (firmware that
+    /// restarts its controller beats the 128 × 11 recessive bits of a recovery).
+    BusOffLongest {
+        /// Node.
+        node: String,
+        /// Longest stay in bus off allowed, ms.
+        max_ms: f64,
+    },
     /// A node's receive error counter stays at or below `max` from `from_s` to `to_s`.
     RecMax {
         /// Node.

@@ -176,6 +176,26 @@ impl<'a> Timeline<'a> {
         best
     }
 
+    /// Each stay in `state` over the whole run: when it began, and when it ended (`None`: it
+    /// lasted to the last point).
+    pub fn stays(&self, state: ErrorState) -> Vec<(BusTime, Option<BusTime>)> {
+        let mut stays: Vec<(BusTime, Option<BusTime>)> = Vec::new();
+        let mut previous = START.state;
+        for i in 0..self.points.len() {
+            let (at, p) = self.point(i);
+            if p.state == state && previous != state {
+                stays.push((at, None));
+            } else if p.state != state
+                && previous == state
+                && let Some(last) = stays.last_mut()
+            {
+                last.1 = Some(at);
+            }
+            previous = p.state;
+        }
+        stays
+    }
+
     /// The moments the node entered `state` over the whole run.
     pub fn entries(&self, state: ErrorState) -> Vec<BusTime> {
         let mut previous = START.state;
@@ -263,6 +283,18 @@ mod tests {
         assert_eq!(t.first(ms(0), ms(10), |p| p.state != Active), None);
         assert_eq!(t.highest(ms(0), ms(10), |p| p.rec), (0, ms(0)));
         assert!(t.entries(BusOff).is_empty());
+    }
+
+    #[test]
+    fn stays_begin_at_entries_and_end_at_the_next_state() {
+        let h = sample();
+        let t = Timeline::new(Some(&h));
+        // Bus off from 7200 ms until error active at 7206 ms (the sample's points).
+        assert_eq!(t.stays(BusOff), vec![(ms(7200), Some(ms(7206)))]);
+        // Never left: the stay is open.
+        let stuck = history(&[(1000, 256, 0, BusOff)]);
+        assert_eq!(Timeline::new(Some(&stuck)).stays(BusOff), vec![(ms(1000), None)]);
+        assert!(Timeline::new(Some(&stuck)).stays(Passive).is_empty());
     }
 
     #[test]

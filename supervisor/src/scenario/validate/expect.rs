@@ -66,6 +66,15 @@ pub(super) fn expectation(c: &mut Checks, at: &str, e: &Expect, h: &Harvester) {
             }
             bus_offs_fit(c, at, *min, h.config.bitrate);
         }
+        Expect::BusOffLongest { node, max_ms } => {
+            c.node(format!("{at}.node"), node);
+            if !(max_ms.is_finite() && *max_ms > 0.0) {
+                c.push(
+                    format!("{at}.max_ms"),
+                    format!("{max_ms}: a duration is a positive number of ms"),
+                );
+            }
+        }
         Expect::Restarts { node, .. } => c.node(format!("{at}.node"), node),
         Expect::Display { field, min, max } => {
             let fields = serde_json::to_value(nodes::monitor::Display::default()).unwrap_or_default();
