@@ -2,6 +2,8 @@
 //! library holds what they share: running the default harvester in virtual time and reading its
 //! trace back.
 
+pub mod cc03;
+
 use actix::prelude::*;
 use bus::Frame;
 use bus::time::{BusTime, Epoch};

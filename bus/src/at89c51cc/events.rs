@@ -155,8 +155,10 @@ impl CanController {
         }
     }
 
-    /// A bus error: the general flag of its kind (none for bit errors) and, while transmitting,
-    /// the error bit of the channel the bus holds.
+    /// A bus error: while transmitting, the error bit of the channel the bus holds; otherwise
+    /// the general flag of its kind (there is none for bit errors). An error set in a channel
+    /// sets no general flag (AT90CAN32/64/128 data sheet, "Interrupt Behavior", for the same
+    /// controller design).
     fn bus_error(&mut self, error: BusError, transmitting: bool) {
         if !self.enabled {
             return;
@@ -168,9 +170,9 @@ impl CanController {
             BusError::Form => (git::FERG, stch::FERR),
             BusError::Ack => (git::AERG, stch::AERR),
         };
-        self.git |= general;
-        if transmitting && let Some(c) = self.pending {
-            self.channels[c].stch |= channel;
+        match self.pending {
+            Some(c) if transmitting => self.channels[c].stch |= channel,
+            _ => self.git |= general,
         }
     }
 }
