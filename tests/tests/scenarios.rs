@@ -37,7 +37,11 @@ const SHIPPED: &[(&str, &[&str])] = &[
     ("local_crc_errors.ron", &["BitErrors"]),
     ("overload.ron", &["Overload"]),
     ("lab_bus_off.ron", &["BitErrors"]),
+    ("c0_bus_off.ron", &["BitErrors"]),
 ];
+
+/// The shipped scenarios C0 takes part in, which its C firmware must pass as its script does.
+const C0_FIRMWARE: [&str; 3] = ["suction_door.ron", "plant_faults.ron", "power_cycle.ron"];
 
 /// Longest run the scenario glob may hold: a day of virtual time lives in `configs/soak/`, for
 /// `harvemu soak` and `tests/tests/soak.rs`.
@@ -153,6 +157,36 @@ fn every_shipped_scenario_passes_with_many_seeds() {
         SHIPPED.len(),
         started.elapsed().as_secs_f64()
     );
+    assert!(failed.is_empty(), "{failed:#?}");
+}
+
+/// `harvemu scenario FILE --config configs/harvester-firmware-c0.ron`: the harvester with C0 as
+/// C firmware passes the scenarios C0 takes part in, with the scenario's seed and more.
+#[test]
+fn c0_as_firmware_passes_the_scenarios_c0_takes_part_in() {
+    let config = root().join("configs/harvester-firmware-c0.ron");
+    let seeds = if cfg!(debug_assertions) { 1 } else { 5 };
+    let mut jobs = Vec::new();
+    for file in C0_FIRMWARE {
+        jobs.push((file, None));
+        jobs.extend((1..=seeds).map(|seed| (file, Some(seed))));
+    }
+    let failed: Vec<String> = on_two_threads(&jobs, |(file, seed)| {
+        let loaded = scenario::load_with(&dir().join(file), *seed, None, Some(&config))
+            .unwrap_or_else(|e| panic!("{file}: {e}"));
+        assert!(
+            loaded.harvester.firmware.iter().any(|f| f.name == "C0"),
+            "{file}: C0 is firmware"
+        );
+        let outcome = scenario::run(&loaded, None, |_| {}).unwrap();
+        outcome
+            .verdicts
+            .iter()
+            .filter(|v| !v.passed)
+            .map(|v| format!("{file} seed {}: {} -> {}", outcome.seed, v.expectation, v.observed))
+            .collect::<Vec<_>>()
+    })
+    .concat();
     assert!(failed.is_empty(), "{failed:#?}");
 }
 
