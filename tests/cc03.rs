@@ -121,3 +121,147 @@ impl Cc03 {
         self.cpu.clocks() / 2
     }
 }
+
+/// Test firmware for the bench: the CC03's CAN SFR names, the vectors, and helpers.
+pub mod firmware {
+    use super::Cc03;
+    use crate::assemble;
+    use bus::at89c51cc::Action;
+    use bus::{ExtendedId, Frame, Id, StandardId};
+
+    /// SFR names (AT89C51CC03 data sheet, SFR map), the vectors and a stack above the results.
+    /// Every vector but CAN (003Bh) and CAN timer (004Bh) leads to a trap that marks 7Fh.
+    pub const PRELUDE: &str = "
+    .equ CANGIT, 09Bh
+    .equ CANTEC, 09Ch
+    .equ CANREC, 09Dh
+    .equ CANTCON, 0A1h
+    .equ CANMSG, 0A3h
+    .equ CANGSTA, 0AAh
+    .equ CANGCON, 0ABh
+    .equ CANTIML, 0ACh
+    .equ CANTIMH, 0ADh
+    .equ CANSTMPL, 0AEh
+    .equ CANSTMPH, 0AFh
+    .equ CANPAGE, 0B1h
+    .equ CANSTCH, 0B2h
+    .equ CANCONCH, 0B3h
+    .equ CANBT1, 0B4h
+    .equ CANBT2, 0B5h
+    .equ CANBT3, 0B6h
+    .equ CANSIT1, 0BAh
+    .equ CANSIT2, 0BBh
+    .equ CANIDT1, 0BCh
+    .equ CANIDT2, 0BDh
+    .equ CANIDT3, 0BEh
+    .equ CANIDT4, 0BFh
+    .equ CANGIE, 0C1h
+    .equ CANIE1, 0C2h
+    .equ CANIE2, 0C3h
+    .equ CANIDM1, 0C4h
+    .equ CANIDM2, 0C5h
+    .equ CANIDM3, 0C6h
+    .equ CANIDM4, 0C7h
+    .equ CANEN1, 0CEh
+    .equ CANEN2, 0CFh
+    .equ ECAN, 0E8h
+    .equ ETIM, 0EAh
+    .org 0000h
+    	ljmp main
+    .org 0003h
+    	ljmp trap
+    .org 000Bh
+    	ljmp trap
+    .org 0013h
+    	ljmp trap
+    .org 001Bh
+    	ljmp trap
+    .org 0023h
+    	ljmp trap
+    .org 002Bh
+    	ljmp trap
+    .org 0033h
+    	ljmp trap
+    .org 003Bh
+    	ljmp can_isr
+    .org 0043h
+    	ljmp trap
+    .org 004Bh
+    	ljmp tim_isr
+    .org 0053h
+    	ljmp trap
+    .org 0060h
+    trap:	mov 7Fh,#0EEh
+    	reti
+    .org 0100h
+    main:	mov SP,#0C0h
+    ";
+
+    /// Accepts everything: every mask bit 0 (CANIDM tables: 0 = don't care).
+    pub const ANY: &str = "
+    	mov CANIDM1,#00h
+    	mov CANIDM2,#00h
+    	mov CANIDM3,#00h
+    	mov CANIDM4,#00h
+    ";
+
+    /// The chip after reset running `main` (which ends in a loop of its own) with the CAN and CAN
+    /// timer handlers `can_isr` and `tim_isr`.
+    pub fn chip(main: &str, can_isr: &str, tim_isr: &str) -> Cc03 {
+        let source = format!("{PRELUDE}{main}\ncan_isr:\n{can_isr}\ntim_isr:\n{tim_isr}\n");
+        Cc03::new(&assemble(&source)).expect("the image loads")
+    }
+
+    /// Runs `n` machine cycles.
+    pub fn run(c: &mut Cc03, n: u64) {
+        c.run(n).expect("the core runs");
+    }
+
+    /// Pulls P1.`bit` low (the firmware's signal to go on) and runs 400 cycles.
+    pub fn go(c: &mut Cc03, bit: u8) {
+        c.set_pin(1, bit, false);
+        run(c, 400);
+    }
+
+    /// Internal RAM `from..from + n`, after checking that no stray vector was taken.
+    pub fn ram(c: &Cc03, from: u8, n: u8) -> Vec<u8> {
+        assert_ne!(c.iram(0x7F), 0xEE, "an unexpected interrupt vector was taken");
+        (from..from + n).map(|a| c.iram(a)).collect()
+    }
+
+    /// An extended identifier.
+    pub fn eid(id: u32) -> Id {
+        ExtendedId::new(id).expect("a 29-bit identifier").into()
+    }
+
+    /// A standard identifier.
+    pub fn sid(id: u16) -> Id {
+        StandardId::new(id).expect("an 11-bit identifier").into()
+    }
+
+    /// A data frame.
+    pub fn data(id: Id, bytes: &[u8]) -> Frame {
+        Frame::new_data(id, bytes).expect("a frame")
+    }
+
+    /// A remote frame.
+    pub fn remote(id: Id, dlc: usize) -> Frame {
+        Frame::new_remote(id, dlc).expect("a frame")
+    }
+
+    /// The request to transmit `frame`, as the controller makes it.
+    pub fn transmit(frame: Frame) -> Action {
+        Action::Transmit {
+            frame,
+            self_reception: false,
+            single_shot: false,
+        }
+    }
+
+    /// The request to join the bus, as the controller makes it (each channel filters for itself).
+    pub const ONLINE: Action = Action::Online {
+        listen_only: false,
+        self_test: false,
+        filter: None,
+    };
+}

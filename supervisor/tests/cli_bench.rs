@@ -64,7 +64,10 @@ fn bench_json_reports_every_scenario() {
             .unwrap()
     };
     let (scripts, firmware) = (frames("harvester-scripts"), frames("harvester-c0-fw"));
-    assert!((firmware / scripts - 1.0).abs() < 0.02, "{firmware} frames against {scripts}");
+    assert!(
+        (firmware / scripts - 1.0).abs() < 0.02,
+        "{firmware} frames against {scripts}"
+    );
     for r in &rows {
         for key in [
             "virtual_seconds",

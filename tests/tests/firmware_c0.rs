@@ -33,10 +33,20 @@ fn c0_frames(config: &str, end: BusTime) -> (Vec<(BusTime, Vec<u8>)>, u64) {
         for (ms, input, value) in DOORS {
             let at = BusTime::from_millis(ms);
             running.hub.send(RunUntil(at)).await.expect("hub").expect("run");
-            running.plant.borrow_mut().set_input(input, value).expect("a plant input");
+            running
+                .plant
+                .borrow_mut()
+                .set_input(input, value)
+                .expect("a plant input");
         }
         running.hub.send(RunUntil(end)).await.expect("hub").expect("run");
-        running.hub.send(GetSnapshot).await.expect("snapshot").stats.error_frames
+        running
+            .hub
+            .send(GetSnapshot)
+            .await
+            .expect("snapshot")
+            .stats
+            .error_frames
     });
     let frames = parse_trace(&String::from_utf8(trace.0.take()).expect("utf-8"))
         .into_iter()
@@ -82,7 +92,10 @@ fn c0_as_firmware_sends_what_its_script_sends() {
     assert_eq!(doors, b.iter().map(|c| c.1).collect::<Vec<_>>());
     for ((ta, _), (tb, _)) in a.iter().zip(&b).skip(1) {
         let apart = if ta > tb { ta.since(*tb) } else { tb.since(*ta) };
-        assert!(apart <= BusDuration::from_millis(20), "script at {ta}, firmware at {tb}");
+        assert!(
+            apart <= BusDuration::from_millis(20),
+            "script at {ta}, firmware at {tb}"
+        );
     }
 
     // Heartbeats: between two frames with no change in between, the script waits 1000 ms; the
@@ -95,7 +108,12 @@ fn c0_as_firmware_sends_what_its_script_sends() {
             .collect()
     };
     let (mut sa, sb) = (beats(&script), beats(&firmware));
-    assert!(sa.len() >= 5 && sb.len() >= 5, "{} and {} heartbeats", sa.len(), sb.len());
+    assert!(
+        sa.len() >= 5 && sb.len() >= 5,
+        "{} and {} heartbeats",
+        sa.len(),
+        sb.len()
+    );
     sa.sort_by(f64::total_cmp);
     let script_period = sa[sa.len() / 2];
     for gap in &sb {
@@ -115,6 +133,9 @@ fn c0_as_firmware_sends_what_its_script_sends() {
             .min_by_key(|(t, _)| if t > at { t.since(*at) } else { at.since(*t) })
             .expect("script frames");
         let (_, script_mv) = decode(near);
-        assert!(mv.abs_diff(script_mv) <= 100, "{mv} mV at {at}, the script {script_mv} mV");
+        assert!(
+            mv.abs_diff(script_mv) <= 100,
+            "{mv} mV at {at}, the script {script_mv} mV"
+        );
     }
 }

@@ -183,7 +183,12 @@ fn c0_as_firmware_passes_the_scenarios_c0_takes_part_in() {
             .verdicts
             .iter()
             .filter(|v| !v.passed)
-            .map(|v| format!("{file} seed {}: {} -> {}", outcome.seed, v.expectation, v.observed))
+            .map(|v| {
+                format!(
+                    "{file} seed {}: {} -> {}",
+                    outcome.seed, v.expectation, v.observed
+                )
+            })
             .collect::<Vec<_>>()
     })
     .concat();
