@@ -2,11 +2,12 @@
  * at89c51cc03.h: special function registers of the Atmel AT89C51CC03 for SDCC (mcs51).
  *
  * Written from the AT89C51CC03 data sheet (Atmel 4182): its SFR mapping table for the
- * addresses and the register tables of the chapters named below for the bits. Only the
- * registers the harvemu firmware uses or the emulator models are here (the PCA, SPI and
- * flash/EEPROM registers are left out). Every address was checked against what the emulator
- * implements (mcs51 core: cc03.rs, adc.rs, timer2.rs, interrupts.rs; CAN controller:
- * bus::at89c51cc::sfr) and agrees with it.
+ * addresses and the register tables of the chapters named below for the bits. The core, port,
+ * timer, watchdog, interrupt, ADC and CAN registers are here; the PCA, SPI and flash/EEPROM
+ * registers are left out. Every address agrees with what the emulator implements (mcs51 core:
+ * cc03.rs, adc.rs, timer2.rs, interrupts.rs; CAN controller: bus::at89c51cc::sfr); CKCON1,
+ * AUXR1 and P4, which the emulator does not model, are at the addresses the family's public
+ * register headers give.
  */
 #ifndef AT89C51CC03_H
 #define AT89C51CC03_H
