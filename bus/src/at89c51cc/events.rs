@@ -115,10 +115,22 @@ impl CanController {
         frame.ok()
     }
 
+    /// Whether a channel would take `frame` now: the controller is enabled and a channel enabled
+    /// for reception accepts it. A frame no channel takes changes nothing in the controller.
+    pub fn takes(&self, frame: &Frame) -> bool {
+        self.enabled
+            && (0..CHANNELS).any(|c| {
+                let ch = &self.channels[c];
+                self.en & (1 << c) != 0
+                    && matches!(ch.mode(), conch::RX | conch::RX_BUFFER)
+                    && ch.filter().accepts(frame)
+            })
+    }
+
     /// A frame received correctly: the lowest-numbered enabled receiving channel whose filter
     /// accepts it stores it. A buffer channel that was the last of the buffer sets OVRBUF.
     fn received(&mut self, frame: &Frame) {
-        if !self.enabled {
+        if !self.takes(frame) {
             return;
         }
         let hit = (0..CHANNELS).find(|&c| {

@@ -342,11 +342,16 @@ impl CanController {
     /// (CANIE) with TXOK and ENTX, RXOK and ENRX, or an error bit and ENERCH.
     pub(crate) fn sit(&self) -> u16 {
         let mut sit = 0u16;
-        for (i, ch) in self.channels.iter().enumerate() {
+        // Only channels whose interrupt is enabled: the core asks after every register access.
+        let mut enabled = self.ie & ((1 << CHANNELS) - 1);
+        while enabled != 0 {
+            let i = enabled.trailing_zeros() as usize;
+            enabled &= enabled - 1;
+            let ch = &self.channels[i];
             let tx = ch.stch & stch::TXOK != 0 && self.gie & gie::ENTX != 0;
             let rx = ch.stch & stch::RXOK != 0 && self.gie & gie::ENRX != 0;
             let err = ch.stch & stch::ERRORS != 0 && self.gie & gie::ENERCH != 0;
-            if self.ie & (1 << i) != 0 && (tx || rx || err) {
+            if tx || rx || err {
                 sit |= 1 << i;
             }
         }

@@ -43,18 +43,39 @@ impl Chip {
     }
 
     fn take_actions(&mut self, bitrate_hz: f64, into: &mut Vec<Request>) {
-        let tuned = self.tuned(bitrate_hz);
+        let from = into.len();
         match self {
-            Chip::Sja { sja, .. } => into.extend(sja.take_actions().map(|a| (a, tuned))),
-            Chip::OnChip(can) => into.extend(can.take_actions().map(|a| (a, tuned))),
+            Chip::Sja { sja, .. } => into.extend(sja.take_actions().map(|a| (a, false))),
+            Chip::OnChip(can) => into.extend(can.take_actions().map(|a| (a, false))),
+        }
+        // Worked out only when there is a request: most register accesses make none.
+        if into.len() > from {
+            let tuned = self.tuned(bitrate_hz);
+            for r in &mut into[from..] {
+                r.1 = tuned;
+            }
         }
     }
 
-    /// Its interrupt output: the SJA1000's INT (active), the on-chip controller's CAN request.
-    fn int_active(&self) -> bool {
+    /// Its interrupt outputs as [`mcs51::irq`] bits: the SJA1000's INT (active) as
+    /// [`mcs51::irq::CAN`], the on-chip controller's CAN and CAN timer requests.
+    fn requests(&self) -> u8 {
         match self {
-            Chip::Sja { sja, .. } => sja.int_active(),
-            Chip::OnChip(can) => can.interrupt() || can.timer_interrupt(),
+            Chip::Sja { sja, .. } => {
+                if sja.int_active() {
+                    mcs51::irq::CAN
+                } else {
+                    0
+                }
+            }
+            Chip::OnChip(can) => {
+                (if can.interrupt() { mcs51::irq::CAN } else { 0 })
+                    | if can.timer_interrupt() {
+                        mcs51::irq::CAN_TIMER
+                    } else {
+                        0
+                    }
+            }
         }
     }
 
@@ -72,15 +93,32 @@ pub(crate) type Request = (Action, bool);
 
 /// The CPU's surroundings: the chips, and what they asked of the bus since the CPU last
 /// stopped.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug)]
 pub(crate) struct Board {
     pub chips: Vec<Chip>,
     pub actions: Vec<Request>,
+    /// Each chip's interrupt outputs ([`Chip::requests`]) as of its last change: the core asks
+    /// for them after every hooked access, and working them out takes a look at every channel.
+    requests: Vec<u8>,
     /// The bus's bit rate, to tell whether a controller's timing reads it.
     bitrate_hz: f64,
     /// Something the CPU must see before it goes on: a chip asked for the bus or moved its
     /// interrupt output.
     stop: bool,
+    /// Writes to the on-chip controller's registers since power-on: where two states show the
+    /// same count, the firmware configured nothing in between.
+    pub can_writes: u64,
+}
+
+/// The state, the write count aside (a loop that writes the same values repeats all the same).
+impl PartialEq for Board {
+    fn eq(&self, other: &Board) -> bool {
+        self.chips == other.chips
+            && self.actions == other.actions
+            && self.requests == other.requests
+            && self.bitrate_hz == other.bitrate_hz
+            && self.stop == other.stop
+    }
 }
 
 impl Board {
@@ -102,11 +140,18 @@ impl Board {
         })
     }
 
+    /// Brings chip `i`'s interrupt outputs up to date; true when they changed.
+    fn refresh(&mut self, i: usize) -> bool {
+        let now = self.chips[i].requests();
+        std::mem::replace(&mut self.requests[i], now) != now
+    }
+
     /// Collects chip `i`'s actions and notes a change of its interrupt output.
-    fn after(&mut self, i: usize, int_before: bool) {
+    fn after(&mut self, i: usize) {
         let before = self.actions.len();
         self.chips[i].take_actions(self.bitrate_hz, &mut self.actions);
-        self.stop |= self.actions.len() > before || self.chips[i].int_active() != int_before;
+        let changed = self.refresh(i);
+        self.stop |= self.actions.len() > before || changed;
     }
 }
 
@@ -116,23 +161,21 @@ impl Xdata for Board {
         let Some((i, offset)) = self.decode(addr) else {
             return 0xFF;
         };
-        let int = self.chips[i].int_active();
         let value = match &mut self.chips[i] {
             Chip::Sja { sja, .. } => sja.read(offset),
             Chip::OnChip(_) => 0xFF,
         };
-        self.after(i, int);
+        self.after(i);
         value
     }
 
     /// A write no chip decodes does nothing.
     fn write(&mut self, addr: u16, value: u8) {
         if let Some((i, offset)) = self.decode(addr) {
-            let int = self.chips[i].int_active();
             if let Chip::Sja { sja, .. } = &mut self.chips[i] {
                 sja.write(offset, value);
             }
-            self.after(i, int);
+            self.after(i);
         }
     }
 
@@ -142,9 +185,8 @@ impl Xdata for Board {
 
     fn sfr_read(&mut self, addr: u8) -> Option<u8> {
         let (i, can) = self.on_chip()?;
-        let int = can.interrupt() || can.timer_interrupt();
         let value = can.sfr_read(addr)?;
-        self.after(i, int);
+        self.after(i);
         Some(value)
     }
 
@@ -152,33 +194,29 @@ impl Xdata for Board {
         let Some((i, can)) = self.on_chip() else {
             return false;
         };
-        let int = can.interrupt() || can.timer_interrupt();
         if !can.sfr_write(addr, value) {
             return false;
         }
-        self.after(i, int);
+        self.can_writes += 1;
+        self.after(i);
         true
     }
 
     /// F_CAN = F_OSC / 2: the CAN timer and time stamps follow the CPU's clock.
     fn sfr_clock(&mut self, clocks: u64) {
-        if let Some((_, can)) = self.on_chip() {
+        if let Some((i, can)) = self.on_chip() {
             can.set_time(clocks / 2);
+            self.refresh(i);
         }
     }
 
+    /// The on-chip controller's requests (an SJA1000 interrupts through a pin instead).
     fn irq(&self) -> u8 {
-        self.chips.iter().fold(0, |bits, c| match c {
-            Chip::OnChip(can) => {
-                bits | if can.interrupt() { mcs51::irq::CAN } else { 0 }
-                    | if can.timer_interrupt() {
-                        mcs51::irq::CAN_TIMER
-                    } else {
-                        0
-                    }
-            }
-            Chip::Sja { .. } => bits,
-        })
+        self.chips
+            .iter()
+            .zip(&self.requests)
+            .filter(|(c, _)| matches!(c, Chip::OnChip(_)))
+            .fold(0, |bits, (_, r)| bits | r)
     }
 }
 
@@ -202,14 +240,16 @@ impl Machine {
     pub fn new(spec: &FirmwareSpec, bitrate_hz: f64) -> Machine {
         let mut cpu = Cpu::new(spec.variant, &spec.image);
         cpu.set_pc(spec.entry);
-        let chips = spec.chips.iter().map(|c| Chip::new(c, spec.clock_hz)).collect();
+        let chips: Vec<Chip> = spec.chips.iter().map(|c| Chip::new(c, spec.clock_hz)).collect();
         let mut m = Machine {
             cpu,
             board: Board {
+                requests: chips.iter().map(Chip::requests).collect(),
                 chips,
                 actions: Vec::new(),
                 bitrate_hz,
                 stop: false,
+                can_writes: 0,
             },
             writes: None,
         };
@@ -239,8 +279,8 @@ impl Machine {
     /// on-chip controller the time.
     fn sync_pins(&mut self) {
         let clocks = self.cpu.clocks();
-        for c in &mut self.board.chips {
-            match c {
+        for i in 0..self.board.chips.len() {
+            match &mut self.board.chips[i] {
                 Chip::Sja {
                     irq: Some(pin), sja, ..
                 } => {
@@ -251,6 +291,7 @@ impl Machine {
                 // F_CAN = F_OSC / 2.
                 Chip::OnChip(can) => can.set_time(clocks / 2),
             }
+            self.board.refresh(i);
         }
         self.board.stop = false;
     }
@@ -306,8 +347,18 @@ impl Machine {
         if let Some(chip) = self.board.chips.get_mut(i) {
             chip.on_event(event);
             chip.take_actions(self.board.bitrate_hz, &mut self.board.actions);
+            self.board.refresh(i);
         }
         self.sync_pins();
+    }
+
+    /// Whether `frame` would change nothing here: every chip is an on-chip controller that
+    /// takes no such frame as it stands.
+    pub fn ignores(&self, frame: &bus::Frame) -> bool {
+        self.board.chips.iter().all(|c| match c {
+            Chip::OnChip(can) => !can.takes(frame),
+            Chip::Sja { .. } => false,
+        })
     }
 
     /// The chips' requests since the last call, in order.

@@ -34,7 +34,7 @@ use std::sync::Arc;
 
 /// Fewest oscillator clocks between kept copies of a run ahead (1000 machine cycles); a long
 /// run ahead keeps about sixteen.
-pub const CHUNK: u64 = 12_000;
+pub const CHUNK: u64 = 1_200;
 /// Longest stretch of bus time a node wired to the plant goes without reading it, ms.
 pub const SAMPLE_MS: u64 = 1;
 /// Copies kept of a run ahead at its longest horizon.
@@ -438,6 +438,23 @@ impl FirmwareNode {
     }
 }
 
+impl FirmwareNode {
+    /// Whether a frame at `at` would find the controller as it is now, and not take it: the run
+    /// ahead got past `at` (or idles in a loop) without writing a controller register, and the
+    /// controller takes no such frame now. Such a frame changes nothing, so the run ahead
+    /// stands; the hub hears about every frame on the bus, and the chip keeps few.
+    fn changes_nothing(&self, at: BusTime, frame: &Frame) -> bool {
+        let n = self.clock_at(at);
+        let covered = n <= self.ahead.clocks() || matches!(self.stop, Stop::Parked(_));
+        covered
+            && self.spec.skip_idle_loops
+            && self.failed.is_none()
+            && self.trace.is_none()
+            && self.ahead.board.can_writes == self.now.board.can_writes
+            && self.now.ignores(frame)
+    }
+}
+
 /// Watches the first instructions of a chunk for a loop whose whole state repeats: the loop's
 /// length in clocks, with `m` one loop further on; `None` (with `m` moved on as far as it ran)
 /// if none was seen or a chip asked for the bus.
@@ -457,6 +474,9 @@ fn find_loop(m: &mut Machine) -> Result<Option<u64>, mcs51::Error> {
 
 impl NodeLogic for FirmwareNode {
     fn handle_frame(&mut self, now: BusTime, frame: &Frame) {
+        if self.changes_nothing(now, frame) {
+            return;
+        }
         self.input(now, &[BusSide::Received(*frame)]);
     }
 

@@ -209,8 +209,9 @@ pub struct FirmwareSpec {
     pub analog: Vec<AnalogWire>,
     /// Port pins wired to the plant.
     pub pins: Vec<PinWire>,
-    /// Look for loops that change nothing and skip them (always, but for a benchmark that
-    /// measures what the skipping saves).
+    /// Skip work that changes nothing: loops whose whole state repeats, and frames the
+    /// on-chip controller would not take (always, but for a benchmark or a test that measures
+    /// or checks what the skipping saves).
     pub skip_idle_loops: bool,
 }
 
