@@ -196,3 +196,32 @@ fn validate_accepts_every_shipped_file() {
         files.len()
     );
 }
+
+/// `--config` runs a scenario against another harvester: C0's bus-off scenario passes with C0
+/// as firmware (the config it names) and fails against the all-script harvester, whose C0
+/// waits out the chip's recovery; the summary and the command to reproduce name the config.
+/// A config that cannot be read is exit 2 and runs nothing.
+#[test]
+fn config_runs_a_scenario_against_another_harvester() {
+    let out = harvemu(&["scenario", "c0_bus_off"]);
+    let text = String::from_utf8_lossy(&out.stdout).to_string();
+    assert_eq!(out.status.code(), Some(0), "{text}");
+    assert!(text.contains("pass BusOffLongest"), "{text}");
+
+    let out = harvemu(&["scenario", "c0_bus_off", "--config", "configs/harvester.ron"]);
+    let text = String::from_utf8_lossy(&out.stdout).to_string();
+    assert_eq!(out.status.code(), Some(1), "{text}");
+    assert!(text.contains("against configs/harvester.ron"), "{text}");
+    assert!(text.contains("FAIL BusOffLongest"), "{text}");
+    assert!(
+        text.contains("reproduce with: harvemu scenario configs/scenarios/c0_bus_off.ron --seed 2011 --config configs/harvester.ron"),
+        "{text}"
+    );
+
+    let missing = scratch("config").join("nothing.ron");
+    let out = harvemu(&["scenario", "suction_door", "--config", missing.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr).to_string();
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("nothing.ron"), "{err}");
+    assert!(out.stdout.is_empty(), "nothing ran");
+}
