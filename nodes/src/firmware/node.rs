@@ -2,14 +2,15 @@
 //!
 //! Time: oscillator clock `c` after power-on is bus time `power_on + c · period`, exactly (the
 //! clock's period is a whole number of bus-clock ticks); a machine cycle is 12 clocks, or 6 in
-//! the AT89C51CC03's X2 mode. The CPU runs ahead of the bus
-//! optimistically: after every input it runs on from the present, keeping a copy of its state
-//! every [`CHUNK`] clocks or more (about sixteen copies a run), until a chip asks the bus for something (a transmit request, a mode
-//! change), until a horizon, or until it is found in a loop whose whole state repeats. It asks
+//! the AT89C51CC03's X2 mode. The CPU runs ahead of the bus optimistically: after every input
+//! it runs on from the present, keeping a copy of its state every [`CHUNK`] clocks or more
+//! (about sixteen copies a run), until a chip asks the bus for something (a transmit request, a
+//! mode change), until a horizon, or until it is found in a loop whose whole state repeats. It asks
 //! to be woken when it stopped. An input that arrives before that moment (a frame, a
 //! confirmation) sends it back to the last copy before the input, from where it runs to the
 //! input's moment again: so it never acts on what it could not yet have read, and a run is the
-//! same every time.
+//! same every time. A frame that the on-chip controller would not take, while the run ahead
+//! writes none of its registers, changes nothing and sends nothing back.
 //!
 //! A loop whose whole state (CPU, internal RAM, SFRs, the chips) comes back after `P` clocks
 //! changes nothing until an input arrives: such a node asks for no wake at all, and an input
@@ -32,8 +33,9 @@ use bus::time::{BusDuration, BusTime};
 use std::collections::VecDeque;
 use std::sync::Arc;
 
-/// Fewest oscillator clocks between kept copies of a run ahead (1000 machine cycles); a long
-/// run ahead keeps about sixteen.
+/// Fewest oscillator clocks between kept copies of a run ahead (100 machine cycles): an input
+/// that sends the run back costs at most that much again. A long run ahead keeps about
+/// sixteen.
 pub const CHUNK: u64 = 1_200;
 /// Longest stretch of bus time a node wired to the plant goes without reading it, ms.
 pub const SAMPLE_MS: u64 = 1;
