@@ -19,11 +19,12 @@ mod dump;
 mod machine;
 mod node;
 mod spec;
+mod wires;
 mod wiring;
 
 pub use dump::hex;
 pub use node::{CHUNK, CpuTrace, FirmwareNode};
 pub use spec::{
-    AnalogWire, CHIP_WINDOW, ChipSpec, Direction, FirmwareSpec, MAX_CLOCK_HZ, MAX_VREF_MV, MAX_XTAL_HZ, Pin,
-    PinWire, Reader, load,
+    CHIP_WINDOW, ChipSpec, FirmwareSpec, MAX_CLOCK_HZ, MAX_VREF_MV, MAX_XTAL_HZ, Pin, Reader, load,
 };
+pub use wires::{AnalogWire, Direction, PinWire};

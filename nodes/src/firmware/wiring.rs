@@ -2,7 +2,8 @@
 //! pins drive plant inputs. Sampled at moments the node chooses (see the node's docs).
 
 use super::machine::Machine;
-use super::spec::{Direction, FirmwareSpec};
+use super::spec::FirmwareSpec;
+use super::wires::Direction;
 use crate::script::SharedEnv;
 use bus::time::BusTime;
 
