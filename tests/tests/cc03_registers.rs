@@ -238,7 +238,7 @@ stop:	sjmp stop
     );
     let mut c = chip(&main, "reti", "reti");
     run(&mut c, 300);
-    // Channel 4: the seed's A0, only extended data frame 0x0300A0F5 (every mask bit set,
+    // Channel 4: the harvester's A0, only extended data frame 0x0300A0F5 (every mask bit set,
     // RTRMSK and IDEMSK included), DLC 8 expected. Channel 5: standard data frames 120h–127h
     // (CANIDM1 = FFh compares ID10..3, CANIDM2 = 00h ignores ID2..0), DLC 2. Channel 6:
     // standard remote frame 555h only, DLC 1. None of these frames fits any of them.
