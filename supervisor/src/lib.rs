@@ -7,6 +7,7 @@
 //! the documented exit code.
 
 pub mod bench;
+pub mod campaign;
 pub mod configs;
 pub mod dbc;
 pub mod error;

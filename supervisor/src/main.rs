@@ -7,7 +7,7 @@
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 use supervisor::exit::{self, Ended};
-use supervisor::{bench, configs, dbc, inspect, replay, run, scenarios_cli, soak, stop};
+use supervisor::{bench, campaign, configs, dbc, inspect, replay, run, scenarios_cli, soak, stop};
 
 #[derive(Parser)]
 #[command(
@@ -47,6 +47,13 @@ Examples:
   harvemu scenario bus_off                           a built-in scenario, by its name
   harvemu scenario configs/scenarios/*.ron --junit report.xml
   harvemu scenario configs/scenarios/bus_off.ron --seed 7 --report bus_off.html";
+
+const CAMPAIGN_EXAMPLES: &str = "\
+Examples:
+  harvemu campaign harvest --runs 200 --out campaign       the built-in campaign, on every core
+  harvemu campaign harvest --runs 1000 --seed 7 --shard 2/4 --out shard-2
+  harvemu campaign merge shard-1 shard-2 shard-3 shard-4 --out campaign
+  harvemu scenario campaign/failing/run-17.ron             rerun a shrunk failing run";
 
 const SOAK_EXAMPLES: &str = "\
 Examples:
@@ -90,6 +97,10 @@ enum Command {
     /// the others as `harvemu --help` lists them).
     #[command(after_help = SCENARIO_EXAMPLES)]
     Scenario(scenarios_cli::ScenarioArgs),
+    /// Many runs of a scenario with random faults, each failing run shrunk to a small scenario
+    /// (exit code 1 if any run failed); `merge` joins the shards of a campaign.
+    #[command(after_help = CAMPAIGN_EXAMPLES)]
+    Campaign(campaign::cli::Args),
     /// A long run with random faults (default: 24 h virtual): memory over time and the books.
     #[command(after_help = SOAK_EXAMPLES)]
     Soak(soak::Args),
@@ -140,7 +151,7 @@ fn main() -> ExitCode {
     // quick commands (and bench, which has no outputs to finish) keep the default.
     let runs = matches!(
         cli.command,
-        Command::Run(_) | Command::Replay(_) | Command::Scenario(_) | Command::Soak(_)
+        Command::Run(_) | Command::Replay(_) | Command::Scenario(_) | Command::Campaign(_) | Command::Soak(_)
     );
     let handled = stop::ignore_file_size_limit().and_then(|()| if runs { stop::install() } else { Ok(()) });
     if let Err(e) = handled {
@@ -154,6 +165,7 @@ fn main() -> ExitCode {
         Command::Replay(args) => replay::run(&args),
         Command::Validate(args) => scenarios_cli::validate(&args).map(|()| done),
         Command::Scenario(args) => scenarios_cli::run(&args),
+        Command::Campaign(args) => campaign::cli::run(&args),
         Command::Soak(args) => soak::run(&args),
         Command::Inspect(args) => inspect::run(&args).map(|()| done),
         Command::Bench(args) => bench::run(&args).map(|()| done),

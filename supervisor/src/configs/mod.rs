@@ -37,6 +37,9 @@ mod shipped {
 /// (`configs/harvester.ron`) and its bytes.
 pub use shipped::FILES;
 
+/// What follows a built-in file's path when it is named.
+pub const BUILT_IN: &str = " (built in)";
+
 /// Where a config, node script or scenario is read from.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Source {
@@ -57,8 +60,17 @@ impl Source {
     }
 
     /// The file that `rel` names inside this one: relative to this one's folder, and built in
-    /// when this one is.
+    /// when this one is. A name written as every message writes a built-in file,
+    /// `configs/harvester.ron (built in)`, is that built-in file wherever this one lies (a shrunk
+    /// campaign run on disk names its built-in harvester so).
     pub fn beside(&self, rel: impl AsRef<Path>) -> Source {
+        let rel = rel.as_ref();
+        if let Some(name) = rel.to_str().and_then(|s| s.strip_suffix(BUILT_IN)) {
+            return Source {
+                path: PathBuf::from(name),
+                built_in: true,
+            };
+        }
         let dir = self.path.parent().unwrap_or(Path::new(""));
         Source {
             path: dir.join(rel),
@@ -132,7 +144,7 @@ impl fmt::Display for Source {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "{}", self.path.display())?;
         if self.built_in {
-            f.write_str(" (built in)")?;
+            f.write_str(BUILT_IN)?;
         }
         Ok(())
     }

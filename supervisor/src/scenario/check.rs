@@ -392,6 +392,28 @@ fn one(e: &Expect, r: &Running, snap: &Snapshot, books: &Books) -> Verdict {
                 }
             }
         }
+        Expect::NoCrashes => {
+            let injected = format!("crashed: {}", bus_runtime::node::INJECTED_CRASH);
+            let own: Vec<&crate::harvester::SupervisorEvent> = r
+                .events
+                .iter()
+                .filter(|ev| ev.what.starts_with("crashed: ") && ev.what != injected)
+                .collect();
+            match own.first() {
+                None => verdict(e, true, None, "no crash but the timeline's".into()),
+                Some(first) => verdict(
+                    e,
+                    false,
+                    Some(first.at),
+                    format!(
+                        "{} crash(es) by itself; first: {} {}",
+                        own.len(),
+                        first.node,
+                        first.what
+                    ),
+                ),
+            }
+        }
         Expect::TraceComplete => match (books.trace, books.trace_complete()) {
             (Some(t), Some(ok)) => verdict(
                 e,

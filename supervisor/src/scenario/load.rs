@@ -13,6 +13,7 @@ use nodes::Error;
 use std::path::Path;
 
 /// A scenario read and checked, with the harvester it runs on.
+#[derive(Clone)]
 pub struct Loaded {
     /// Its file.
     pub source: Source,
@@ -20,6 +21,9 @@ pub struct Loaded {
     pub scenario: Scenario,
     /// The harvester, with the scenario's seed applied.
     pub harvester: Harvester,
+    /// How many of the timeline's steps are the file's own: the rest were drawn from its
+    /// `random_faults`.
+    pub fixed: usize,
 }
 
 /// Reads and checks a scenario and its harvester; every problem is listed. Files are read with
@@ -79,6 +83,7 @@ fn parse(
     if let Some(s) = seed.or(scenario.seed) {
         harvester.config.seed = s;
     }
+    let fixed = scenario.timeline.len();
     if let Some(r) = &scenario.random_faults {
         // Ordinary steps from here on: the runner, the report and the checks see no difference.
         let seed = r.seed.unwrap_or(harvester.config.seed);
@@ -92,11 +97,12 @@ fn parse(
         source: source.clone(),
         scenario,
         harvester,
+        fixed,
     })
 }
 
 /// The names of a harvester's nodes, the monitor's ("F5") first when it is emulated.
-pub(super) fn node_names(h: &Harvester) -> Vec<String> {
+pub fn node_names(h: &Harvester) -> Vec<String> {
     let monitor = h.config.monitor.enabled.then(|| "F5".to_string());
     monitor
         .into_iter()

@@ -28,9 +28,9 @@ pub mod trace_count;
 mod validate;
 
 pub use check::Verdict;
-pub use load::{Loaded, from_text, load, load_with};
+pub use load::{Loaded, from_text, load, load_with, node_names};
 pub use model::*;
-pub use random::{RandomFault, RandomFaults};
+pub use random::{Fault, Hit, RandomFault, RandomFaults};
 pub use run::{Outcome, run};
 pub use series::Series;
 pub use validate::{MAX_DURATION_S, MAX_OVERLOAD_FRAMES, validate};

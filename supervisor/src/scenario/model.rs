@@ -306,6 +306,8 @@ pub enum Expect {
     FramesAccounted,
     /// Every frame that completed on the bus is a frame record of the trace.
     TraceComplete,
+    /// No node's logic crashed by itself: the only crashes are the timeline's `Crash` steps.
+    NoCrashes,
     /// A node is never in `state` from `from_s` to `to_s` (both included), not even for a moment.
     NodeStateNever {
         /// Node.

@@ -179,10 +179,101 @@ fn ms(t: f64) -> f64 {
     (t * 1000.0).round() / 1000.0
 }
 
-/// The steps of a section (see the module contract). `nodes` are every node of the run; the
-/// section's own list, when given, narrows them. Call [`problems`] first: a section with
-/// problems gives no steps.
+/// One drawn fault: when it starts, when it is undone, and what it is.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Fault {
+    /// Start, s (whole milliseconds).
+    pub at_s: f64,
+    /// End, s (whole milliseconds); the start for a crash, which is never undone.
+    pub until_s: f64,
+    /// What it does.
+    pub hit: Hit,
+}
+
+/// What a drawn fault does.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Hit {
+    /// Each bit of every frame flips with this probability.
+    BitErrors(f64),
+    /// Every `every`-th frame of the node is hit.
+    ErrorPassive {
+        /// The node.
+        node: String,
+        /// Which of its frames.
+        every: u32,
+    },
+    /// The node's logic crashes.
+    Crash(String),
+    /// The node hangs.
+    Hang(String),
+    /// A babbling idiot floods the bus with this frame (candump notation).
+    Babble(String),
+    /// The node is disconnected.
+    Disconnect(String),
+}
+
+impl Fault {
+    /// The timeline steps that carry it out: its start, and its undoing where that is a step of
+    /// its own.
+    pub fn steps(&self) -> Vec<Step> {
+        let step = |action| Step {
+            at_s: self.at_s,
+            action,
+        };
+        let undo = |action| Step {
+            at_s: self.until_s,
+            action,
+        };
+        let until_s = Some(self.until_s);
+        match &self.hit {
+            Hit::BitErrors(rate) => vec![step(Action::BitErrors {
+                target: Target::Any,
+                hits: Hits::BitErrorRate(*rate),
+                until_s,
+                kind: ErrorKind::Bit,
+                seen_by: SeenBy::All,
+            })],
+            Hit::ErrorPassive { node, every } => vec![step(Action::BitErrors {
+                target: Target::Node(node.clone()),
+                hits: Hits::EveryNth(*every),
+                until_s,
+                kind: ErrorKind::Bit,
+                seen_by: SeenBy::All,
+            })],
+            Hit::Crash(node) => vec![step(Action::Crash(node.clone()))],
+            Hit::Hang(node) => vec![
+                step(Action::Hang(node.clone())),
+                undo(Action::Resume(node.clone())),
+            ],
+            Hit::Disconnect(node) => vec![
+                step(Action::Disconnect(node.clone())),
+                undo(Action::Reconnect(node.clone())),
+            ],
+            Hit::Babble(frame) => vec![step(Action::Babble {
+                frame: frame.clone(),
+                until_s: self.until_s,
+            })],
+        }
+    }
+
+    /// Whether it can be undone (a crash cannot: the supervisor restarts the node).
+    pub fn lasts(&self) -> bool {
+        !matches!(self.hit, Hit::Crash(_))
+    }
+}
+
+/// The steps of a section (see the module contract): [`draw`]'s faults, one after the other.
 pub fn expand(r: &RandomFaults, seed: u64, duration_s: f64, nodes: &[String]) -> Vec<Step> {
+    draw(r, seed, duration_s, nodes)
+        .iter()
+        .flat_map(Fault::steps)
+        .collect()
+}
+
+/// The faults of a section, in the order they start (see the module contract). `nodes` are
+/// every node of the run; the section's own list, when given, narrows them. Call [`problems`]
+/// first: a section with problems gives no faults.
+pub fn draw(r: &RandomFaults, seed: u64, duration_s: f64, nodes: &[String]) -> Vec<Fault> {
     if !problems(r, duration_s, nodes).is_empty() {
         return Vec::new();
     }
@@ -197,7 +288,7 @@ pub fn expand(r: &RandomFaults, seed: u64, duration_s: f64, nodes: &[String]) ->
     let mut free_at: BTreeMap<&String, f64> = BTreeMap::new();
     let mut babble_free_at = 0.0;
     let mut bag: Vec<RandomFault> = Vec::new();
-    let mut steps = Vec::new();
+    let mut faults = Vec::new();
     let mut t = r.from_s;
     loop {
         // Exponential gap: -mean * ln(1 - u), u in [0, 1).
@@ -227,32 +318,12 @@ pub fn expand(r: &RandomFaults, seed: u64, duration_s: f64, nodes: &[String]) ->
         } else {
             String::new()
         };
-        let step = |action| Step { at_s: at, action };
-        let undo = |action| Step { at_s: until, action };
-        match kind {
-            RandomFault::BitErrors => steps.push(step(Action::BitErrors {
-                target: Target::Any,
-                hits: Hits::BitErrorRate(f64::from(rng.random_range(10u32..=100)) * 1e-6),
-                until_s: Some(until),
-                kind: ErrorKind::Bit,
-                seen_by: SeenBy::All,
-            })),
-            RandomFault::ErrorPassive => steps.push(step(Action::BitErrors {
-                target: Target::Node(node),
-                hits: Hits::EveryNth(2),
-                until_s: Some(until),
-                kind: ErrorKind::Bit,
-                seen_by: SeenBy::All,
-            })),
-            RandomFault::Crash => steps.push(step(Action::Crash(node))),
-            RandomFault::Hang => {
-                steps.push(step(Action::Hang(node.clone())));
-                steps.push(undo(Action::Resume(node)));
-            }
-            RandomFault::Disconnect => {
-                steps.push(step(Action::Disconnect(node.clone())));
-                steps.push(undo(Action::Reconnect(node)));
-            }
+        let hit = match kind {
+            RandomFault::BitErrors => Hit::BitErrors(f64::from(rng.random_range(10u32..=100)) * 1e-6),
+            RandomFault::ErrorPassive => Hit::ErrorPassive { node, every: 2 },
+            RandomFault::Crash => Hit::Crash(node),
+            RandomFault::Hang => Hit::Hang(node),
+            RandomFault::Disconnect => Hit::Disconnect(node),
             RandomFault::Babble => {
                 if babble_free_at > at {
                     continue;
@@ -260,14 +331,17 @@ pub fn expand(r: &RandomFaults, seed: u64, duration_s: f64, nodes: &[String]) ->
                 babble_free_at = until;
                 let data: [u8; 8] = rng.random();
                 let hex: String = data.iter().map(|b| format!("{b:02X}")).collect();
-                steps.push(step(Action::Babble {
-                    frame: format!("{BABBLE_ID:08X}#{hex}"),
-                    until_s: until,
-                }));
+                Hit::Babble(format!("{BABBLE_ID:08X}#{hex}"))
             }
-        }
+        };
+        let until_s = if matches!(hit, Hit::Crash(_)) { at } else { until };
+        faults.push(Fault {
+            at_s: at,
+            until_s,
+            hit,
+        });
     }
-    steps
+    faults
 }
 
 #[cfg(test)]

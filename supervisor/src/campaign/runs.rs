@@ -1,0 +1,214 @@
+//! A campaign's runs: run `i` drawn from the campaign's seed, played, judged, and shrunk when it
+//! fails.
+
+use super::shard::run_seed;
+use super::shrink::{self, History};
+use crate::configs::Source;
+use crate::scenario::{self, Expect, Fault, Loaded, RandomFaults, Scenario};
+use nodes::{Error, Problem};
+use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::path::Path;
+
+/// What a run that panicked fails (harvemu itself, not a node's logic).
+pub const NO_PANIC: &str = "harvemu does not panic";
+/// What a run that ended with an error fails.
+pub const NO_ERROR: &str = "the run ends without an error";
+
+/// A campaign read and checked: the scenario without its random faults, and the section they
+/// are drawn from.
+pub struct Campaign {
+    /// The scenario as loaded, its timeline only the file's own steps, its expectations the
+    /// file's and the invariants ([`Expect::TraceComplete`], [`Expect::NoCrashes`]).
+    pub base: Loaded,
+    /// The faults' section.
+    pub section: RandomFaults,
+    /// The campaign's seed.
+    pub seed: u64,
+    /// How many runs.
+    pub runs: u64,
+    /// What tells this campaign from another with the same name: a hash of the scenario's text.
+    pub id: String,
+    nodes: Vec<String>,
+}
+
+/// A failing run, shrunk.
+#[derive(Clone, Debug)]
+pub struct Failure {
+    /// The first expectation it failed.
+    pub expectation: String,
+    /// What was observed.
+    pub observed: String,
+    /// Faults drawn.
+    pub faults_before: usize,
+    /// Faults left after shrinking.
+    pub faults_after: usize,
+    /// Candidates run while shrinking.
+    pub trials: u32,
+    /// False when shrinking stopped at its budget.
+    pub complete: bool,
+    /// The shrunk run, as a scenario with a plain timeline.
+    pub scenario: Scenario,
+}
+
+/// One run's result.
+#[derive(Clone, Debug)]
+pub struct RunResult {
+    /// Its number.
+    pub run: u64,
+    /// Its seed.
+    pub seed: u64,
+    /// What it failed, if anything.
+    pub failure: Option<Failure>,
+}
+
+impl Campaign {
+    /// Reads a campaign's scenario (a file, or a built-in one's path): it must have a
+    /// `random_faults` section. `seed` defaults to the scenario's, else its config's.
+    pub fn open(path: &Path, seed: Option<u64>, runs: u64) -> Result<Campaign, Error> {
+        let (_, text) = Source::file(path).read()?;
+        let mut base = scenario::load(path, None)?;
+        let Some(section) = base.scenario.random_faults.take() else {
+            return Err(Error::Invalid(vec![Problem::at(
+                &base.source.to_string(),
+                "random_faults",
+                "a campaign draws its faults at random: this scenario has no random_faults section",
+            )]));
+        };
+        let seed = seed.unwrap_or(base.harvester.config.seed);
+        base.scenario.timeline.truncate(base.fixed);
+        for invariant in [Expect::TraceComplete, Expect::NoCrashes] {
+            let key = format!("{invariant:?}");
+            if !base.scenario.expect.iter().any(|e| format!("{e:?}") == key) {
+                base.scenario.expect.push(invariant);
+            }
+        }
+        let nodes = scenario::node_names(&base.harvester);
+        Ok(Campaign {
+            id: fnv1a(text.as_bytes()),
+            base,
+            section,
+            seed,
+            runs,
+            nodes,
+        })
+    }
+
+    /// The scenario's name.
+    pub fn name(&self) -> &str {
+        &self.base.scenario.name
+    }
+
+    /// Run `i`'s seed and faults.
+    pub fn history(&self, i: u64) -> (u64, History) {
+        let seed = run_seed(self.seed, i);
+        let duration_s = self.base.scenario.duration_s;
+        let faults = scenario::random::draw(&self.section, seed, duration_s, &self.nodes);
+        (seed, History { faults, duration_s })
+    }
+
+    /// The scenario of a run: the file's own steps and the faults' steps, in time order, with
+    /// the run's seed and length and no random faults.
+    pub fn loaded(&self, seed: u64, h: &History) -> Loaded {
+        let mut l = self.base.clone();
+        l.harvester.config.seed = seed;
+        let s = &mut l.scenario;
+        s.seed = Some(seed);
+        s.duration_s = h.duration_s;
+        s.timeline.extend(h.faults.iter().flat_map(Fault::steps));
+        // Stable: the file's steps first, then the faults as drawn, at equal times.
+        s.timeline.sort_by(|a, b| a.at_s.total_cmp(&b.at_s));
+        l.fixed = s.timeline.len();
+        l
+    }
+
+    /// Plays a run: the expectations it failed with what was observed, in the order of the
+    /// expectations; `None` when a stop signal interrupted it.
+    pub fn failures(&self, l: &Loaded) -> Option<Vec<(String, String)>> {
+        let played = catch_unwind(AssertUnwindSafe(|| scenario::run(l, None, |_| {})));
+        match played {
+            Err(panic) => {
+                let why = panic
+                    .downcast_ref::<&str>()
+                    .map(|s| s.to_string())
+                    .or_else(|| panic.downcast_ref::<String>().cloned())
+                    .unwrap_or_else(|| "a panic".into());
+                Some(vec![(NO_PANIC.into(), why)])
+            }
+            Ok(Err(e)) => Some(vec![(NO_ERROR.into(), e.report().to_string())]),
+            Ok(Ok(o)) if o.interrupted => None,
+            Ok(Ok(o)) => Some(
+                o.verdicts
+                    .into_iter()
+                    .filter(|v| !v.passed)
+                    .map(|v| (v.expectation, v.observed))
+                    .collect(),
+            ),
+        }
+    }
+
+    /// Whether a candidate is a scenario `harvemu scenario` would take.
+    fn valid(&self, l: &Loaded) -> bool {
+        scenario::validate(&l.source.to_string(), &l.scenario, &l.harvester).is_empty()
+    }
+
+    /// Plays run `i`, and shrinks it with at most `budget` candidates when it fails; `None`
+    /// when a stop signal interrupted it.
+    pub fn run(&self, i: u64, budget: u32) -> Option<RunResult> {
+        let (seed, start) = self.history(i);
+        let failed = self.failures(&self.loaded(seed, &start))?;
+        let Some((expectation, observed)) = failed.into_iter().next() else {
+            return Some(RunResult {
+                run: i,
+                seed,
+                failure: None,
+            });
+        };
+        let bounds = shrink::Bounds {
+            earliest_s: self.section.from_s,
+            settle_s: self.section.quiet_end_s,
+        };
+        let before = start.faults.len();
+        let shrunk = shrink::shrink(start, bounds, budget, |h| {
+            let l = self.loaded(seed, h);
+            self.valid(&l)
+                && self
+                    .failures(&l)
+                    .is_some_and(|f| f.iter().any(|(e, _)| *e == expectation))
+        });
+        // A stop signal during shrinking leaves the run undone: it is not in the results.
+        if crate::stop::received().is_some() {
+            return None;
+        }
+        let mut scenario = self.loaded(seed, &shrunk.history).scenario;
+        scenario.random_faults = None;
+        scenario.name = format!("{} run {i}", self.name());
+        scenario.description = format!(
+            "Run {i} of the campaign {:?} (seed {}), its {before} random fault(s) shrunk to {}: it fails {expectation}.",
+            self.name(),
+            self.seed,
+            shrunk.history.faults.len()
+        );
+        Some(RunResult {
+            run: i,
+            seed,
+            failure: Some(Failure {
+                expectation,
+                observed,
+                faults_before: before,
+                faults_after: shrunk.history.faults.len(),
+                trials: shrunk.trials,
+                complete: shrunk.complete,
+                scenario,
+            }),
+        })
+    }
+}
+
+/// FNV-1a, 64 bits, in hex: a fingerprint of a file's text that is the same on every machine.
+pub fn fnv1a(bytes: &[u8]) -> String {
+    let mut h: u64 = 0xCBF2_9CE4_8422_2325;
+    for b in bytes {
+        h = (h ^ u64::from(*b)).wrapping_mul(0x0000_0100_0000_01B3);
+    }
+    format!("{h:016x}")
+}
