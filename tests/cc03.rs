@@ -106,6 +106,12 @@ impl Cc03 {
         self.cpu.set_pin(port, bit, level);
     }
 
+    /// Sets ADC input `channel` (0–7) to the 10-bit `code` the next conversion yields
+    /// (clamped to 1023).
+    pub fn set_analog(&mut self, channel: u8, code: u16) {
+        self.cpu.set_analog(channel, code);
+    }
+
     /// Machine cycles since reset.
     pub fn cycles(&self) -> u64 {
         self.cpu.cycles()

@@ -5,8 +5,9 @@
 //! would: expectations from the script's rules (boot delay, check period, heartbeat, Quantize)
 //! and docs/PROTOCOL.md, worked out here rather than read from the firmware.
 
-use bus::at89c51cc::{Action, BusSide, CanController};
+use bus::at89c51cc::{Action, BusSide};
 use bus::fault::ErrorState;
+use harvemu_e2e::cc03::Cc03;
 use harvemu_e2e::root;
 use std::process::Command;
 
@@ -68,37 +69,16 @@ fn sdcc_makes_the_shipped_hex_from_the_source() {
     assert_eq!(shipped.code[0], 0x02, "no LJMP at the reset vector");
 }
 
-/// The shipped image on the AT89C51CC03 core, its CAN controller behind the SFR hook, and a bus
-/// that confirms each frame 520 machine cycles (130 bits at 4 µs) after it is asked to send it.
-/// 12 MHz in X1 mode: a machine cycle is 1 µs, F_CAN 6 MHz (6 CAN clocks a cycle).
+/// The shipped image on the shared AT89C51CC03 bench ([`Cc03`]: 12 MHz in X1 mode, a machine
+/// cycle is 1 µs) and a bus that confirms each frame 520 machine cycles (130 bits at 4 µs) after
+/// it is asked to send it.
 struct Bench {
-    cpu: mcs51::Cpu,
-    board: Board,
+    chip: Cc03,
     done_at: Option<u64>,
     /// Frames handed to the bus, with the cycle of the request.
     frames: Vec<(u64, bus::Frame)>,
     /// Every other action of the controller, with its cycle.
     actions: Vec<(u64, Action)>,
-}
-
-struct Board {
-    can: CanController,
-}
-
-impl mcs51::Xdata for Board {
-    fn read(&mut self, _addr: u16) -> u8 {
-        0xFF
-    }
-    fn write(&mut self, _addr: u16, _value: u8) {}
-    fn sfr_read(&mut self, addr: u8) -> Option<u8> {
-        self.can.sfr_read(addr)
-    }
-    fn sfr_write(&mut self, addr: u8, value: u8) -> bool {
-        self.can.sfr_write(addr, value)
-    }
-    fn irq(&self) -> u8 {
-        if self.can.interrupt() { mcs51::irq::CAN } else { 0 }
-    }
 }
 
 const MS: u64 = 1000;
@@ -108,17 +88,13 @@ impl Bench {
     fn new(code: u16) -> Bench {
         let path = root().join("configs/firmware/c0_alarm.hex");
         let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-        let mut cpu = mcs51::Cpu::new(mcs51::Variant::At89c51cc03, &image(&text, "c0_alarm.hex"));
+        let mut chip = Cc03::new(&text).unwrap_or_else(|e| panic!("c0_alarm.hex: {e}"));
         for bit in 0..6 {
-            cpu.set_pin(2, bit, false);
+            chip.set_pin(2, bit, false);
         }
-        cpu.set_analog(0, code);
-        let board = Board {
-            can: CanController::new(6_000_000),
-        };
+        chip.set_analog(0, code);
         Bench {
-            cpu,
-            board,
+            chip,
             done_at: None,
             frames: Vec::new(),
             actions: Vec::new(),
@@ -126,15 +102,16 @@ impl Bench {
     }
 
     fn run_to(&mut self, cycle: u64) {
-        while self.cpu.cycles() < cycle {
-            if self.done_at.is_some_and(|t| self.cpu.cycles() >= t) {
+        while self.chip.cycles() < cycle {
+            if self.done_at.is_some_and(|t| self.chip.cycles() >= t) {
                 self.done_at = None;
-                self.board.can.set_time(self.cpu.cycles() * 6);
-                self.board.can.on_event(BusSide::Transmitted);
+                self.chip.deliver(BusSide::Transmitted);
             }
-            self.cpu.step(&mut self.board).unwrap();
-            let now = self.cpu.cycles();
-            for action in self.board.can.take_actions() {
+            // Exactly one instruction (`run` stops at the first boundary at or past one more
+            // cycle), so each request is stamped with the cycle of the instruction that made it.
+            self.chip.run(1).unwrap();
+            let now = self.chip.cycles();
+            for action in self.chip.take_actions() {
                 match action {
                     Action::Transmit { frame, .. } => {
                         self.frames.push((now, frame));
@@ -184,9 +161,9 @@ fn the_first_frame_comes_after_the_boot_delay_and_then_one_a_second() {
         );
         assert_eq!(*f, frame);
     }
-    let (tec, rec, _) = b.board.can.error_counters();
+    let (tec, rec, _) = b.chip.can().error_counters();
     assert_eq!((tec, rec), (0, 0));
-    let timing = b.board.can.bit_timing();
+    let timing = b.chip.can().bit_timing();
     assert_eq!(timing.bit_rate_hz(), 250_000.0, "{timing:?}");
 }
 
@@ -196,7 +173,7 @@ fn the_first_frame_comes_after_the_boot_delay_and_then_one_a_second() {
 fn a_door_change_goes_out_at_the_next_check() {
     let mut b = Bench::new(512);
     b.run_to(3503 * MS);
-    b.cpu.set_pin(2, 2, true);
+    b.chip.set_pin(2, 2, true);
     b.run_to(4600 * MS);
     let after = b.frames_since(3503 * MS);
     let times: Vec<u64> = after.iter().map(|f| f.0).collect();
@@ -227,7 +204,7 @@ fn the_vacuum_is_quantized_to_100_mv() {
     ] {
         assert_eq!(quantized_mv(code), mv, "code {code}");
         let before = b.frames.last().map(|f| f.1);
-        b.cpu.set_analog(0, code);
+        b.chip.set_analog(0, code);
         t += 50 * MS;
         b.run_to(t);
         let sent = b.frames_since(t - 50 * MS);
@@ -247,7 +224,7 @@ fn bus_off_restarts_the_controller() {
     let mut b = Bench::new(512);
     b.run_to(500 * MS);
     let before = b.actions.len();
-    b.board.can.on_event(BusSide::Counters {
+    b.chip.deliver(BusSide::Counters {
         tec: 256,
         rec: 0,
         state: ErrorState::BusOff,
@@ -273,8 +250,8 @@ fn bus_off_restarts_the_controller() {
         "restart at {} µs",
         b.actions[before].0
     );
-    assert!(b.board.can.enabled());
-    assert_eq!(b.board.can.bit_timing().bit_rate_hz(), 250_000.0);
+    assert!(b.chip.can().enabled());
+    assert_eq!(b.chip.can().bit_timing().bit_rate_hz(), 250_000.0);
     let after = b.frames_since(500 * MS);
     assert_eq!(after.len(), 1, "{after:?}");
     assert!((1060 * MS..1061 * MS).contains(&after[0].0));
