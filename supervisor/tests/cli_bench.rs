@@ -18,6 +18,8 @@ fn bench_json_reports_every_scenario() {
             "100000",
             "--lab-seconds",
             "2",
+            "--campaign-runs",
+            "2",
         ])
         .arg("--config")
         .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/../configs/harvester.ron"))
@@ -29,6 +31,16 @@ fn bench_json_reports_every_scenario() {
         .lines()
         .map(|l| serde_json::from_str(l).unwrap())
         .collect();
+    // The campaign: runs of the built-in campaign harvest, 60 s each, on every core.
+    let campaign = rows.pop().unwrap();
+    assert_eq!(campaign["scenario"], "campaign", "{campaign}");
+    assert_eq!(campaign["runs"], 2, "{campaign}");
+    assert_eq!(campaign["virtual_seconds"], 60.0, "{campaign}");
+    // A fault a second on average from 10 s to 45 s: some 35 a run, drawn with the seed.
+    let faults = campaign["faults"].as_u64().unwrap();
+    assert!((20..=100).contains(&faults), "{campaign}");
+    assert!(campaign["jobs"].as_u64().unwrap() >= 1, "{campaign}");
+    assert!(campaign["runs_per_hour"].as_f64().unwrap() > 0.0, "{campaign}");
     // The CPU alone: machine cycles, not buses. The busy loop runs whole instructions, so it
     // stops within an instruction (at most 4 cycles) past what was asked.
     let cpu = rows.pop().unwrap();

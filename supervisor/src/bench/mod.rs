@@ -8,6 +8,8 @@
 //! - harvester: the harvester of a config (the default one unless told), monitor, plant and
 //!   supervision included, in virtual time;
 //! - realtime: the same harvester paced by the wall clock, watched from outside the hub.
+//! - campaign: runs of the built-in campaign `harvest` (the default harvester for 60 s with random
+//!   faults) on every core, as `harvemu campaign` plays them: runs per hour.
 //!
 //! Every workload reports the same figures ([`Measurement`]); the peak RSS is the process's peak
 //! since the workload started (the kernel's high-water mark is reset before each one).
@@ -17,6 +19,7 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
 
+mod campaign;
 mod cpu;
 mod harvester;
 mod realtime;
@@ -60,8 +63,12 @@ pub struct Args {
     /// (configs/firmware/irq_lab.ron) with and without the skipping of idle loops.
     #[arg(long, value_name = "SECONDS", default_value_t = 600.0)]
     lab_seconds: f64,
+    /// Runs of the campaign scenario (the built-in campaign `harvest`: the default harvester for
+    /// 60 s with random faults), played on every core.
+    #[arg(long, value_name = "N", default_value_t = 40, value_parser = clap::value_parser!(u64).range(1..))]
+    campaign_runs: u64,
     /// Run only these scenarios (saturated, saturated-multi, harvester, realtime, firmware-cpu,
-    /// firmware-lab).
+    /// firmware-lab, firmware-c0, campaign).
     #[arg(long, value_name = "SCENARIO,...", value_delimiter = ',')]
     only: Vec<String>,
     /// Run the harvester in real time for this many seconds and measure period jitter against
@@ -224,7 +231,7 @@ pub fn measure(
     })
 }
 
-const SCENARIOS: [&str; 7] = [
+const SCENARIOS: [&str; 8] = [
     "saturated",
     "saturated-multi",
     "harvester",
@@ -232,6 +239,7 @@ const SCENARIOS: [&str; 7] = [
     "firmware-cpu",
     "firmware-lab",
     "firmware-c0",
+    "campaign",
 ];
 
 /// Runs `harvemu bench`.
@@ -380,6 +388,23 @@ pub fn run(args: &Args) -> crate::Result<()> {
                 m.cycles,
                 m.wall_seconds,
                 m.chips_at_12_mhz
+            ))?;
+        }
+    }
+    if wanted("campaign") {
+        let jobs = std::thread::available_parallelism().map_or(1, |n| n.get());
+        eprintln!(
+            "bench: campaign, {} runs of the built-in campaign harvest on {jobs} job(s) ...",
+            args.campaign_runs
+        );
+        let m = campaign::measure(args.campaign_runs, jobs)?;
+        if args.json {
+            crate::output::stdout(&format!("{}\n", serde_json::to_string(&m)?))?;
+        } else {
+            crate::output::stdout(&format!(
+                "campaign: {:.0} runs per hour on {} job(s) ({} runs of {:.0} s with {} random \
+                 faults in all, {} failed, in {:.2} s)\n",
+                m.runs_per_hour, m.jobs, m.runs, m.virtual_seconds, m.faults, m.failed, m.wall_seconds
             ))?;
         }
     }

@@ -13,8 +13,6 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::io::{IsTerminal, Write};
 use std::path::{Component, Path, PathBuf};
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::mpsc;
 use std::time::Instant;
 
 /// Arguments of `harvemu campaign`.
@@ -131,38 +129,10 @@ pub fn run(args: &Args) -> Result<Ended> {
     finish(&s, out, &text)
 }
 
-/// Plays the runs on `jobs` threads, each with its own actor system, and shows progress.
+/// Plays the runs on `jobs` threads and shows progress.
 fn play(c: &Campaign, runs: &[u64], jobs: usize, budget: u32) -> BTreeMap<u64, RunResult> {
     let bar = Progress::new(c.name(), runs.len() as u64);
-    let next = AtomicUsize::new(0);
-    let (tx, rx) = mpsc::channel();
-    let mut results = BTreeMap::new();
-    std::thread::scope(|scope| {
-        for _ in 0..jobs.min(runs.len()).max(1) {
-            let tx = tx.clone();
-            let next = &next;
-            scope.spawn(move || {
-                while crate::stop::received().is_none() {
-                    let Some(&i) = runs.get(next.fetch_add(1, Ordering::Relaxed)) else {
-                        break;
-                    };
-                    match c.run(i, budget) {
-                        Some(r) => {
-                            if tx.send(r).is_err() {
-                                break;
-                            }
-                        }
-                        None => break,
-                    }
-                }
-            });
-        }
-        drop(tx);
-        for r in rx {
-            bar.add(r.failure.is_some());
-            results.insert(r.run, r);
-        }
-    });
+    let results = super::runs::play(c, runs, jobs, budget, |r| bar.add(r.failure.is_some()));
     bar.finish();
     results
 }

@@ -18,5 +18,5 @@ pub mod shard;
 pub mod shrink;
 pub mod summary;
 
-pub use runs::{Campaign, Failure, NO_ERROR, NO_PANIC, RunResult, fnv1a};
+pub use runs::{Campaign, Failure, NO_ERROR, NO_PANIC, RunResult, fnv1a, play};
 pub use shard::Shard;

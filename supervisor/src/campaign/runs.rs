@@ -6,8 +6,11 @@ use super::shrink::{self, History};
 use crate::configs::Source;
 use crate::scenario::{self, Expect, Fault, Loaded, RandomFaults, Scenario};
 use nodes::{Error, Problem};
+use std::collections::BTreeMap;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::Path;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::mpsc;
 
 /// What a run that panicked fails (harvemu itself, not a node's logic).
 pub const NO_PANIC: &str = "harvemu does not panic";
@@ -202,6 +205,44 @@ impl Campaign {
             }),
         })
     }
+}
+
+/// Plays `runs` of a campaign on `jobs` threads, each with its own actor system, shrinking
+/// failures with at most `budget` candidates each; `each` sees every result as it comes. Runs a
+/// stop signal interrupted are not among the results.
+pub fn play(
+    c: &Campaign,
+    runs: &[u64],
+    jobs: usize,
+    budget: u32,
+    mut each: impl FnMut(&RunResult),
+) -> BTreeMap<u64, RunResult> {
+    let next = AtomicUsize::new(0);
+    let (tx, rx) = mpsc::channel();
+    let mut results = BTreeMap::new();
+    std::thread::scope(|scope| {
+        for _ in 0..jobs.min(runs.len()).max(1) {
+            let tx = tx.clone();
+            let next = &next;
+            scope.spawn(move || {
+                while crate::stop::received().is_none() {
+                    let Some(&i) = runs.get(next.fetch_add(1, Ordering::Relaxed)) else {
+                        break;
+                    };
+                    let Some(r) = c.run(i, budget) else { break };
+                    if tx.send(r).is_err() {
+                        break;
+                    }
+                }
+            });
+        }
+        drop(tx);
+        for r in rx {
+            each(&r);
+            results.insert(r.run, r);
+        }
+    });
+    results
 }
 
 /// FNV-1a, 64 bits, in hex: a fingerprint of a file's text that is the same on every machine.
