@@ -764,12 +764,23 @@ impl Running {
         Ok(())
     }
 
-    /// Makes a node's logic crash at its next wake.
-    pub async fn crash(&self, name: &str) -> crate::Result<()> {
-        let actor = self
-            .actor(name)
+    /// Makes a node's logic crash at its next wake. A node that is down already (crashed and
+    /// not restarted yet, or given up) has nothing to crash: that is noted as an event.
+    pub async fn crash(&mut self, name: &str) -> crate::Result<()> {
+        let m = self
+            .members
+            .iter()
+            .find(|m| m.name == name)
             .ok_or_else(|| crate::Error::NoNode(name.into()))?;
-        actor.send(Crash).await?;
+        if m.down || m.restart_at.is_some() || !m.actor.connected() {
+            self.events.push(SupervisorEvent {
+                at: self.now,
+                node: name.into(),
+                what: "not crashed: it is down".into(),
+            });
+            return Ok(());
+        }
+        m.actor.send(Crash).await?;
         Ok(())
     }
 

@@ -225,3 +225,37 @@ fn config_runs_a_scenario_against_another_harvester() {
     assert!(err.contains("nothing.ron"), "{err}");
     assert!(out.stdout.is_empty(), "nothing ran");
 }
+
+#[test]
+fn a_crash_of_a_node_that_is_down_is_noted_not_an_error() {
+    // Found by a campaign: the second crash came while B1 was down, waiting out the restart
+    // policy's 100 ms back-off, and harvemu ended with "Mailbox has closed" (exit 70).
+    let dir = scratch("crash-twice");
+    let file = dir.join("twice.ron");
+    std::fs::write(
+        &file,
+        format!(
+            r#"Scenario(name: "crash twice", config: "{}", duration_s: 8.0, seed: Some(1),
+                 timeline: [(at_s: 5.0, action: Crash("B1")), (at_s: 5.15, action: Crash("B1"))],
+                 expect: [Restarts(node: "B1", count: 1), NoCrashes])"#,
+            config()
+        ),
+    )
+    .unwrap();
+    let out = harvemu(&["scenario", file.to_str().unwrap()]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let events: Vec<&str> = text.lines().filter(|l| l.contains(" event ")).collect();
+    assert_eq!(events.len(), 3, "{text}");
+    assert!(events[0].ends_with("B1 crashed: injected crash"), "{text}");
+    assert!(
+        events[1].starts_with("  event 5.150000 B1 not crashed: it is down"),
+        "{text}"
+    );
+    assert!(events[2].ends_with("B1 restarted"), "{text}");
+}

@@ -163,12 +163,21 @@ async fn inject(running: &Running, at: &str, node: &str, fault: NodeFault) -> cr
     let now = running.now();
     let (answer, taken) = std::sync::mpsc::channel();
     let described = describe(&fault);
+    let down = || {
+        Error::BadInput(format!(
+            "{at}: node {node} is down (it crashed and has not restarted yet): cannot apply {described}"
+        ))
+    };
+    if !actor.connected() {
+        return Err(down());
+    }
     actor
         .send(Apply(Box::new(move |logic| {
             // The receiver waits below: it cannot be gone.
             let _ = answer.send(logic.inject(&fault, now));
         })))
-        .await?;
+        .await
+        .map_err(|_| down())?;
     match taken.try_recv() {
         Ok(Ok(())) => Ok(()),
         Ok(Err(refused)) => Err(Error::BadInput(format!(
