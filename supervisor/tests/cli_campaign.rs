@@ -422,3 +422,88 @@ fn sigterm_ends_the_campaign_with_a_summary_that_says_so() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn a_planted_overlap_shrinks_to_the_two_faults_that_make_it() {
+    // Three nodes: D0 sends, B0 and B1 acknowledge. By the CAN rules a transmitter that no
+    // receiver acknowledges counts 8 up per attempt and is error passive at 128 (ISO 11898-1,
+    // fault confinement), so D0 turns error passive only while B0 and B1 are both
+    // disconnected. The other faults (hangs, crashes, bit errors on the bus) are noise: a hung
+    // or restarting node's controller still acknowledges.
+    let dir = scratch("campaign", "planted");
+    let node = |n: &str| root().join("configs/nodes").join(n).canonicalize().unwrap();
+    std::fs::write(
+        dir.join("net.ron"),
+        format!(
+            "Network(name: \"three\", bitrate: 250000, nodes: [{:?}, {:?}, {:?}])",
+            node("d0.ron"),
+            node("b0.ron"),
+            node("b1.ron")
+        ),
+    )
+    .unwrap();
+    let file = dir.join("planted.ron");
+    std::fs::write(
+        &file,
+        r#"Scenario(
+    name: "planted overlap",
+    config: "net.ron",
+    duration_s: 60.0,
+    random_faults: Some((
+        mean_interval_s: 0.7,
+        kinds: [Disconnect, Hang, BitErrors, Crash],
+        nodes: ["B0", "B1"],
+        from_s: 5.0,
+        quiet_end_s: 5.0,
+        min_fault_s: 0.2,
+        max_fault_s: 2.0,
+        node_rest_s: 0.0,
+    )),
+    expect: [NodeStateNever(node: "D0", state: Passive, from_s: 0.0, to_s: 60.0)],
+)
+"#,
+    )
+    .unwrap();
+    let out = dir.join("out");
+    let o = harvemu(&[
+        "campaign",
+        s(&file),
+        "--runs",
+        "6",
+        "--seed",
+        "0",
+        "--out",
+        s(&out),
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    let summary = json(&out.join("summary.json"));
+    let failed = summary["failed"].as_array().unwrap();
+    assert!(!failed.is_empty(), "{summary}");
+    for f in failed {
+        assert!(f["faults_before"].as_u64().unwrap() >= 40, "{f}");
+        assert_eq!(f["faults_after"], 2, "{f}");
+        assert_eq!(f["shrink_complete"], true, "{f}");
+        let shrunk = out.join(f["shrunk"].as_str().unwrap());
+        let l = supervisor::scenario::load(&shrunk, None).unwrap_or_else(|e| panic!("{e}"));
+        let steps: Vec<(f64, String)> = l
+            .scenario
+            .timeline
+            .iter()
+            .map(|st| (st.at_s, format!("{:?}", st.action)))
+            .collect();
+        let at = |what: &str| {
+            steps
+                .iter()
+                .find(|(_, a)| a == what)
+                .unwrap_or_else(|| panic!("{what} not in {steps:?}"))
+                .0
+        };
+        assert_eq!(steps.len(), 4, "{steps:?}");
+        let (b0, b1) = (at("Disconnect(\"B0\")"), at("Disconnect(\"B1\")"));
+        let (b0_back, b1_back) = (at("Reconnect(\"B0\")"), at("Reconnect(\"B1\")"));
+        assert!(b0 < b1_back && b1 < b0_back, "they overlap: {steps:?}");
+        // Moved to the campaign's earliest start, 5 s, as early as the overlap allows.
+        assert_eq!(b0.min(b1), 5.0, "{steps:?}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
