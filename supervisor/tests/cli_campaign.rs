@@ -289,6 +289,19 @@ fn bad_input_is_refused_with_exit_code_2() {
         "0/4",
     );
     expect2(&["campaign", s(&file), "--runs", "0", "--out", s(&out)], "--runs");
+    expect2(
+        &[
+            "campaign",
+            s(&file),
+            "--runs",
+            "4",
+            "--jobs",
+            "1025",
+            "--out",
+            s(&out),
+        ],
+        "--jobs",
+    );
     expect2(&["campaign", s(&file), "--runs", "4"], "--out");
     expect2(
         &["campaign", "no-such-campaign", "--runs", "4", "--out", s(&out)],
@@ -376,6 +389,30 @@ fn outputs_that_cannot_be_written_exit_3() {
         text(&o)
     );
     assert!(!out.join("summary.json").exists(), "no half summary");
+    // Standard output that takes no write: the files are whole, the exit code says it.
+    let out = dir.join("stdout");
+    let o = Command::new(env!("CARGO_BIN_EXE_harvemu"))
+        .current_dir(root())
+        .args([
+            "campaign",
+            s(&file),
+            "--runs",
+            "1",
+            "--shrink-trials",
+            "0",
+            "--out",
+            s(&out),
+        ])
+        .stdout(std::fs::File::create("/dev/full").unwrap())
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(3), "{}", text(&o));
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("standard output"),
+        "{}",
+        text(&o)
+    );
+    assert_eq!(json(&out.join("summary.json"))["done"], 1);
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -383,11 +420,13 @@ fn outputs_that_cannot_be_written_exit_3() {
 fn sigterm_ends_the_campaign_with_a_summary_that_says_so() {
     let dir = scratch("campaign", "term");
     let out = dir.join("out");
+    let most = u64::MAX.to_string();
     let child = spawn(&[
         "campaign",
         "harvest",
         "--runs",
-        "10000",
+        // The most runs there can be: nothing is set aside per run before it is played.
+        &most,
         "--jobs",
         "2",
         "--out",
@@ -400,7 +439,8 @@ fn sigterm_ends_the_campaign_with_a_summary_that_says_so() {
     let summary = json(&out.join("summary.json"));
     assert_eq!(summary["interrupted"], true);
     let done = summary["done"].as_u64().unwrap();
-    assert!(done < 10000, "{summary}");
+    assert!(done > 0 && done < 10000, "{summary}");
+    assert_eq!(summary["runs"].as_u64(), Some(u64::MAX), "{summary}");
     assert_eq!(
         summary["passed"].as_u64().unwrap() + summary["failed"].as_array().unwrap().len() as u64,
         done

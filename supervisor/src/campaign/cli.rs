@@ -1,6 +1,6 @@
 //! `harvemu campaign SCENARIO --runs N --out DIR` and `harvemu campaign merge DIR... --out DIR`.
 
-use super::runs::{Campaign, RunResult};
+use super::runs::Campaign;
 use super::shard::{INDEX_VAR, SHARDS_VAR, Shard};
 use super::summary::{self, Failed, Summary};
 use crate::configs::{self, BUILT_IN, Source};
@@ -36,8 +36,8 @@ pub struct Args {
     /// JOB_COMPLETION_INDEX + 1 of HARVEMU_SHARDS when set, else the whole campaign.
     #[arg(long, value_name = "K/M", value_parser = Shard::parse)]
     shard: Option<Shard>,
-    /// Runs played at the same time (default: the machine's cores).
-    #[arg(long, value_name = "J", value_parser = clap::value_parser!(u64).range(1..))]
+    /// Runs played at the same time, 1 to 1024 (default: the machine's cores).
+    #[arg(long, value_name = "J", value_parser = clap::value_parser!(u64).range(1..=1024))]
     jobs: Option<u64>,
     /// Most candidate runs spent shrinking one failing run (0: write it unshrunk).
     #[arg(long, value_name = "N", default_value_t = 400)]
@@ -83,30 +83,43 @@ pub fn run(args: &Args) -> Result<Ended> {
         || std::thread::available_parallelism().map_or(1, |n| n.get()),
         |j| j as usize,
     );
-    let mine: Vec<u64> = shard.runs(runs).collect();
+    let count = shard.count(runs);
     let started = Instant::now();
-    let results = play(&campaign, &mine, jobs, args.shrink_trials);
-    let wall = started.elapsed().as_secs_f64();
-    // Interrupted: the runs done before the first one left undone, so that the summary says
-    // plainly which runs it covers.
-    let done: Vec<&RunResult> = mine.iter().map_while(|i| results.get(i)).collect();
-    let mut failed = Vec::new();
-    for r in &done {
-        let Some(f) = &r.failure else { continue };
+    let bar = Progress::new(campaign.name(), count);
+    // Each shrunk run is written as soon as it comes: a campaign killed outright still leaves
+    // what it found. The first write that fails ends the campaign with its error.
+    let mut failed = BTreeMap::new();
+    let mut broken = None;
+    let done = super::runs::play(&campaign, shard, runs, jobs, args.shrink_trials, |r| {
+        bar.add(r.failure.is_some());
+        let Some(f) = &r.failure else { return true };
         let file = summary::shrunk_file(r.run);
         let path = out.join(&file);
-        write(&path, shrunk_text(&campaign, f, &path)?.as_bytes())?;
-        failed.push(Failed {
-            run: r.run,
-            seed: r.seed,
-            expectation: f.expectation.clone(),
-            observed: f.observed.clone(),
-            shrunk: file,
-            faults_before: f.faults_before,
-            faults_after: f.faults_after,
-            shrink_trials: f.trials,
-            shrink_complete: f.complete,
-        });
+        match shrunk_text(&campaign, f, &path).and_then(|text| write(&path, text.as_bytes())) {
+            Ok(()) => {
+                failed.insert(r.run, failed_entry(r.run, r.seed, f, file));
+                true
+            }
+            Err(e) => {
+                broken = Some(e);
+                false
+            }
+        }
+    });
+    bar.finish();
+    if let Some(e) = broken {
+        return Err(e);
+    }
+    let done = done.map_err(Error::Internal)?;
+    let wall = started.elapsed().as_secs_f64();
+    // Interrupted: the summary covers the runs before the first one left undone, and says so;
+    // failures found past it are left out, their files removed.
+    let last = (done > 0).then(|| shard.k - 1 + (done - 1) * shard.m);
+    let (failed, past): (Vec<Failed>, Vec<Failed>) = failed
+        .into_values()
+        .partition(|f| last.is_some_and(|l| f.run <= l));
+    for f in past {
+        let _ = std::fs::remove_file(out.join(&f.shrunk));
     }
     let s = Summary {
         campaign: campaign.name().to_string(),
@@ -114,27 +127,34 @@ pub fn run(args: &Args) -> Result<Ended> {
         runs,
         seed: campaign.seed,
         shard: shard.to_string(),
-        done: done.len() as u64,
-        passed: (done.len() - failed.len()) as u64,
+        done,
+        passed: done - failed.len() as u64,
         failed,
-        interrupted: done.len() < mine.len(),
+        interrupted: done < count,
     };
     let mut text = summary_lines(&s, out);
     let _ = writeln!(
         text,
         "{:.1} s wall, {:.0} runs per hour on {jobs} job(s)",
         wall,
-        done.len() as f64 * 3600.0 / wall.max(1e-9)
+        done as f64 * 3600.0 / wall.max(1e-9)
     );
     finish(&s, out, &text)
 }
 
-/// Plays the runs on `jobs` threads and shows progress.
-fn play(c: &Campaign, runs: &[u64], jobs: usize, budget: u32) -> BTreeMap<u64, RunResult> {
-    let bar = Progress::new(c.name(), runs.len() as u64);
-    let results = super::runs::play(c, runs, jobs, budget, |r| bar.add(r.failure.is_some()));
-    bar.finish();
-    results
+/// A failing run's entry in the summary.
+fn failed_entry(run: u64, seed: u64, f: &super::runs::Failure, shrunk: String) -> Failed {
+    Failed {
+        run,
+        seed,
+        expectation: f.expectation.clone(),
+        observed: f.observed.clone(),
+        shrunk,
+        faults_before: f.faults_before,
+        faults_after: f.faults_after,
+        shrink_trials: f.trials,
+        shrink_complete: f.complete,
+    }
 }
 
 /// Progress: a bar on a terminal, a line per tenth of the runs in a log.
@@ -330,7 +350,7 @@ fn merge(dirs: &[PathBuf], out: &Path) -> Result<Ended> {
     let mut parts = Vec::new();
     for d in dirs {
         let path = d.join("summary.json");
-        let text = nodes::file::read_text(&path).map_err(Error::Config)?;
+        let text = read_summary(&path)?;
         let s: Summary = serde_json::from_str(&text)
             .map_err(|e| Error::BadInput(format!("{}: not a campaign summary: {e}", path.display())))?;
         parts.push((d.display().to_string(), s));
@@ -347,6 +367,26 @@ fn merge(dirs: &[PathBuf], out: &Path) -> Result<Ended> {
     }
     let text = summary_lines(&merged, out);
     finish(&merged, out, &text)
+}
+
+/// Largest summary read: some two million failing runs.
+const MAX_SUMMARY: u64 = 1 << 30;
+
+/// A shard's summary.json as text: at most [`MAX_SUMMARY`] bytes of UTF-8.
+fn read_summary(path: &Path) -> Result<String> {
+    use std::io::Read;
+    let bad = |why: String| Error::BadInput(format!("{}: {why}", path.display()));
+    let file = std::fs::File::open(path).map_err(|e| bad(format!("cannot read it: {e}")))?;
+    let mut bytes = Vec::new();
+    file.take(MAX_SUMMARY + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| bad(format!("cannot read it: {e}")))?;
+    if bytes.len() as u64 > MAX_SUMMARY {
+        return Err(bad(format!(
+            "larger than {MAX_SUMMARY} bytes: not a campaign summary"
+        )));
+    }
+    String::from_utf8(bytes).map_err(|e| bad(format!("not UTF-8 text: {e}")))
 }
 
 /// A shrunk scenario's file, as it reads from its new place `to`: its harvester named from

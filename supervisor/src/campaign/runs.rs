@@ -1,15 +1,15 @@
 //! A campaign's runs: run `i` drawn from the campaign's seed, played, judged, and shrunk when it
 //! fails.
 
-use super::shard::run_seed;
+use super::shard::{Shard, run_seed};
 use super::shrink::{self, History};
 use crate::configs::Source;
 use crate::scenario::{self, Expect, Fault, Loaded, RandomFaults, Scenario};
 use nodes::{Error, Problem};
-use std::collections::BTreeMap;
+use std::collections::BTreeSet;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::Path;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc;
 
 /// What a run that panicked fails (harvemu itself, not a node's logic).
@@ -207,42 +207,73 @@ impl Campaign {
     }
 }
 
-/// Plays `runs` of a campaign on `jobs` threads, each with its own actor system, shrinking
-/// failures with at most `budget` candidates each; `each` sees every result as it comes. Runs a
-/// stop signal interrupted are not among the results.
+/// Plays shard `shard` of the runs `0..runs` in order on `jobs` threads, each with its own
+/// actor system, shrinking failures with at most `budget` candidates each. `each` sees every
+/// result as it comes, and stops the campaign by answering false. The answer is how many of
+/// the shard's runs were done without a gap from its first one: all of them, unless a stop
+/// signal or `each` ended it (the runs under way are then dropped). Memory holds the runs
+/// under way and those finished ahead of the slowest, never one entry per run.
 pub fn play(
     c: &Campaign,
-    runs: &[u64],
+    shard: Shard,
+    runs: u64,
     jobs: usize,
     budget: u32,
-    mut each: impl FnMut(&RunResult),
-) -> BTreeMap<u64, RunResult> {
-    let next = AtomicUsize::new(0);
+    mut each: impl FnMut(&RunResult) -> bool,
+) -> Result<u64, String> {
+    // The j-th run of the shard is run k - 1 + j·m.
+    let count = shard.count(runs);
+    let nth = |j: u64| (shard.k - 1) + j * shard.m;
+    let next = AtomicU64::new(0);
+    let halt = AtomicBool::new(false);
     let (tx, rx) = mpsc::channel();
-    let mut results = BTreeMap::new();
+    let mut done = 0;
+    // Runs finished ahead of the first one still under way, by their place in the shard.
+    let mut ahead = BTreeSet::new();
     std::thread::scope(|scope| {
-        for _ in 0..jobs.min(runs.len()).max(1) {
+        let mut started = 0;
+        for t in 0..jobs.min(count as usize).max(1) {
             let tx = tx.clone();
-            let next = &next;
-            scope.spawn(move || {
-                while crate::stop::received().is_none() {
-                    let Some(&i) = runs.get(next.fetch_add(1, Ordering::Relaxed)) else {
+            let (next, halt) = (&next, &halt);
+            let job = move || {
+                while crate::stop::received().is_none() && !halt.load(Ordering::Relaxed) {
+                    let j = next.fetch_add(1, Ordering::Relaxed);
+                    if j >= count {
                         break;
-                    };
-                    let Some(r) = c.run(i, budget) else { break };
-                    if tx.send(r).is_err() {
+                    }
+                    let Some(r) = c.run(nth(j), budget) else { break };
+                    if tx.send((j, r)).is_err() {
                         break;
                     }
                 }
-            });
+            };
+            match std::thread::Builder::new()
+                .name(format!("campaign-{t}"))
+                .spawn_scoped(scope, job)
+            {
+                Ok(_) => started += 1,
+                // Fewer threads than asked is slower, not wrong; none at all is an error.
+                Err(e) if started == 0 => return Err(format!("cannot start a thread: {e}")),
+                Err(_) => break,
+            }
         }
         drop(tx);
-        for r in rx {
-            each(&r);
-            results.insert(r.run, r);
+        for (j, r) in rx {
+            if halt.load(Ordering::Relaxed) {
+                continue;
+            }
+            if !each(&r) {
+                halt.store(true, Ordering::Relaxed);
+                continue;
+            }
+            ahead.insert(j);
+            while ahead.remove(&done) {
+                done += 1;
+            }
         }
-    });
-    results
+        Ok(())
+    })?;
+    Ok(done)
 }
 
 /// FNV-1a, 64 bits, in hex: a fingerprint of a file's text that is the same on every machine.

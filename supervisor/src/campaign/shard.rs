@@ -75,6 +75,11 @@ impl Shard {
         i % self.m == self.k - 1
     }
 
+    /// How many of the runs `0..runs` are this shard's.
+    pub fn count(self, runs: u64) -> u64 {
+        runs.saturating_sub(self.k - 1).div_ceil(self.m)
+    }
+
     /// This shard's runs among `0..runs`, in order.
     pub fn runs(self, runs: u64) -> impl Iterator<Item = u64> {
         (self.k - 1..runs).step_by(self.m as usize)
@@ -109,6 +114,7 @@ mod tests {
             let mut seen = vec![0; 50];
             for k in 1..=m {
                 let s = Shard::new(k, m).unwrap();
+                assert_eq!(s.count(50), s.runs(50).count() as u64);
                 for i in s.runs(50) {
                     assert!(s.takes(i));
                     seen[i as usize] += 1;
