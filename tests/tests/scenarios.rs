@@ -114,7 +114,12 @@ fn failures(file: &str, seed: Option<u64>, drop: &[&str]) -> Vec<String> {
             .retain(|s| !drop.contains(&s.action.name()));
         assert!(loaded.scenario.timeline.len() < before, "{file} has no {drop:?}");
     }
-    let outcome = scenario::run(&loaded, None, |_| {}).unwrap();
+    failed_verdicts(file, &loaded)
+}
+
+/// Runs a loaded scenario: its failed verdicts, each with the file and the seed.
+fn failed_verdicts(file: &str, loaded: &scenario::Loaded) -> Vec<String> {
+    let outcome = scenario::run(loaded, None, |_| {}).unwrap();
     outcome
         .verdicts
         .iter()
@@ -179,18 +184,7 @@ fn c0_as_firmware_passes_the_scenarios_c0_takes_part_in() {
             loaded.harvester.firmware.iter().any(|f| f.name == "C0"),
             "{file}: C0 is firmware"
         );
-        let outcome = scenario::run(&loaded, None, |_| {}).unwrap();
-        outcome
-            .verdicts
-            .iter()
-            .filter(|v| !v.passed)
-            .map(|v| {
-                format!(
-                    "{file} seed {}: {} -> {}",
-                    outcome.seed, v.expectation, v.observed
-                )
-            })
-            .collect::<Vec<_>>()
+        failed_verdicts(file, &loaded)
     })
     .concat();
     assert!(failed.is_empty(), "{failed:#?}");
