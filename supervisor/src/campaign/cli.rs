@@ -254,11 +254,17 @@ fn config_field(source: &Source, file: &Path) -> String {
     if source.path.is_absolute() {
         return normal(&source.path).display().to_string();
     }
+    seen_from(file, &source.path)
+}
+
+/// `target` (a path relative to the working directory, or absolute) as the file `file` names
+/// it: relative to the file's folder.
+fn seen_from(file: &Path, target: &Path) -> String {
     let dir = file.parent().unwrap_or(Path::new(""));
-    match (std::path::absolute(&source.path), std::path::absolute(dir)) {
+    match (std::path::absolute(target), std::path::absolute(dir)) {
         (Ok(to), Ok(from)) => relative(&normal(&from), &normal(&to)).display().to_string(),
         (Ok(to), Err(_)) => normal(&to).display().to_string(),
-        _ => source.path.display().to_string(),
+        _ => target.display().to_string(),
     }
 }
 
@@ -402,7 +408,67 @@ fn moved(from: &Path, to: &Path) -> Result<String> {
         .collect();
     if !s.config.ends_with(BUILT_IN) && Path::new(&s.config).is_relative() {
         let config = from.parent().unwrap_or(Path::new("")).join(&s.config);
-        s.config = config_field(&Source::file(config), to);
+        s.config = seen_from(to, &config);
     }
     scenario_text(&about, &s, to)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_harvester_is_named_from_where_the_shrunk_file_lies() {
+        let built_in = Source {
+            path: "configs/harvester.ron".into(),
+            built_in: true,
+        };
+        assert_eq!(
+            config_field(&built_in, Path::new("/x/out/failing/run-1.ron")),
+            "configs/harvester.ron (built in)"
+        );
+        let absolute = Source::file("/etc/harvemu/./h.ron");
+        assert_eq!(
+            config_field(&absolute, Path::new("out/failing/run-1.ron")),
+            "/etc/harvemu/h.ron"
+        );
+        // Relative to the working directory, both: up out of out/failing, then down.
+        let relative = Source::file("configs/../configs/harvester.ron");
+        assert_eq!(
+            config_field(&relative, Path::new("out/failing/run-1.ron")),
+            "../../configs/harvester.ron"
+        );
+        assert_eq!(
+            relative_to(Path::new("/a/b/c"), Path::new("/a/d/e.ron")),
+            Path::new("../../d/e.ron")
+        );
+    }
+
+    fn relative_to(from: &Path, to: &Path) -> PathBuf {
+        relative(&normal(from), &normal(to))
+    }
+
+    #[test]
+    fn a_moved_file_names_its_harvester_from_its_new_place() {
+        let dir = std::env::temp_dir().join(format!("harvemu-moved-{}", std::process::id()));
+        let (old, new) = (dir.join("shard-2/failing"), dir.join("merged/deeper/failing"));
+        std::fs::create_dir_all(&old).unwrap();
+        let from = old.join("run-5.ron");
+        let text = "// Found by harvemu campaign.\n// Rerun: harvemu scenario shard-2/failing/run-5.ron\n\
+                    Scenario(name: \"t\", config: \"../../configs/harvester.ron\", duration_s: 1.0, expect: [NoCrashes])\n";
+        std::fs::write(&from, text).unwrap();
+        let to = new.join("run-5.ron");
+        let moved = moved(&from, &to).unwrap();
+        std::fs::remove_dir_all(&dir).unwrap();
+        assert!(
+            moved.starts_with("// Found by harvemu campaign.\n// Rerun: harvemu scenario "),
+            "{moved}"
+        );
+        assert_eq!(moved.matches("// Rerun:").count(), 1, "{moved}");
+        // The same file as before: dir/configs/harvester.ron, now three folders up.
+        assert!(
+            moved.contains("config: \"../../../configs/harvester.ron\""),
+            "{moved}"
+        );
+    }
 }

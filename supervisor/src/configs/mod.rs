@@ -227,6 +227,28 @@ mod tests {
     }
 
     #[test]
+    fn a_name_written_as_built_in_is_the_built_in_file_from_anywhere() {
+        let on_disk = Source::file("/somewhere/out/failing/run-3.ron");
+        let h = on_disk.beside("configs/harvester.ron (built in)");
+        assert_eq!(
+            h,
+            Source {
+                path: "configs/harvester.ron".into(),
+                built_in: true
+            }
+        );
+        let (found, text) = h.read().unwrap_or_else(|e| panic!("{e}"));
+        assert!(found.built_in && text.contains("Harvester("));
+        // Without the suffix it is a path beside the file, as ever.
+        let near = on_disk.beside("configs/harvester.ron");
+        assert_eq!(
+            near.path,
+            Path::new("/somewhere/out/failing/configs/harvester.ron")
+        );
+        assert!(!near.built_in);
+    }
+
+    #[test]
     fn names_become_shipped_paths_only_when_nothing_is_there() {
         assert_eq!(
             by_name(Path::new("bus_off"), "scenarios"),
