@@ -3,7 +3,7 @@
 use super::runs::Campaign;
 use super::shard::{INDEX_VAR, SHARDS_VAR, Shard};
 use super::summary::{self, Failed, Summary};
-use crate::configs::{self, BUILT_IN, Source};
+use crate::configs;
 use crate::exit::Ended;
 use crate::output::{self, Output};
 use crate::scenario::Scenario;
@@ -12,7 +12,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::io::{IsTerminal, Write};
-use std::path::{Component, Path, PathBuf};
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// Arguments of `harvemu campaign`.
@@ -63,7 +63,7 @@ enum MergeCommand {
 /// Runs `harvemu campaign` (or its `merge`): exit code 1 when a run failed.
 pub fn run(args: &Args) -> Result<Ended> {
     if let Some(MergeCommand::Merge { dirs, out }) = &args.merge {
-        return merge(dirs, out);
+        return super::merge::merge(dirs, out);
     }
     let (Some(scenario), Some(runs), Some(out)) = (&args.scenario, args.runs, &args.out) else {
         return Err(Error::BadInput("give SCENARIO, --runs and --out".into()));
@@ -208,7 +208,7 @@ impl Progress {
         }
     }
 
-    fn finish(&self) {
+    pub(super) fn finish(&self) {
         self.bar.finish_and_clear();
     }
 }
@@ -217,7 +217,7 @@ impl Progress {
 /// its harvester named from where the file lies.
 fn shrunk_text(c: &Campaign, f: &super::runs::Failure, file: &Path) -> Result<String> {
     let mut s = f.scenario.clone();
-    s.config = config_field(&c.base.harvester.source, file);
+    s.config = super::paths::config_field(&c.base.harvester.source, file);
     let about = format!(
         "// Found by harvemu campaign, shrunk from {} to {} fault(s) in {} trial(s){}.\n// It fails {}: {}\n",
         f.faults_before,
@@ -235,7 +235,7 @@ fn shrunk_text(c: &Campaign, f: &super::runs::Failure, file: &Path) -> Result<St
 }
 
 /// A scenario file: the comment lines `about`, the line that reruns it, and the RON.
-fn scenario_text(about: &str, s: &Scenario, file: &Path) -> Result<String> {
+pub(super) fn scenario_text(about: &str, s: &Scenario, file: &Path) -> Result<String> {
     let pretty = ron::ser::PrettyConfig::new().struct_names(true);
     let body = ron::ser::to_string_pretty(s, pretty)
         .map_err(|e| Error::Internal(format!("cannot write a scenario as RON: {e}")))?;
@@ -245,60 +245,8 @@ fn scenario_text(about: &str, s: &Scenario, file: &Path) -> Result<String> {
     ))
 }
 
-/// The harvester config as the scenario `file` names it: a built-in one as `PATH (built in)`,
-/// an absolute path as it is, a relative one relative to the file's folder.
-fn config_field(source: &Source, file: &Path) -> String {
-    if source.built_in {
-        return format!("{}{BUILT_IN}", source.path.display());
-    }
-    if source.path.is_absolute() {
-        return normal(&source.path).display().to_string();
-    }
-    seen_from(file, &source.path)
-}
-
-/// `target` (a path relative to the working directory, or absolute) as the file `file` names
-/// it: relative to the file's folder.
-fn seen_from(file: &Path, target: &Path) -> String {
-    let dir = file.parent().unwrap_or(Path::new(""));
-    match (std::path::absolute(target), std::path::absolute(dir)) {
-        (Ok(to), Ok(from)) => relative(&normal(&from), &normal(&to)).display().to_string(),
-        (Ok(to), Err(_)) => normal(&to).display().to_string(),
-        _ => target.display().to_string(),
-    }
-}
-
-/// A path with `.` and `..` taken out lexically.
-fn normal(p: &Path) -> PathBuf {
-    let mut out = PathBuf::new();
-    for c in p.components() {
-        match c {
-            Component::CurDir => {}
-            Component::ParentDir => {
-                out.pop();
-            }
-            c => out.push(c),
-        }
-    }
-    out
-}
-
-/// `to` relative to the folder `from` (both absolute and normal).
-fn relative(from: &Path, to: &Path) -> PathBuf {
-    let (a, b): (Vec<_>, Vec<_>) = (from.components().collect(), to.components().collect());
-    let common = a.iter().zip(&b).take_while(|(x, y)| x == y).count();
-    let mut out = PathBuf::new();
-    for _ in common..a.len() {
-        out.push("..");
-    }
-    for c in &b[common..] {
-        out.push(c);
-    }
-    out
-}
-
 /// The lines on standard output: the totals and each failing run.
-fn summary_lines(s: &Summary, out: &Path) -> String {
+pub(super) fn summary_lines(s: &Summary, out: &Path) -> String {
     let mut text = format!(
         "campaign {} (seed {}, shard {}): {} of {} runs, {} passed, {} failed{}\n",
         s.campaign,
@@ -310,7 +258,8 @@ fn summary_lines(s: &Summary, out: &Path) -> String {
         s.failed.len(),
         if s.interrupted { ", INTERRUPTED" } else { "" }
     );
-    for f in &s.failed {
+    // A terminal's worth; summary.json has them all.
+    for f in s.failed.iter().take(SHOWN) {
         let _ = writeln!(
             text,
             "  FAIL run {} (seed {}): {}  {}\n    shrunk from {} to {} fault(s): harvemu scenario {}",
@@ -323,11 +272,22 @@ fn summary_lines(s: &Summary, out: &Path) -> String {
             out.join(&f.shrunk).display()
         );
     }
+    if s.failed.len() > SHOWN {
+        let _ = writeln!(
+            text,
+            "  ... and {} more failing runs: {}",
+            s.failed.len() - SHOWN,
+            out.join("summary.json").display()
+        );
+    }
     text
 }
 
+/// Failing runs listed on standard output.
+const SHOWN: usize = 20;
+
 /// Writes summary.json and junit.xml, then the lines on standard output.
-fn finish(s: &Summary, out: &Path, text: &str) -> Result<Ended> {
+pub(super) fn finish(s: &Summary, out: &Path, text: &str) -> Result<Ended> {
     let json = serde_json::to_string_pretty(s)? + "\n";
     write(&out.join("summary.json"), json.as_bytes())?;
     write(
@@ -344,131 +304,10 @@ fn finish(s: &Summary, out: &Path, text: &str) -> Result<Ended> {
     })
 }
 
-fn write(path: &Path, bytes: &[u8]) -> Result<()> {
+/// Writes a whole output and puts it in place.
+pub(super) fn write(path: &Path, bytes: &[u8]) -> Result<()> {
     let mut o = Output::create(path)?;
     o.write_all(bytes)
         .map_err(|e| output::failed("write", o.path(), e))?;
     o.commit()
-}
-
-/// `harvemu campaign merge`.
-fn merge(dirs: &[PathBuf], out: &Path) -> Result<Ended> {
-    let mut parts = Vec::new();
-    for d in dirs {
-        let path = d.join("summary.json");
-        let text = read_summary(&path)?;
-        let s: Summary = serde_json::from_str(&text)
-            .map_err(|e| Error::BadInput(format!("{}: not a campaign summary: {e}", path.display())))?;
-        parts.push((d.display().to_string(), s));
-    }
-    let merged = super::summary::merge(&parts).map_err(|e| Error::BadInput(format!("cannot merge: {e}")))?;
-    let failing = out.join("failing");
-    std::fs::create_dir_all(&failing).map_err(|e| output::failed("create", &failing, e))?;
-    for (dir, s) in &parts {
-        for f in &s.failed {
-            let from = Path::new(dir).join(&f.shrunk);
-            let to = out.join(&f.shrunk);
-            write(&to, moved(&from, &to)?.as_bytes())?;
-        }
-    }
-    let text = summary_lines(&merged, out);
-    finish(&merged, out, &text)
-}
-
-/// Largest summary read: some two million failing runs.
-const MAX_SUMMARY: u64 = 1 << 30;
-
-/// A shard's summary.json as text: at most [`MAX_SUMMARY`] bytes of UTF-8.
-fn read_summary(path: &Path) -> Result<String> {
-    use std::io::Read;
-    let bad = |why: String| Error::BadInput(format!("{}: {why}", path.display()));
-    let file = std::fs::File::open(path).map_err(|e| bad(format!("cannot read it: {e}")))?;
-    let mut bytes = Vec::new();
-    file.take(MAX_SUMMARY + 1)
-        .read_to_end(&mut bytes)
-        .map_err(|e| bad(format!("cannot read it: {e}")))?;
-    if bytes.len() as u64 > MAX_SUMMARY {
-        return Err(bad(format!(
-            "larger than {MAX_SUMMARY} bytes: not a campaign summary"
-        )));
-    }
-    String::from_utf8(bytes).map_err(|e| bad(format!("not UTF-8 text: {e}")))
-}
-
-/// A shrunk scenario's file, as it reads from its new place `to`: its harvester named from
-/// there, its comment lines kept.
-fn moved(from: &Path, to: &Path) -> Result<String> {
-    let text = nodes::file::read_text(from).map_err(Error::Config)?;
-    let mut s: Scenario = nodes::parse_ron(&from.display().to_string(), &text).map_err(Error::Config)?;
-    let about: String = text
-        .lines()
-        .take_while(|l| l.starts_with("//"))
-        .filter(|l| !l.starts_with("// Rerun:"))
-        .map(|l| format!("{l}\n"))
-        .collect();
-    if !s.config.ends_with(BUILT_IN) && Path::new(&s.config).is_relative() {
-        let config = from.parent().unwrap_or(Path::new("")).join(&s.config);
-        s.config = seen_from(to, &config);
-    }
-    scenario_text(&about, &s, to)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_harvester_is_named_from_where_the_shrunk_file_lies() {
-        let built_in = Source {
-            path: "configs/harvester.ron".into(),
-            built_in: true,
-        };
-        assert_eq!(
-            config_field(&built_in, Path::new("/x/out/failing/run-1.ron")),
-            "configs/harvester.ron (built in)"
-        );
-        let absolute = Source::file("/etc/harvemu/./h.ron");
-        assert_eq!(
-            config_field(&absolute, Path::new("out/failing/run-1.ron")),
-            "/etc/harvemu/h.ron"
-        );
-        // Relative to the working directory, both: up out of out/failing, then down.
-        let relative = Source::file("configs/../configs/harvester.ron");
-        assert_eq!(
-            config_field(&relative, Path::new("out/failing/run-1.ron")),
-            "../../configs/harvester.ron"
-        );
-        assert_eq!(
-            relative_to(Path::new("/a/b/c"), Path::new("/a/d/e.ron")),
-            Path::new("../../d/e.ron")
-        );
-    }
-
-    fn relative_to(from: &Path, to: &Path) -> PathBuf {
-        relative(&normal(from), &normal(to))
-    }
-
-    #[test]
-    fn a_moved_file_names_its_harvester_from_its_new_place() {
-        let dir = std::env::temp_dir().join(format!("harvemu-moved-{}", std::process::id()));
-        let (old, new) = (dir.join("shard-2/failing"), dir.join("merged/deeper/failing"));
-        std::fs::create_dir_all(&old).unwrap();
-        let from = old.join("run-5.ron");
-        let text = "// Found by harvemu campaign.\n// Rerun: harvemu scenario shard-2/failing/run-5.ron\n\
-                    Scenario(name: \"t\", config: \"../../configs/harvester.ron\", duration_s: 1.0, expect: [NoCrashes])\n";
-        std::fs::write(&from, text).unwrap();
-        let to = new.join("run-5.ron");
-        let moved = moved(&from, &to).unwrap();
-        std::fs::remove_dir_all(&dir).unwrap();
-        assert!(
-            moved.starts_with("// Found by harvemu campaign.\n// Rerun: harvemu scenario "),
-            "{moved}"
-        );
-        assert_eq!(moved.matches("// Rerun:").count(), 1, "{moved}");
-        // The same file as before: dir/configs/harvester.ron, now three folders up.
-        assert!(
-            moved.contains("config: \"../../../configs/harvester.ron\""),
-            "{moved}"
-        );
-    }
 }

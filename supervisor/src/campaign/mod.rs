@@ -13,6 +13,8 @@
 //! summary then covers the shard's runs before the first one left undone and says so.
 
 pub mod cli;
+mod merge;
+mod paths;
 mod runs;
 pub mod shard;
 pub mod shrink;

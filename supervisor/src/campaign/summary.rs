@@ -148,7 +148,27 @@ pub fn merge(parts: &[(String, Summary)]) -> Result<Summary, String> {
                 s.done
             ));
         }
-        let expected = shard.runs(s.runs).count() as u64;
+        // Every failing run is one of the shard's, once, in order, with its own file in
+        // failing/ (a summary from elsewhere names no other file to copy).
+        let mut last = None;
+        for f in &s.failed {
+            if !shard.takes(f.run) || f.run >= s.runs || last.is_some_and(|l| f.run <= l) {
+                return Err(format!(
+                    "{name}: run {} is not a run of shard {shard} in order",
+                    f.run
+                ));
+            }
+            if f.shrunk != shrunk_file(f.run) {
+                return Err(format!(
+                    "{name}: run {}'s shrunk file is {:?}, not {:?}",
+                    f.run,
+                    f.shrunk,
+                    shrunk_file(f.run)
+                ));
+            }
+            last = Some(f.run);
+        }
+        let expected = shard.count(s.runs);
         if s.done != expected || s.passed + s.failed.len() as u64 != s.done {
             return Err(format!(
                 "{name} (shard {shard}) covers {} run(s), {} passed and {} failed: shard {shard} of {} runs has {expected}",

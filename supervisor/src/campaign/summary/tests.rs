@@ -114,3 +114,22 @@ fn junit_lists_each_run_of_the_shard() {
         "{xml}"
     );
 }
+
+#[test]
+fn a_summary_names_no_file_but_its_own_runs() {
+    let mut outside = shard(2, 4);
+    outside.failed[0].shrunk = "../../elsewhere.ron".into();
+    let e = merge(&named(vec![shard(1, 4), outside, shard(3, 4), shard(4, 4)])).unwrap_err();
+    assert!(e.contains("shrunk file is \"../../elsewhere.ron\""), "{e}");
+    let mut foreign = shard(2, 4);
+    foreign.failed[0].run = 6;
+    foreign.failed[0].shrunk = shrunk_file(6);
+    let e = merge(&named(vec![shard(1, 4), foreign, shard(3, 4), shard(4, 4)])).unwrap_err();
+    assert!(e.contains("run 6 is not a run of shard 2/4"), "{e}");
+    let mut twice = shard(3, 4);
+    let again = twice.failed[0].clone();
+    twice.failed.push(again);
+    twice.passed -= 1;
+    let e = merge(&named(vec![shard(1, 4), shard(2, 4), twice, shard(4, 4)])).unwrap_err();
+    assert!(e.contains("in order"), "{e}");
+}
