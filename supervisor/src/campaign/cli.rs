@@ -76,7 +76,7 @@ pub fn run(args: &Args) -> Result<Ended> {
         )
         .map_err(Error::BadInput)?,
     };
-    let campaign = Campaign::open(&configs::by_name(scenario, "campaigns"), args.seed, runs)?;
+    let campaign = Campaign::open(&configs::by_name(scenario, "campaigns"), args.seed)?;
     let failing = out.join("failing");
     std::fs::create_dir_all(&failing).map_err(|e| output::failed("create", &failing, e))?;
     let jobs = args.jobs.map_or_else(
@@ -229,7 +229,11 @@ fn shrunk_text(c: &Campaign, f: &super::runs::Failure, file: &Path) -> Result<St
             " (stopped at the trial budget)"
         },
         f.expectation,
-        f.observed.replace('\n', " "),
+        // One comment line, whatever the observation holds.
+        f.shrunk_observed
+            .chars()
+            .map(|c| if c.is_control() { ' ' } else { c })
+            .collect::<String>(),
     );
     scenario_text(&about, &s, file)
 }

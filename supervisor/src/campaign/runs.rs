@@ -27,8 +27,6 @@ pub struct Campaign {
     pub section: RandomFaults,
     /// The campaign's seed.
     pub seed: u64,
-    /// How many runs.
-    pub runs: u64,
     /// What tells this campaign from another with the same name: a hash of the scenario's text.
     pub id: String,
     nodes: Vec<String>,
@@ -39,8 +37,10 @@ pub struct Campaign {
 pub struct Failure {
     /// The first expectation it failed.
     pub expectation: String,
-    /// What was observed.
+    /// What was observed in the run.
     pub observed: String,
+    /// What was observed in the shrunk run.
+    pub shrunk_observed: String,
     /// Faults drawn.
     pub faults_before: usize,
     /// Faults left after shrinking.
@@ -67,7 +67,7 @@ pub struct RunResult {
 impl Campaign {
     /// Reads a campaign's scenario (a file, or a built-in one's path): it must have a
     /// `random_faults` section. `seed` defaults to the scenario's, else its config's.
-    pub fn open(path: &Path, seed: Option<u64>, runs: u64) -> Result<Campaign, Error> {
+    pub fn open(path: &Path, seed: Option<u64>) -> Result<Campaign, Error> {
         let (_, text) = Source::file(path).read()?;
         let mut base = scenario::load(path, None)?;
         let Some(section) = base.scenario.random_faults.take() else {
@@ -91,7 +91,6 @@ impl Campaign {
             base,
             section,
             seed,
-            runs,
             nodes,
         })
     }
@@ -171,12 +170,23 @@ impl Campaign {
             settle_s: self.section.quiet_end_s,
         };
         let before = start.faults.len();
+        // What the candidate kept last showed: the shrunk run's observation.
+        let mut shrunk_observed = observed.clone();
         let shrunk = shrink::shrink(start, bounds, budget, |h| {
             let l = self.loaded(seed, h);
-            self.valid(&l)
-                && self
-                    .failures(&l)
-                    .is_some_and(|f| f.iter().any(|(e, _)| *e == expectation))
+            if !self.valid(&l) {
+                return false;
+            }
+            let Some(failed) = self.failures(&l) else {
+                return false;
+            };
+            match failed.into_iter().find(|(e, _)| *e == expectation) {
+                Some((_, seen)) => {
+                    shrunk_observed = seen;
+                    true
+                }
+                None => false,
+            }
         });
         // A stop signal during shrinking leaves the run undone: it is not in the results.
         if crate::stop::received().is_some() {
@@ -197,6 +207,7 @@ impl Campaign {
             failure: Some(Failure {
                 expectation,
                 observed,
+                shrunk_observed,
                 faults_before: before,
                 faults_after: shrunk.history.faults.len(),
                 trials: shrunk.trials,
