@@ -130,6 +130,12 @@ pub trait NodeLogic {
     fn frames_can_wait(&self) -> bool {
         false
     }
+    /// True when the run should stop at this wake: a program outside the bus that waits for a
+    /// frame has one now (a python-can `recv`). The driver stops the bus at the wake's time, as
+    /// it stops at a crash, and runs on when asked again. Read once after every wake.
+    fn stop_here(&mut self) -> bool {
+        false
+    }
     /// Takes a fault injected from outside (a scenario's timeline), from `now` on. A logic that
     /// cannot take this fault refuses it, and says why: by default every fault is refused.
     fn inject(&mut self, fault: &NodeFault, now: BusTime) -> Result<(), Refused> {
@@ -235,6 +241,8 @@ pub struct Report {
     /// How many of the wake's frames reached [`NodeLogic::handle_frame`]: all of them, unless
     /// the logic crashed first (the hub counts the rest as lost).
     pub frames_handled: u64,
+    /// [`NodeLogic::stop_here`], as of this wake.
+    pub stop: bool,
 }
 
 /// Most timeouts handled in one wake, so a logic whose deadline never moves cannot hang the bus.
@@ -309,6 +317,7 @@ pub fn drive_counted(
         frames_can_wait: logic.frames_can_wait(),
         every_event: logic.wants_every_event(),
         frames_handled: *handled,
+        stop: logic.stop_here(),
     }
 }
 

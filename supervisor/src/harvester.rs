@@ -627,14 +627,19 @@ impl Running {
     /// at every restart that falls due and at the time relay, where the field nodes are attached
     /// (as in the source: the monitor first, then the time relay starts every node).
     pub async fn run_until(&mut self, until: BusTime) -> crate::Result<()> {
+        self.run_until_or(until, || false).await
+    }
+
+    /// [`Running::run_until`], but back early, where the hub stopped for a node that asked
+    /// ([`bus::node::NodeLogic::stop_here`]), once `done` says so.
+    pub async fn run_until_or(&mut self, until: BusTime, done: impl Fn() -> bool) -> crate::Result<()> {
         loop {
             if self.field_nodes_at.is_some_and(|t| t <= self.now) {
                 self.attach_field_nodes().await?;
             }
-            if self.now >= until {
+            if self.now >= until || done() {
                 return Ok(());
             }
-            // The hub stops early by itself when a node crashes; restarts are due at known times.
             let next = self
                 .members
                 .iter()

@@ -23,6 +23,7 @@ pub mod report;
 pub mod run;
 pub mod scenario;
 pub mod scenarios_cli;
+pub mod session;
 pub mod soak;
 pub mod stop;
 pub mod tui;

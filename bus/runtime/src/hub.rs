@@ -187,6 +187,8 @@ pub struct Hub {
     round: u64,
     me: Option<std::sync::Arc<Recipient<Answer>>>,
     crashed_in_round: bool,
+    /// A node asked in this round for the run to stop here ([`bus::node::NodeLogic::stop_here`]).
+    stop_in_round: bool,
     paused: bool,
     timer: Option<SpawnHandle>,
     /// Paced hubs wait on a wall-clock timer thread (`wall_timer`), with the wall-clock start.
@@ -250,6 +252,7 @@ impl Hub {
             round: 0,
             me: None,
             crashed_in_round: false,
+            stop_in_round: false,
             paused: true,
             timer: None,
             wall: None,
@@ -485,6 +488,7 @@ impl Hub {
         self.now = at;
         self.round += 1;
         self.crashed_in_round = false;
+        self.stop_in_round = false;
         let me = self
             .me
             .get_or_insert_with(|| std::sync::Arc::new(ctx.address().recipient()))
@@ -635,13 +639,15 @@ impl Handler<Answer> for Hub {
         if msg.round != self.round || self.waiting == 0 || msg.slot >= self.slots.len() {
             return;
         }
+        self.stop_in_round |= msg.report.stop;
         self.crashed_in_round |= self.answer(msg.slot, msg.report);
         self.waiting -= 1;
         if self.waiting > 0 {
             return;
         }
-        if self.crashed_in_round && self.stop_at.is_some() {
-            // The run stops here so that whoever supervises hears of it at once.
+        if (self.crashed_in_round || self.stop_in_round) && self.stop_at.is_some() {
+            // The run stops here so that whoever supervises (or waits for a frame) hears of it
+            // at once.
             self.finish(self.now);
         } else {
             self.pump(ctx);
@@ -723,7 +729,8 @@ impl Handler<Attach> for Hub {
 }
 
 /// Runs the bus until bus time `0` and answers with the time reached: that time, or the moment a
-/// node crashed, if one did on the way (so that a supervisor can act at once).
+/// node crashed or asked to stop ([`bus::node::NodeLogic::stop_here`]), if one did on the way
+/// (so that a supervisor, or a program waiting for a frame, can act at once).
 #[derive(Message)]
 #[rtype(result = "Result<BusTime, Error>")]
 pub struct RunUntil(pub BusTime);

@@ -494,3 +494,58 @@ fn three_nodes_contend_and_win_in_identifier_order() {
         ]
     );
 }
+
+/// Keeps the times of the frames it receives and asks the run to stop at each.
+struct Waiter {
+    got: Rc<RefCell<Vec<BusTime>>>,
+    stop: bool,
+}
+
+impl NodeLogic for Waiter {
+    fn handle_frame(&mut self, now: BusTime, _: &Frame) {
+        self.got.borrow_mut().push(now);
+        self.stop = true;
+    }
+    fn handle_timeout(&mut self, _: BusTime) {}
+    fn poll_transmit(&mut self) -> Option<Frame> {
+        None
+    }
+    fn poll_timeout(&self) -> Option<BusTime> {
+        None
+    }
+    fn stop_here(&mut self) -> bool {
+        std::mem::take(&mut self.stop)
+    }
+}
+
+#[test]
+fn a_node_that_asks_stops_the_run_where_it_received_a_frame() {
+    let got = Rc::new(RefCell::new(Vec::new()));
+    let g = got.clone();
+    in_virtual_time(async move {
+        let hub = Hub::new(HubConfig::new(false), Vec::new()).unwrap().start();
+        // A frame every 100 ms from 250 µs on; the waiter reacts at once.
+        attach(
+            &hub,
+            "a",
+            Box::new(Periodic::new("0601F5D0#200D0002FFBFFF00", 100, 250)),
+            0,
+        )
+        .await;
+        attach(&hub, "waiter", Box::new(Waiter { got: g, stop: false }), 0).await;
+        let far = BusTime::from_secs(10);
+        let first = hub.send(RunUntil(far)).await.unwrap().unwrap();
+        let second = hub.send(RunUntil(far)).await.unwrap().unwrap();
+        let times = got.borrow().clone();
+        // Each run ends at the end of the frame the waiter was handed, not at 10 s.
+        assert_eq!(times.len(), 2, "{times:?}");
+        assert_eq!((first, second), (times[0], times[1]));
+        // The second frame is the next period's: 100 ms later, to the nanosecond.
+        assert_eq!((second - first).as_nanos(), 100_000_000);
+        // The frame began at 250 µs and lasts less than 160 bits of 4 µs.
+        assert!(first > BusTime::from_micros(250) && first < BusTime::from_micros(250 + 640));
+        // The hub waits where the second run ended.
+        let snap = hub.send(GetSnapshot).await.unwrap();
+        assert_eq!(snap.now, second);
+    });
+}

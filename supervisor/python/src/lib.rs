@@ -1,0 +1,160 @@
+//! `harvemu._harvemu`: the emulated harvester for Python, with a program in place of some of its
+//! nodes (see `supervisor::session`). The Python package's `harvemu.bus` builds the python-can
+//! interface on it.
+//!
+//! Contract: every call that runs the harvester releases the GIL while it runs, so other Python
+//! threads go on; a session is used from any thread, one call at a time (calls from two threads
+//! are served in turn). Bad input (a config with problems, a frame that cannot be) raises
+//! `ValueError` with harvemu's message, naming file and line where there are some; a failure of
+//! harvemu itself raises `RuntimeError`.
+
+use bus::{Frame, Id, extended_id, standard_id};
+use pyo3::exceptions::{PyRuntimeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::PyBytes;
+use std::sync::Mutex;
+use supervisor::session::{Filter, Options, Session};
+
+fn error(e: supervisor::Error) -> PyErr {
+    let message = e.report().to_string();
+    match e {
+        supervisor::Error::BadInput(_) | supervisor::Error::Config(_) => PyValueError::new_err(message),
+        _ => PyRuntimeError::new_err(message),
+    }
+}
+
+/// A frame as `recv` hands it over: bus time (s), identifier, extended, remote, DLC, data.
+type Message<'py> = (f64, u32, bool, bool, u8, Bound<'py, PyBytes>);
+
+/// A harvester with a program on its bus.
+#[pyclass(module = "harvemu._harvemu", frozen)]
+struct Harvester {
+    session: Mutex<Option<Session>>,
+}
+
+impl Harvester {
+    fn with<T: Send>(
+        &self,
+        py: Python<'_>,
+        f: impl FnOnce(&Session) -> supervisor::Result<T> + Send,
+    ) -> PyResult<T> {
+        py.allow_threads(|| {
+            let guard = self
+                .session
+                .lock()
+                .map_err(|_| PyRuntimeError::new_err("the session broke in another thread"))?;
+            let session = guard
+                .as_ref()
+                .ok_or_else(|| PyValueError::new_err("the harvester is closed"))?;
+            f(session).map_err(error)
+        })
+    }
+}
+
+#[pymethods]
+impl Harvester {
+    /// Starts the harvester of `config` (the built-in default when None) without the nodes in
+    /// `without`, with the program on its bus as `name`.
+    #[new]
+    #[pyo3(signature = (config=None, without=Vec::new(), seed=None, name=String::from("program")))]
+    fn new(
+        py: Python<'_>,
+        config: Option<std::path::PathBuf>,
+        without: Vec<String>,
+        seed: Option<u64>,
+        name: String,
+    ) -> PyResult<Harvester> {
+        let options = Options {
+            config,
+            without,
+            seed,
+            name,
+        };
+        let session = py.allow_threads(|| Session::start(&options)).map_err(error)?;
+        Ok(Harvester {
+            session: Mutex::new(Some(session)),
+        })
+    }
+
+    /// Sets the program's filters: (can_id, can_mask, extended or None) each.
+    fn set_filters(&self, py: Python<'_>, filters: Vec<(u32, u32, Option<bool>)>) -> PyResult<()> {
+        let filters: Vec<Filter> = filters
+            .into_iter()
+            .map(|(id, mask, extended)| Filter { id, mask, extended })
+            .collect();
+        self.with(py, move |s| s.set_filters(&filters))
+    }
+
+    /// The next frame for the program within `timeout` s of bus time (None: no limit).
+    #[pyo3(signature = (timeout=None))]
+    fn recv<'py>(&self, py: Python<'py>, timeout: Option<f64>) -> PyResult<Option<Message<'py>>> {
+        let got = self.with(py, move |s| s.recv(timeout))?;
+        Ok(got.map(|r| {
+            let f = r.frame;
+            let data = PyBytes::new(py, f.data());
+            (r.at_s, f.raw_id(), f.is_extended(), f.is_remote(), f.dlc(), data)
+        }))
+    }
+
+    /// Hands a frame to the program's controller.
+    #[pyo3(signature = (arbitration_id, data, extended=true, remote=false, dlc=None))]
+    fn send(
+        &self,
+        py: Python<'_>,
+        arbitration_id: u32,
+        data: Vec<u8>,
+        extended: bool,
+        remote: bool,
+        dlc: Option<usize>,
+    ) -> PyResult<()> {
+        let id: Id = if extended {
+            extended_id(arbitration_id).map(Into::into)
+        } else {
+            u16::try_from(arbitration_id)
+                .map_err(|_| bus::Error::IdOutOfRange {
+                    raw: arbitration_id,
+                    bits: 11,
+                })
+                .and_then(standard_id)
+                .map(Into::into)
+        }
+        .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let frame = if remote {
+            Frame::new_remote(id, dlc.unwrap_or(data.len()))
+        } else {
+            Frame::new_data(id, &data)
+        }
+        .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        self.with(py, move |s| s.send(frame))
+    }
+
+    /// Runs the harvester for `seconds` of bus time; the bus time reached, s.
+    fn run_for(&self, py: Python<'_>, seconds: f64) -> PyResult<f64> {
+        self.with(py, move |s| s.run_for(seconds))
+    }
+
+    /// Bus time now, s.
+    fn now(&self, py: Python<'_>) -> PyResult<f64> {
+        self.with(py, |s| s.now())
+    }
+
+    /// Stops the harvester; later calls raise ValueError.
+    fn close(&self, py: Python<'_>) -> PyResult<()> {
+        let taken = {
+            let mut guard = self
+                .session
+                .lock()
+                .map_err(|_| PyRuntimeError::new_err("the session broke in another thread"))?;
+            guard.take()
+        };
+        py.allow_threads(move || drop(taken));
+        Ok(())
+    }
+}
+
+/// The module.
+#[pymodule]
+fn _harvemu(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<Harvester>()?;
+    Ok(())
+}

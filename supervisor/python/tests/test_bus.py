@@ -1,0 +1,132 @@
+"""The python-can interface `harvemu`, as a test engineer uses it.
+
+Frames are written as docs/PROTOCOL.md gives them: identifiers are priority | type | destination
+| source, so 0x0601F5D0 is flow sensor D0 (priority 6, type 1) to the monitor F5.
+"""
+
+import threading
+
+import can
+import pytest
+
+D0_TO_F5 = 0x0601F5D0
+REFERENCE_MARKER = bytes([0x20, 0x0E, 0x00, 0x02, 0xFF, 0xBE, 0xFF, 0x00])
+# flow.calibrate (Data0 0x10): "start calibration" (1), target 10000 = 0x2710 low byte first,
+# 5 reference groups.
+START_CALIBRATION = bytes([0x10, 0x01, 0x10, 0x27, 0x05])
+
+
+def monitorless(seed=2011, without=("F5",), **kwargs):
+    return can.Bus(interface="harvemu", channel="harv0", without=list(without), seed=seed,
+                   **kwargs)
+
+
+def only_d0():
+    return [{"can_id": D0_TO_F5, "can_mask": 0x1FFFFFFF, "extended": True}]
+
+
+def test_the_entry_point_gives_the_harvester_bus():
+    with monitorless() as bus:
+        assert type(bus).__name__ == "HarvemuBus"
+        assert bus.channel_info == "harvemu harv0"
+        msg = bus.recv(timeout=1.0)
+        assert isinstance(msg, can.Message) and msg.is_extended_id and msg.is_rx
+
+
+def test_recv_waits_in_bus_time_and_applies_the_filters():
+    with monitorless() as bus:
+        bus.set_filters([{"can_id": 0x1FFFFFFF, "can_mask": 0x1FFFFFFF, "extended": True}])
+        assert bus.recv(timeout=2.5) is None
+        assert bus.run_for(0) == 2.5
+        bus.set_filters(only_d0())
+        # D0 awaits its calibration and says so (flow.status, Data0 0x30) every 250 ms.
+        a, b = bus.recv(timeout=1.0), bus.recv(timeout=1.0)
+        assert (a.arbitration_id, a.data[0]) == (D0_TO_F5, 0x30)
+        assert b.timestamp - a.timestamp == pytest.approx(0.25, abs=1e-3)
+        # Bus time stopped where the frame ended.
+        assert bus.run_for(0) == b.timestamp
+
+
+def test_the_same_seed_and_calls_give_the_same_frames():
+    def record(seed):
+        with monitorless(seed) as bus:
+            return [(m.timestamp, m.arbitration_id, bytes(m.data)) for m in
+                    (bus.recv(timeout=1.0) for _ in range(500))]
+
+    first = record(7)
+    assert first == record(7)
+    assert all(a[0] < b[0] for a, b in zip(first, first[1:]))
+    assert first != record(8)
+
+
+def test_what_the_program_sends_reaches_the_nodes():
+    with monitorless() as bus:
+        bus.set_filters(only_d0())
+        bus.run_for(3.0)
+        before = [bus.recv(timeout=1.0) for _ in range(8)]
+        assert all(m is not None and bytes(m.data) != REFERENCE_MARKER for m in before)
+        bus.send(can.Message(arbitration_id=0x0601D0F5, data=START_CALIBRATION))
+        after = [bus.recv(timeout=0.5) for _ in range(8)]
+        assert any(m is not None and bytes(m.data) == REFERENCE_MARKER for m in after)
+
+
+def test_a_bad_config_raises_at_construction_with_file_and_line(tmp_path):
+    bad = tmp_path / "bad.ron"
+    bad.write_text('Harvester(\n    name: "x",\n    bitrate: "fast",\n)\n')
+    with pytest.raises(can.CanInitializationError) as e:
+        can.Bus(interface="harvemu", config=str(bad))
+    assert "bad.ron:3" in str(e.value)
+    with pytest.raises(can.CanInitializationError) as e:
+        monitorless(without=["F5", "ZZ"])
+    assert "ZZ" in str(e.value)
+
+
+def test_a_frame_that_cannot_be_raises_can_operation_error():
+    with monitorless() as bus:
+        with pytest.raises(can.CanOperationError):
+            bus.send(can.Message(arbitration_id=0x800, is_extended_id=False, data=b"\x01"))
+        with pytest.raises(can.CanOperationError):
+            bus.recv(timeout=-1.0)
+
+
+def test_a_notifier_and_a_logger_work_in_bus_time(tmp_path):
+    log = tmp_path / "harv.log"
+    with monitorless() as bus:
+        reader = can.BufferedReader()
+        logger = can.Logger(str(log))
+        notifier = can.Notifier(bus, [reader, logger], timeout=0.1)
+        got = []
+        while len(got) < 200:
+            m = reader.get_message(timeout=10.0)
+            assert m is not None, "the notifier's thread runs the bus"
+            got.append(m)
+        notifier.stop()
+        logger.stop()
+    assert all(a.timestamp <= b.timestamp for a, b in zip(got, got[1:]))
+    lines = log.read_text().splitlines()
+    assert len(lines) >= 200 and lines[0].startswith("(")
+
+
+def test_calls_from_another_thread_are_served():
+    with monitorless() as bus:
+        out = []
+        t = threading.Thread(target=lambda: out.append(bus.recv(timeout=1.0)))
+        t.start()
+        t.join(60)
+        assert out and out[0] is not None
+
+
+def test_the_example_of_docs_python_md_runs_as_it_stands(capsys):
+    import pathlib
+    import re
+    doc = pathlib.Path(__file__).parents[3] / "docs" / "PYTHON.md"
+    blocks = re.findall(r"```python\n(.*?)```", doc.read_text(), re.S)
+    example = max(blocks, key=len)
+    exec(compile(example, str(doc), "exec"), {})
+    out = capsys.readouterr().out
+    m = re.fullmatch(r"(\d+) reference groups, (\d+) flow groups by ([\d.]+) s\n", out)
+    assert m, out
+    # D0 streams a flow group every 100 ms once running; calibration (five reference groups,
+    # 100 ms apart) starts after the time relay powers it at 0.5 s: some 85 to 95 by 10 s.
+    assert 80 <= int(m.group(2)) <= 100, out
+    assert int(m.group(1)) >= 5, out

@@ -1,0 +1,251 @@
+//! A harvester driven from outside, one call at a time: what the python-can interface (the
+//! `harvemu` Python package) stands on.
+//!
+//! Contract: [`Session::start`] loads a harvester config (the built-in default without a path),
+//! leaves out the nodes named, and puts a program in their place: a node of its own on the bus,
+//! with a controller like any other (it arbitrates, is acknowledged, retransmits). The harvester
+//! runs on a thread of its own, behind a channel, so a session can be used from any thread.
+//! Bus time moves only inside [`Session::recv`] and [`Session::run_for`]: the same seed and the
+//! same calls give the same frames at the same times, run after run. Frames that reach the
+//! program pass its filters when they arrive (the others are dropped, as a kernel filter drops
+//! them) and wait in a queue of at most [`QUEUE`] frames, the oldest dropped beyond it, as in a
+//! socket's buffer: also while the program does not wait for one ([`Session::run_for`]).
+
+mod program;
+
+use crate::harvester::{self, Harvester};
+use crate::{Error, Result};
+use actix::prelude::*;
+use bus::Frame;
+use bus::engine::ControllerConfig;
+use bus::time::{BusDuration, BusTime};
+use bus_runtime::hub::{Attach, Submit, runtime};
+use bus_runtime::node::NodeActor;
+pub use program::{Filter, Inbox, QUEUE};
+use std::cell::RefCell;
+use std::path::PathBuf;
+use std::rc::Rc;
+use std::thread::JoinHandle;
+use tokio::sync::{mpsc, oneshot};
+
+/// Longest a `recv` without a timeout waits, in bus time: the longest run a scenario may have.
+pub const FOREVER_S: f64 = crate::scenario::MAX_DURATION_S;
+
+/// What a session is made of.
+#[derive(Clone, Debug, Default)]
+pub struct Options {
+    /// The harvester config; the built-in default when `None`.
+    pub config: Option<PathBuf>,
+    /// Nodes left out ("F5" for the monitor), whose place the program takes.
+    pub without: Vec<String>,
+    /// The run's seed; the config's when `None`.
+    pub seed: Option<u64>,
+    /// The program's name on the bus (in traces and reports).
+    pub name: String,
+}
+
+/// A frame the program received, with its end-of-frame time.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Received {
+    /// Bus time, s.
+    pub at_s: f64,
+    /// The frame.
+    pub frame: Frame,
+}
+
+enum Command {
+    Filters(Vec<Filter>, oneshot::Sender<Result<()>>),
+    Recv(f64, oneshot::Sender<Result<Option<Received>>>),
+    Send(Frame, oneshot::Sender<Result<()>>),
+    RunFor(f64, oneshot::Sender<Result<f64>>),
+}
+
+/// A running harvester with a program on its bus.
+pub struct Session {
+    commands: Option<mpsc::UnboundedSender<Command>>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl Session {
+    /// Loads the harvester and starts it, paused at bus time zero. A bad config is an error
+    /// naming its file and line.
+    pub fn start(o: &Options) -> Result<Session> {
+        let path = o.config.clone().unwrap_or_else(|| "configs/harvester.ron".into());
+        let mut h = Harvester::load(&path)?;
+        h.without(&o.without)?;
+        if let Some(seed) = o.seed {
+            h.config.seed = seed;
+        }
+        let name = if o.name.is_empty() {
+            "program".to_string()
+        } else {
+            o.name.clone()
+        };
+        let (tx, rx) = mpsc::unbounded_channel();
+        let (ready_tx, ready) = oneshot::channel();
+        let thread = std::thread::Builder::new()
+            .name("harvemu-session".into())
+            .spawn(move || drive(h, name, rx, ready_tx))
+            .map_err(|e| Error::Internal(format!("cannot start the harvester's thread: {e}")))?;
+        let session = Session {
+            commands: Some(tx),
+            thread: Some(thread),
+        };
+        ready
+            .blocking_recv()
+            .map_err(|_| Error::Internal("the harvester's thread ended at start".into()))??;
+        Ok(session)
+    }
+
+    fn ask<T>(&self, make: impl FnOnce(oneshot::Sender<Result<T>>) -> Command) -> Result<T> {
+        let (tx, rx) = oneshot::channel();
+        let gone = || Error::Internal("the harvester's thread has ended".into());
+        self.commands
+            .as_ref()
+            .ok_or_else(gone)?
+            .send(make(tx))
+            .map_err(|_| gone())?;
+        rx.blocking_recv().map_err(|_| gone())?
+    }
+
+    /// Sets the program's filters: from now on a frame reaches it when any of them passes it
+    /// (every frame when the list is empty, as at the start). Frames waiting that none passes
+    /// are dropped.
+    pub fn set_filters(&self, filters: &[Filter]) -> Result<()> {
+        self.ask(|tx| Command::Filters(filters.to_vec(), tx))
+    }
+
+    /// The oldest frame waiting for the program; when none is, runs the harvester until one
+    /// comes or `timeout_s` of bus time have passed (`None`: [`FOREVER_S`]).
+    pub fn recv(&self, timeout_s: Option<f64>) -> Result<Option<Received>> {
+        let t = timeout_s.unwrap_or(FOREVER_S);
+        if !(t.is_finite() && t >= 0.0) {
+            return Err(Error::BadInput(format!("timeout {t} s is not a time")));
+        }
+        self.ask(|tx| Command::Recv(t.min(FOREVER_S), tx))
+    }
+
+    /// Hands a frame to the program's controller, which sends it when the bus next runs.
+    pub fn send(&self, frame: Frame) -> Result<()> {
+        self.ask(|tx| Command::Send(frame, tx))
+    }
+
+    /// Runs the harvester for `seconds` of bus time; answers with the bus time reached, s.
+    pub fn run_for(&self, seconds: f64) -> Result<f64> {
+        if !(0.0..=FOREVER_S).contains(&seconds) {
+            return Err(Error::BadInput(format!(
+                "{seconds} s is not a time from 0 to {FOREVER_S} s"
+            )));
+        }
+        self.ask(|tx| Command::RunFor(seconds, tx))
+    }
+
+    /// Bus time now, s.
+    pub fn now(&self) -> Result<f64> {
+        self.run_for(0.0)
+    }
+}
+
+impl Drop for Session {
+    fn drop(&mut self) {
+        // Closing the channel ends the thread's loop.
+        self.commands.take();
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+/// The harvester's thread: starts it, then carries out commands until the session is dropped.
+fn drive(
+    h: Harvester,
+    name: String,
+    mut commands: mpsc::UnboundedReceiver<Command>,
+    ready: oneshot::Sender<Result<()>>,
+) {
+    let system = match runtime(true) {
+        Ok(rt) => System::with_tokio_rt(move || rt),
+        Err(e) => {
+            let _ = ready.send(Err(Error::Internal(format!("no runtime: {e}"))));
+            return;
+        }
+    };
+    system.block_on(async move {
+        let inbox = Rc::new(RefCell::new(Inbox::default()));
+        let started = async {
+            let running = harvester::begin(&h, false, Vec::new()).await?;
+            let actor = NodeActor::new(name.clone(), Box::new(program::Program::new(inbox.clone()))).start();
+            let id = running
+                .hub
+                .send(Attach {
+                    controller: ControllerConfig::named(name.clone()),
+                    node: Some(actor.recipient()),
+                    reaction: std::time::Duration::ZERO,
+                })
+                .await?;
+            Ok::<_, Error>((running, id))
+        };
+        let (mut running, id) = match started.await {
+            Ok(r) => {
+                let _ = ready.send(Ok(()));
+                r
+            }
+            Err(e) => {
+                let _ = ready.send(Err(e));
+                return;
+            }
+        };
+        while let Some(c) = commands.recv().await {
+            match c {
+                Command::Filters(filters, tx) => {
+                    inbox.borrow_mut().set_filters(filters);
+                    let _ = tx.send(Ok(()));
+                }
+                Command::Recv(timeout, tx) => {
+                    let end = running.now() + BusDuration::from_secs_f64(timeout);
+                    let got = async {
+                        loop {
+                            if let Some(r) = inbox.borrow_mut().pop() {
+                                return Ok(Some(r));
+                            }
+                            if running.now() >= end {
+                                return Ok(None);
+                            }
+                            inbox.borrow_mut().waiting = true;
+                            let waited = running.run_until_or(end, || !inbox.borrow().is_empty()).await;
+                            inbox.borrow_mut().waiting = false;
+                            waited?;
+                        }
+                    }
+                    .await;
+                    let _ = tx.send(got);
+                }
+                Command::Send(frame, tx) => {
+                    let sent = running.hub.send(Submit { node: id, frame }).await;
+                    let answer = match sent {
+                        Ok(Ok(true)) => Ok(()),
+                        Ok(Ok(false)) => Err(Error::BadInput(
+                            "the program's transmit queue is full: the frame was not sent".into(),
+                        )),
+                        Ok(Err(e)) => Err(e.into()),
+                        Err(e) => Err(e.into()),
+                    };
+                    let _ = tx.send(answer);
+                }
+                Command::RunFor(seconds, tx) => {
+                    let end = running.now() + BusDuration::from_secs_f64(seconds);
+                    let ran = running.run_until(end).await;
+                    let _ = tx.send(ran.map(|()| running.now().as_secs_f64()));
+                }
+            }
+        }
+    });
+}
+
+/// Bus time in seconds, as python-can stamps messages.
+pub fn seconds(t: BusTime) -> f64 {
+    t.as_secs_f64()
+}
+
+#[cfg(test)]
+mod tests;

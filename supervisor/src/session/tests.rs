@@ -1,0 +1,95 @@
+//! Sessions on the built-in harvester without its monitor: the program stands in F5's place.
+//! Frames are written as docs/PROTOCOL.md gives them.
+
+use super::*;
+use bus::candump::parse_frame;
+
+fn without_monitor(seed: u64) -> Session {
+    Session::start(&Options {
+        without: vec!["F5".into()],
+        seed: Some(seed),
+        name: "F5".into(),
+        ..Options::default()
+    })
+    .unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// Frames from D0 to F5: priority 6, type 1, destination F5, source D0.
+fn from_d0() -> Filter {
+    Filter {
+        id: 0x0601_F5D0,
+        mask: 0x1FFF_FFFF,
+        extended: Some(true),
+    }
+}
+
+const REFERENCE_MARKER: [u8; 8] = [0x20, 0x0E, 0x00, 0x02, 0xFF, 0xBE, 0xFF, 0x00];
+
+#[test]
+fn the_same_seed_and_calls_give_the_same_frames_at_the_same_times() {
+    let record = |seed| {
+        let s = without_monitor(seed);
+        (0..300)
+            .map(|_| s.recv(Some(1.0)).unwrap().unwrap())
+            .map(|r| format!("{:.9} {}", r.at_s, bus::candump::format_frame(&r.frame)))
+            .collect::<Vec<_>>()
+    };
+    let a = record(7);
+    assert_eq!(a, record(7));
+    // Bus time only goes forward, frame after frame.
+    let times: Vec<f64> = a
+        .iter()
+        .map(|l| l.split(' ').next().unwrap().parse().unwrap())
+        .collect();
+    assert!(times.windows(2).all(|w| w[0] < w[1]), "{a:?}");
+}
+
+#[test]
+fn recv_waits_in_bus_time_for_a_frame_that_passes_the_filters() {
+    let s = without_monitor(1);
+    // Nothing passes: the whole timeout passes, exactly.
+    let none = Filter {
+        id: 0x1FFF_FFFF,
+        mask: 0x1FFF_FFFF,
+        extended: Some(true),
+    };
+    s.set_filters(&[none]).unwrap();
+    assert_eq!(s.recv(Some(2.5)).unwrap(), None);
+    assert_eq!(s.now().unwrap(), 2.5);
+    // D0 is waiting for its calibration and says so every 250 ms (flow.status, Data0 = 0x30).
+    s.set_filters(&[from_d0()]).unwrap();
+    let r = s.recv(Some(1.0)).unwrap().unwrap();
+    assert_eq!(r.frame.raw_id(), 0x0601_F5D0);
+    assert_eq!(r.frame.data()[0], 0x30, "{:?}", r.frame);
+    // The run stopped where the frame ended.
+    assert_eq!(s.now().unwrap(), r.at_s);
+    let next = s.recv(Some(1.0)).unwrap().unwrap();
+    assert!(
+        (next.at_s - r.at_s - 0.25).abs() < 0.001,
+        "{} then {}",
+        r.at_s,
+        next.at_s
+    );
+    assert!(s.recv(Some(-1.0)).is_err());
+    assert!(s.recv(Some(f64::NAN)).is_err());
+}
+
+#[test]
+fn what_the_program_sends_reaches_the_nodes() {
+    let s = without_monitor(1);
+    s.set_filters(&[from_d0()]).unwrap();
+    s.run_for(3.0).unwrap();
+    // Before: D0 awaits calibration and sends no reference group.
+    let before = (0..8).filter_map(|_| s.recv(Some(1.0)).unwrap());
+    assert!(before.into_iter().all(|r| r.frame.data() != REFERENCE_MARKER));
+    // flow.calibrate (Data0 0x10): "start calibration" (1), target 10000 (0x2710, low byte
+    // first), 5 samples.
+    s.send(parse_frame("0601D0F5#1001102705").unwrap()).unwrap();
+    let answered = (0..8)
+        .filter_map(|_| s.recv(Some(0.5)).unwrap())
+        .any(|r| r.frame.data() == REFERENCE_MARKER);
+    assert!(
+        answered,
+        "D0 sent no reference group after the calibration command"
+    );
+}
