@@ -13,7 +13,10 @@ use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 use std::sync::Mutex;
-use supervisor::session::{Filter, Options, Session};
+use supervisor::session::{FOREVER_S, Filter, Options, Session};
+
+/// Bus time a `recv` runs between looks at Python's signals, s.
+const STEP_S: f64 = 1.0;
 
 fn error(e: supervisor::Error) -> PyErr {
     let message = e.report().to_string();
@@ -88,12 +91,32 @@ impl Harvester {
     /// The next frame for the program within `timeout` s of bus time (None: no limit).
     #[pyo3(signature = (timeout=None))]
     fn recv<'py>(&self, py: Python<'py>, timeout: Option<f64>) -> PyResult<Option<Message<'py>>> {
-        let got = self.with(py, move |s| s.recv(timeout))?;
-        Ok(got.map(|r| {
-            let f = r.frame;
-            let data = PyBytes::new(py, f.data());
-            (r.at_s, f.raw_id(), f.is_extended(), f.is_remote(), f.dlc(), data)
-        }))
+        let mut left = timeout.unwrap_or(FOREVER_S);
+        if !(left.is_finite() && left >= 0.0) {
+            return Err(PyValueError::new_err(format!("timeout {left} s is not a time")));
+        }
+        // A second of bus time at a time, with Python's signals looked at in between: Ctrl-C
+        // ends a recv that would wait long (a filter nothing passes, no timeout).
+        loop {
+            let step = left.min(STEP_S);
+            if let Some(r) = self.with(py, move |s| s.recv(Some(step)))? {
+                let f = r.frame;
+                let data = PyBytes::new(py, f.data());
+                return Ok(Some((
+                    r.at_s,
+                    f.raw_id(),
+                    f.is_extended(),
+                    f.is_remote(),
+                    f.dlc(),
+                    data,
+                )));
+            }
+            left -= step;
+            if left <= 0.0 {
+                return Ok(None);
+            }
+            py.check_signals()?;
+        }
     }
 
     /// Hands a frame to the program's controller.

@@ -130,3 +130,27 @@ def test_the_example_of_docs_python_md_runs_as_it_stands(capsys):
     # 100 ms apart) starts after the time relay powers it at 0.5 s: some 85 to 95 by 10 s.
     assert 80 <= int(m.group(2)) <= 100, out
     assert int(m.group(1)) >= 5, out
+
+
+def test_a_signal_ends_a_recv_that_would_wait_long():
+    import os
+    import signal
+
+    class Stopped(Exception):
+        pass
+
+    def stop(signum, frame):
+        raise Stopped()
+
+    before = signal.signal(signal.SIGINT, stop)
+    try:
+        with monitorless() as bus:
+            bus.set_filters([{"can_id": 0x1FFFFFFF, "can_mask": 0x1FFFFFFF, "extended": True}])
+            threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT)).start()
+            # Nothing passes and there is no timeout: 30 days of bus time, but for the signal.
+            with pytest.raises(Stopped):
+                bus.recv()
+            # Stopped between two seconds of bus time; the bus is still there.
+            assert 0 < bus.run_for(0) < 30 * 86400
+    finally:
+        signal.signal(signal.SIGINT, before)
