@@ -780,6 +780,9 @@ pub enum Control {
     AddRule(Rule),
     /// Remove one.
     RemoveRule(RuleId),
+    /// Wake a node now, so that it reports its next deadline: a logic driven from outside
+    /// ([`bus::node::NodeLogic`] state changed between wakes) says when it is next due.
+    Poke(NodeId),
 }
 
 impl Handler<Control> for Hub {
@@ -813,6 +816,13 @@ impl Handler<Control> for Hub {
                 self.bus.injector_mut().remove(id);
                 Ok(None)
             }
+            Control::Poke(n) => match self.slots.get_mut(n.index()) {
+                Some(slot) => {
+                    slot.next_timeout = Some(slot.next_timeout.map_or(now, |t| t.min(now)));
+                    Ok(None)
+                }
+                None => Err(Error::NoNode(n.0)),
+            },
         };
         self.pump(ctx);
         result

@@ -29,6 +29,45 @@ fn error(e: supervisor::Error) -> PyErr {
 /// A frame as `recv` hands it over: bus time (s), identifier, extended, remote, DLC, data.
 type Message<'py> = (f64, u32, bool, bool, u8, Bound<'py, PyBytes>);
 
+/// A frame from its parts, as python-can's `Message` has them.
+fn frame(
+    arbitration_id: u32,
+    data: &[u8],
+    extended: bool,
+    remote: bool,
+    dlc: Option<usize>,
+) -> PyResult<Frame> {
+    let id: Id = if extended {
+        extended_id(arbitration_id).map(Into::into)
+    } else {
+        u16::try_from(arbitration_id)
+            .map_err(|_| bus::Error::IdOutOfRange {
+                raw: arbitration_id,
+                bits: 11,
+            })
+            .and_then(standard_id)
+            .map(Into::into)
+    }
+    .map_err(|e| PyValueError::new_err(e.to_string()))?;
+    let frame = if remote {
+        Frame::new_remote(id, dlc.unwrap_or(data.len()))
+    } else {
+        Frame::new_data(id, data)
+    }
+    .map_err(|e| PyValueError::new_err(e.to_string()))?;
+    Ok(frame)
+}
+
+/// A frame's parts: identifier, data, extended, remote, DLC.
+type Parts = (u32, Vec<u8>, bool, bool, Option<usize>);
+
+fn frames(parts: Vec<Parts>) -> PyResult<Vec<Frame>> {
+    parts
+        .into_iter()
+        .map(|(id, data, extended, remote, dlc)| frame(id, &data, extended, remote, dlc))
+        .collect()
+}
+
 /// A harvester with a program on its bus.
 #[pyclass(module = "harvemu._harvemu", frozen)]
 struct Harvester {
@@ -130,25 +169,38 @@ impl Harvester {
         remote: bool,
         dlc: Option<usize>,
     ) -> PyResult<()> {
-        let id: Id = if extended {
-            extended_id(arbitration_id).map(Into::into)
-        } else {
-            u16::try_from(arbitration_id)
-                .map_err(|_| bus::Error::IdOutOfRange {
-                    raw: arbitration_id,
-                    bits: 11,
-                })
-                .and_then(standard_id)
-                .map(Into::into)
-        }
-        .map_err(|e| PyValueError::new_err(e.to_string()))?;
-        let frame = if remote {
-            Frame::new_remote(id, dlc.unwrap_or(data.len()))
-        } else {
-            Frame::new_data(id, &data)
-        }
-        .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let frame = frame(arbitration_id, &data, extended, remote, dlc)?;
         self.with(py, move |s| s.send(frame))
+    }
+
+    /// Sends `frames` (identifier, data, extended, remote, DLC each) in turn, the first now, then
+    /// one every `period` s of bus time, for `duration` s if given; the task's number.
+    #[pyo3(signature = (frames, period, duration=None))]
+    fn start_periodic(
+        &self,
+        py: Python<'_>,
+        frames: Vec<Parts>,
+        period: f64,
+        duration: Option<f64>,
+    ) -> PyResult<u64> {
+        let frames = self::frames(frames)?;
+        self.with(py, move |s| s.start_periodic(frames, period, duration))
+    }
+
+    /// Stops a periodic task; False when it had stopped already.
+    fn stop_periodic(&self, py: Python<'_>, task: u64) -> PyResult<bool> {
+        self.with(py, move |s| s.stop_periodic(task))
+    }
+
+    /// New frames for a periodic task from its next sending on; False when it has stopped.
+    fn modify_periodic(&self, py: Python<'_>, task: u64, frames: Vec<Parts>) -> PyResult<bool> {
+        let frames = self::frames(frames)?;
+        self.with(py, move |s| s.modify_periodic(task, frames))
+    }
+
+    /// Frames the program's controller has sent so far.
+    fn sent(&self, py: Python<'_>) -> PyResult<u64> {
+        self.with(py, |s| s.sent())
     }
 
     /// Runs the harvester for `seconds` of bus time; the bus time reached, s.

@@ -154,3 +154,24 @@ def test_a_signal_ends_a_recv_that_would_wait_long():
             assert 0 < bus.run_for(0) < 30 * 86400
     finally:
         signal.signal(signal.SIGINT, before)
+
+
+def test_send_periodic_runs_in_bus_time():
+    ack = can.Message(arbitration_id=0x0601D0F5, data=bytes([0x21, 0x0E, 0x01]))
+    with monitorless() as bus:
+        bus.run_for(3.0)
+        # Every 100 ms for 1 s of bus time: at 3.0, 3.1, ... 3.9 s, ten frames, however long
+        # that takes on the wall clock.
+        task = bus.send_periodic(ack, 0.1, duration=1.0)
+        bus.run_for(2.0)
+        assert bus.harvester.sent() == 10
+        task.stop()
+        # Without a duration: until stopped (at 5.0, 5.1, ... 5.5 s).
+        task = bus.send_periodic(ack, 0.1)
+        bus.run_for(0.55)
+        task.modify_data(can.Message(arbitration_id=0x0601D0F5, data=bytes([0x21, 0x0E, 0x02])))
+        task.stop()
+        bus.run_for(1.0)
+        assert bus.harvester.sent() == 16
+        with pytest.raises(can.CanOperationError):
+            bus.send_periodic(ack, 0.1, modifier_callback=lambda m: None)

@@ -19,7 +19,7 @@ use actix::prelude::*;
 use bus::Frame;
 use bus::engine::ControllerConfig;
 use bus::time::{BusDuration, BusTime};
-use bus_runtime::hub::{Attach, Submit, runtime};
+use bus_runtime::hub::{Attach, Control, GetSnapshot, Submit, runtime};
 use bus_runtime::node::NodeActor;
 pub use program::{Filter, Inbox, QUEUE};
 use std::cell::RefCell;
@@ -58,6 +58,10 @@ enum Command {
     Recv(f64, oneshot::Sender<Result<Option<Received>>>),
     Send(Frame, oneshot::Sender<Result<()>>),
     RunFor(f64, oneshot::Sender<Result<f64>>),
+    Periodic(Vec<Frame>, f64, Option<f64>, oneshot::Sender<Result<u64>>),
+    StopPeriodic(u64, oneshot::Sender<Result<bool>>),
+    Sent(oneshot::Sender<Result<u64>>),
+    ModifyPeriodic(u64, Vec<Frame>, oneshot::Sender<Result<bool>>),
 }
 
 /// A running harvester with a program on its bus.
@@ -143,6 +147,42 @@ impl Session {
     /// Bus time now, s.
     pub fn now(&self) -> Result<f64> {
         self.run_for(0.0)
+    }
+
+    /// Sends `frames` in turn, the first now, then one every `period_s` of bus time, for
+    /// `duration_s` if given (as python-can's `send_periodic`, in bus time); answers with the
+    /// task's number.
+    pub fn start_periodic(&self, frames: Vec<Frame>, period_s: f64, duration_s: Option<f64>) -> Result<u64> {
+        if frames.is_empty() {
+            return Err(Error::BadInput("a periodic task needs at least one frame".into()));
+        }
+        if !(1e-6..=FOREVER_S).contains(&period_s) {
+            return Err(Error::BadInput(format!(
+                "period {period_s} s is not from 1 µs to {FOREVER_S} s"
+            )));
+        }
+        if let Some(d) = duration_s.filter(|d| !(0.0..=FOREVER_S).contains(d)) {
+            return Err(Error::BadInput(format!("duration {d} s is not a time")));
+        }
+        self.ask(|tx| Command::Periodic(frames, period_s, duration_s, tx))
+    }
+
+    /// Frames the program's controller has sent so far (acknowledged on the bus).
+    pub fn sent(&self) -> Result<u64> {
+        self.ask(Command::Sent)
+    }
+
+    /// Stops a periodic task; false when it had stopped already.
+    pub fn stop_periodic(&self, id: u64) -> Result<bool> {
+        self.ask(|tx| Command::StopPeriodic(id, tx))
+    }
+
+    /// Gives a periodic task new frames from its next sending on; false when it has stopped.
+    pub fn modify_periodic(&self, id: u64, frames: Vec<Frame>) -> Result<bool> {
+        if frames.is_empty() {
+            return Err(Error::BadInput("a periodic task needs at least one frame".into()));
+        }
+        self.ask(|tx| Command::ModifyPeriodic(id, frames, tx))
     }
 }
 
@@ -231,6 +271,32 @@ fn drive(
                         Err(e) => Err(e.into()),
                     };
                     let _ = tx.send(answer);
+                }
+                Command::Periodic(frames, period, duration, tx) => {
+                    let now = running.now();
+                    let end = duration.map(|d| now + BusDuration::from_secs_f64(d));
+                    let period = BusDuration::from_secs_f64(period);
+                    let task = inbox.borrow_mut().start_task(frames, period, now, end);
+                    // The node hears of its new deadline at a wake: one now.
+                    let poked = running.hub.send(Control::Poke(id)).await;
+                    let _ = tx.send(match poked {
+                        Ok(Ok(_)) => Ok(task),
+                        Ok(Err(e)) => Err(e.into()),
+                        Err(e) => Err(e.into()),
+                    });
+                }
+                Command::Sent(tx) => {
+                    let snap = running.hub.send(GetSnapshot).await;
+                    let _ = tx.send(
+                        snap.map_err(Error::from)
+                            .map(|s| s.nodes.get(id.index()).map_or(0, |n| n.counters.tx_frames)),
+                    );
+                }
+                Command::StopPeriodic(task, tx) => {
+                    let _ = tx.send(Ok(inbox.borrow_mut().stop_task(task)));
+                }
+                Command::ModifyPeriodic(task, frames, tx) => {
+                    let _ = tx.send(Ok(inbox.borrow_mut().modify_task(task, frames)));
                 }
                 Command::RunFor(seconds, tx) => {
                     let end = running.now() + BusDuration::from_secs_f64(seconds);

@@ -4,6 +4,7 @@
 use super::Received;
 use bus::Frame;
 use bus::node::NodeLogic;
+use bus::time::BusDuration;
 use bus::time::BusTime;
 use std::cell::RefCell;
 use std::collections::VecDeque;
@@ -43,6 +44,23 @@ pub struct Inbox {
     /// Set while the session waits for a frame: the bus then stops at the next one.
     pub waiting: bool,
     stop: bool,
+    /// Frames sent over and over, in bus time.
+    tasks: Vec<Task>,
+    /// The number the next task gets.
+    next_task: u64,
+    /// Frames due from the tasks, for the controller.
+    outbox: VecDeque<Frame>,
+}
+
+/// Frames sent over and over: `frames` in turn, one every `period`, until `end`.
+#[derive(Debug)]
+struct Task {
+    id: u64,
+    frames: Vec<Frame>,
+    turn: usize,
+    period: BusDuration,
+    next: BusTime,
+    end: Option<BusTime>,
 }
 
 impl Inbox {
@@ -57,6 +75,65 @@ impl Inbox {
         let f = &self.filters;
         self.queue
             .retain(|r| f.is_empty() || f.iter().any(|x| x.passes(&r.frame)));
+    }
+
+    /// Starts sending `frames` in turn, the first at `now`, then one every `period` (more than
+    /// zero), until `end` if given; answers with the task's number.
+    pub fn start_task(
+        &mut self,
+        frames: Vec<Frame>,
+        period: BusDuration,
+        now: BusTime,
+        end: Option<BusTime>,
+    ) -> u64 {
+        self.next_task += 1;
+        self.tasks.push(Task {
+            id: self.next_task,
+            frames,
+            turn: 0,
+            period,
+            next: now,
+            end,
+        });
+        self.next_task
+    }
+
+    /// Stops a task; false when there is none by that number (any more).
+    pub fn stop_task(&mut self, id: u64) -> bool {
+        let before = self.tasks.len();
+        self.tasks.retain(|t| t.id != id);
+        self.tasks.len() < before
+    }
+
+    /// New frames for a task, from its next sending on; false when there is no such task.
+    pub fn modify_task(&mut self, id: u64, frames: Vec<Frame>) -> bool {
+        match self.tasks.iter_mut().find(|t| t.id == id) {
+            Some(t) => {
+                t.frames = frames;
+                t.turn = 0;
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// When the next task frame is due.
+    fn due(&self) -> Option<BusTime> {
+        self.tasks.iter().map(|t| t.next).min()
+    }
+
+    /// Queues the task frames due at `now`, and ends the tasks whose time is over.
+    fn tick(&mut self, now: BusTime) {
+        for t in &mut self.tasks {
+            while t.next <= now && t.end.is_none_or(|e| t.next < e) {
+                if let Some(f) = t.frames.get(t.turn % t.frames.len().max(1)) {
+                    self.outbox.push_back(*f);
+                }
+                t.turn += 1;
+                t.next += t.period;
+            }
+        }
+        self.tasks.retain(|t| t.end.is_none_or(|e| t.next < e));
     }
 
     /// No frame waiting.
@@ -80,8 +157,8 @@ impl Inbox {
     }
 }
 
-/// The program's logic: it only receives; what it sends is submitted to its controller
-/// directly.
+/// The program's logic: it receives, and sends its periodic tasks' frames when they fall due;
+/// what it sends once is submitted to its controller directly.
 pub struct Program {
     inbox: Rc<RefCell<Inbox>>,
 }
@@ -97,12 +174,14 @@ impl NodeLogic for Program {
     fn handle_frame(&mut self, now: BusTime, frame: &Frame) {
         self.inbox.borrow_mut().take(now, frame);
     }
-    fn handle_timeout(&mut self, _: BusTime) {}
+    fn handle_timeout(&mut self, now: BusTime) {
+        self.inbox.borrow_mut().tick(now);
+    }
     fn poll_transmit(&mut self) -> Option<Frame> {
-        None
+        self.inbox.borrow_mut().outbox.pop_front()
     }
     fn poll_timeout(&self) -> Option<BusTime> {
-        None
+        self.inbox.borrow().due()
     }
     fn stop_here(&mut self) -> bool {
         std::mem::take(&mut self.inbox.borrow_mut().stop)

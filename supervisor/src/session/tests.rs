@@ -93,3 +93,26 @@ fn what_the_program_sends_reaches_the_nodes() {
         "D0 sent no reference group after the calibration command"
     );
 }
+
+#[test]
+fn periodic_tasks_send_in_bus_time() {
+    let s = without_monitor(1);
+    s.run_for(3.0).unwrap();
+    // flow.ack to D0, every 100 ms for 1 s: at 3.0, 3.1, ... 3.9 s, ten frames.
+    let ack = parse_frame("0601D0F5#210E01").unwrap();
+    let task = s.start_periodic(vec![ack], 0.1, Some(1.0)).unwrap();
+    s.run_for(2.0).unwrap();
+    assert_eq!(s.sent().unwrap(), 10);
+    // Ended by its duration.
+    assert!(!s.stop_periodic(task).unwrap());
+    // Without a duration, until stopped: at 5.0, 5.1, ... 5.5 s, six more, then no more.
+    let task = s.start_periodic(vec![ack, ack], 0.1, None).unwrap();
+    s.run_for(0.55).unwrap();
+    assert!(s.modify_periodic(task, vec![ack]).unwrap());
+    assert!(s.stop_periodic(task).unwrap());
+    s.run_for(1.0).unwrap();
+    assert_eq!(s.sent().unwrap(), 16);
+    assert!(s.start_periodic(vec![ack], 0.0, None).is_err());
+    assert!(s.start_periodic(Vec::new(), 0.1, None).is_err());
+    assert!(s.start_periodic(vec![ack], 0.1, Some(f64::NAN)).is_err());
+}

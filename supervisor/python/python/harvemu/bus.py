@@ -6,8 +6,47 @@ frames arrive, as a kernel applies a socket's filters.
 """
 
 import can
+from can.broadcastmanager import ModifiableCyclicTaskABC, RestartableCyclicTaskABC
 
 from ._harvemu import Harvester
+
+
+def _parts(messages):
+    return [
+        (m.arbitration_id, bytes(m.data), m.is_extended_id, m.is_remote_frame, m.dlc)
+        for m in messages
+    ]
+
+
+class BusTimeCyclicTask(ModifiableCyclicTaskABC, RestartableCyclicTaskABC):
+    """Messages sent over and over in bus time, by the program's own node inside harvemu: the
+    first at once, then one every ``period`` s of bus time, for ``duration`` s if given."""
+
+    def __init__(self, harvester, messages, period, duration=None, autostart=True):
+        super().__init__(messages, period)
+        self._harvester = harvester
+        self._duration = duration
+        self._task = None
+        if autostart:
+            self.start()
+
+    def start(self):
+        if self._task is None:
+            try:
+                self._task = self._harvester.start_periodic(
+                    _parts(self.messages), self.period, self._duration)
+            except (ValueError, RuntimeError) as e:
+                raise can.CanOperationError(str(e)) from e
+
+    def stop(self):
+        if self._task is not None:
+            self._harvester.stop_periodic(self._task)
+            self._task = None
+
+    def modify_data(self, messages):
+        super().modify_data(messages)
+        if self._task is not None:
+            self._harvester.modify_periodic(self._task, _parts(self.messages))
 
 
 class HarvemuBus(can.BusABC):
@@ -78,6 +117,14 @@ class HarvemuBus(can.BusABC):
             )
         except (ValueError, RuntimeError) as e:
             raise can.CanOperationError(str(e)) from e
+
+    def _send_periodic_internal(self, msgs, period, duration=None, autostart=True,
+                                modifier_callback=None):
+        if modifier_callback is not None:
+            raise can.CanOperationError(
+                "harvemu sends periodic messages in bus time, inside the emulator: a "
+                "modifier_callback cannot run there; change the data with the task's modify_data")
+        return BusTimeCyclicTask(self._harvester, msgs, period, duration, autostart)
 
     def run_for(self, seconds):
         """Runs the harvester for ``seconds`` of bus time; the bus time reached, s."""
