@@ -21,7 +21,9 @@ const STEP_S: f64 = 1.0;
 fn error(e: supervisor::Error) -> PyErr {
     let message = e.report().to_string();
     match e {
-        supervisor::Error::BadInput(_) | supervisor::Error::Config(_) => PyValueError::new_err(message),
+        supervisor::Error::BadInput(_) | supervisor::Error::Config(_) | supervisor::Error::Plant(_) => {
+            PyValueError::new_err(message)
+        }
         _ => PyRuntimeError::new_err(message),
     }
 }
@@ -196,6 +198,26 @@ impl Harvester {
     fn modify_periodic(&self, py: Python<'_>, task: u64, frames: Vec<Parts>) -> PyResult<bool> {
         let frames = self::frames(frames)?;
         self.with(py, move |s| s.modify_periodic(task, frames))
+    }
+
+    /// Every node's controller: (name, state, TEC, REC), the state "error active", "error
+    /// passive" or "bus off".
+    fn states(&self, py: Python<'_>) -> PyResult<Vec<(String, String, u16, u16)>> {
+        let states = self.with(py, |s| s.states())?;
+        Ok(states
+            .into_iter()
+            .map(|n| (n.name, n.state, n.tec, n.rec))
+            .collect())
+    }
+
+    /// What the reference monitor shows, as JSON; None when it is left out.
+    fn display(&self, py: Python<'_>) -> PyResult<Option<String>> {
+        self.with(py, |s| s.display())
+    }
+
+    /// Sets a plant input ("operator.speed", "fault.door3_open", ...) from now on.
+    fn set_input(&self, py: Python<'_>, input: String, value: f64) -> PyResult<()> {
+        self.with(py, move |s| s.set_input(&input, value))
     }
 
     /// Frames the program's controller has sent so far.

@@ -175,3 +175,20 @@ def test_send_periodic_runs_in_bus_time():
         assert bus.harvester.sent() == 16
         with pytest.raises(can.CanOperationError):
             bus.send_periodic(ack, 0.1, modifier_callback=lambda m: None)
+
+
+def test_node_states_the_monitors_display_and_plant_inputs():
+    import json
+    with monitorless() as bus:
+        bus.run_for(2.0)
+        states = bus.harvester.states()
+        assert len(states) == 21 and ("harv0", "error active", 0, 0) in states
+        assert bus.harvester.display() is None
+        bus.harvester.set_input("operator.speed", 5.0)
+        with pytest.raises(ValueError, match="operator.warp"):
+            bus.harvester.set_input("operator.warp", 1.0)
+    # With the monitor kept, the program is one more node beside it.
+    with can.Bus(interface="harvemu", channel="tester", without=[], seed=1) as bus:
+        bus.run_for(1.0)
+        shown = json.loads(bus.harvester.display())
+        assert "phase" in shown

@@ -61,7 +61,23 @@ enum Command {
     Periodic(Vec<Frame>, f64, Option<f64>, oneshot::Sender<Result<u64>>),
     StopPeriodic(u64, oneshot::Sender<Result<bool>>),
     Sent(oneshot::Sender<Result<u64>>),
+    States(oneshot::Sender<Result<Vec<NodeState>>>),
+    Display(oneshot::Sender<Result<Option<String>>>),
+    Input(String, f64, oneshot::Sender<Result<()>>),
     ModifyPeriodic(u64, Vec<Frame>, oneshot::Sender<Result<bool>>),
+}
+
+/// A node's part on the bus, as its controller stands.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NodeState {
+    /// Its name.
+    pub name: String,
+    /// "error active", "error passive" or "bus off".
+    pub state: String,
+    /// Transmit error counter.
+    pub tec: u16,
+    /// Receive error counter.
+    pub rec: u16,
 }
 
 /// A running harvester with a program on its bus.
@@ -170,6 +186,22 @@ impl Session {
     /// Frames the program's controller has sent so far (acknowledged on the bus).
     pub fn sent(&self) -> Result<u64> {
         self.ask(Command::Sent)
+    }
+
+    /// Every node's controller (the program's too), in the order they joined the bus.
+    pub fn states(&self) -> Result<Vec<NodeState>> {
+        self.ask(Command::States)
+    }
+
+    /// What the reference monitor shows, as JSON, when it runs (it is not left out).
+    pub fn display(&self) -> Result<Option<String>> {
+        self.ask(Command::Display)
+    }
+
+    /// Sets a plant input (`operator.speed`, `fault.door3_open`, ...) from now on.
+    pub fn set_input(&self, input: &str, value: f64) -> Result<()> {
+        let input = input.to_string();
+        self.ask(move |tx| Command::Input(input, value, tx))
     }
 
     /// Stops a periodic task; false when it had stopped already.
@@ -291,6 +323,34 @@ fn drive(
                         snap.map_err(Error::from)
                             .map(|s| s.nodes.get(id.index()).map_or(0, |n| n.counters.tx_frames)),
                     );
+                }
+                Command::States(tx) => {
+                    let snap = running.hub.send(GetSnapshot).await;
+                    let _ = tx.send(snap.map_err(Error::from).map(|s| {
+                        s.nodes
+                            .iter()
+                            .map(|n| NodeState {
+                                name: n.name.clone(),
+                                state: n.state.to_string(),
+                                tec: n.tec,
+                                rec: n.rec,
+                            })
+                            .collect()
+                    }));
+                }
+                Command::Display(tx) => {
+                    let shown = running
+                        .display
+                        .as_ref()
+                        .map(|d| serde_json::to_string(&*d.borrow()))
+                        .transpose()
+                        .map_err(Error::from);
+                    let _ = tx.send(shown);
+                }
+                Command::Input(input, value, tx) => {
+                    let now = running.now();
+                    let set = running.plant.borrow_mut().set_input_at(now, &input, value);
+                    let _ = tx.send(set.map_err(Error::from));
                 }
                 Command::StopPeriodic(task, tx) => {
                     let _ = tx.send(Ok(inbox.borrow_mut().stop_task(task)));

@@ -116,3 +116,33 @@ fn periodic_tasks_send_in_bus_time() {
     assert!(s.start_periodic(Vec::new(), 0.1, None).is_err());
     assert!(s.start_periodic(vec![ack], 0.1, Some(f64::NAN)).is_err());
 }
+
+#[test]
+fn node_states_the_display_and_plant_inputs() {
+    let s = without_monitor(1);
+    s.run_for(2.0).unwrap();
+    let states = s.states().unwrap();
+    // The 20 field nodes and the program; every controller error active, counters at zero on a
+    // bus without faults.
+    assert_eq!(states.len(), 21, "{states:?}");
+    assert!(states.iter().any(|n| n.name == "F5"));
+    assert!(
+        states.iter().all(|n| n.state == "error active" && n.tec == 0),
+        "{states:?}"
+    );
+    // No monitor, no display; with the monitor kept, its display.
+    assert_eq!(s.display().unwrap(), None);
+    let with_monitor = Session::start(&Options {
+        name: "tester".into(),
+        ..Options::default()
+    })
+    .unwrap();
+    with_monitor.run_for(1.0).unwrap();
+    let shown = with_monitor.display().unwrap().unwrap();
+    let v: serde_json::Value = serde_json::from_str(&shown).unwrap();
+    assert!(v.get("phase").is_some(), "{shown}");
+    // A plant input: a known one is taken, an unknown one refused with its name.
+    s.set_input("operator.speed", 5.0).unwrap();
+    let e = s.set_input("operator.warp", 1.0).unwrap_err().to_string();
+    assert!(e.contains("operator.warp"), "{e}");
+}
