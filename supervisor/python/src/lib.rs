@@ -21,9 +21,10 @@ const STEP_S: f64 = 1.0;
 fn error(e: supervisor::Error) -> PyErr {
     let message = e.report().to_string();
     match e {
-        supervisor::Error::BadInput(_) | supervisor::Error::Config(_) | supervisor::Error::Plant(_) => {
-            PyValueError::new_err(message)
-        }
+        supervisor::Error::BadInput(_)
+        | supervisor::Error::Config(_)
+        | supervisor::Error::Plant(_)
+        | supervisor::Error::NoNode(_) => PyValueError::new_err(message),
         _ => PyRuntimeError::new_err(message),
     }
 }
@@ -218,6 +219,12 @@ impl Harvester {
     /// Sets a plant input ("operator.speed", "fault.door3_open", ...) from now on.
     fn set_input(&self, py: Python<'_>, input: String, value: f64) -> PyResult<()> {
         self.with(py, move |s| s.set_input(&input, value))
+    }
+
+    /// Carries out a scenario action written as in a scenario's timeline: `Disconnect("D3")`,
+    /// `BitErrors(target: Node("D2"), hits: Always, until_s: Some(12.5))`, `Crash("B1")`, ...
+    fn act(&self, py: Python<'_>, action: String) -> PyResult<()> {
+        self.with(py, move |s| s.act(&action))
     }
 
     /// Frames the program's controller has sent so far.

@@ -192,3 +192,26 @@ def test_node_states_the_monitors_display_and_plant_inputs():
         bus.run_for(1.0)
         shown = json.loads(bus.harvester.display())
         assert "phase" in shown
+
+
+def test_faults_from_python_reach_the_program_as_on_a_bus():
+    with monitorless() as bus:
+        bus.set_filters(only_d0())
+        bus.run_for(2.0)
+        while bus.recv(timeout=0) is not None:
+            pass
+        # D0, disconnected, is silent; reconnected, heard again (its status every 250 ms).
+        bus.harvester.act('Disconnect("D0")')
+        assert bus.recv(timeout=1.0) is None
+        bus.harvester.act('Reconnect("D0")')
+        assert bus.recv(timeout=1.0) is not None
+        # Every D0 frame destroyed by an error flag until a bus time, then heard again.
+        until = round(bus.run_for(0) + 1.0)
+        bus.harvester.act(f'BitErrors(target: Node("D0"), hits: Always, until_s: Some({until}.0))')
+        assert bus.recv(timeout=until - bus.run_for(0) - 0.001) is None
+        after = bus.recv(timeout=1.0)
+        assert after is not None and after.timestamp > until
+        with pytest.raises(ValueError, match="the action:1:"):
+            bus.harvester.act("Disconnect(")
+        with pytest.raises(ValueError, match="ZZ"):
+            bus.harvester.act('Crash("ZZ")')

@@ -18,7 +18,7 @@ use bus_runtime::node::Apply;
 use std::collections::BTreeMap;
 
 /// What the actions so far left running: error rules until their end, and the babblers.
-pub(super) struct Actions {
+pub(crate) struct Actions {
     /// The scenario's file, for errors.
     file: String,
     /// Rules by timeline entry, so that its `until_s` removes them.
@@ -28,7 +28,7 @@ pub(super) struct Actions {
 
 impl Actions {
     /// None yet, for the scenario in `file`.
-    pub(super) fn new(file: String) -> Actions {
+    pub(crate) fn new(file: String) -> Actions {
         Actions {
             file,
             rules: BTreeMap::new(),
@@ -37,7 +37,7 @@ impl Actions {
     }
 
     /// Carries out timeline entry `index`.
-    pub(super) async fn act(
+    pub(crate) async fn act(
         &mut self,
         running: &mut Running,
         index: usize,
@@ -134,7 +134,7 @@ impl Actions {
     }
 
     /// Ends the bit errors or overloads of timeline entry `index`, if they still run.
-    pub(super) async fn end_rule(&mut self, running: &Running, index: usize) -> crate::Result<()> {
+    pub(crate) async fn end_rule(&mut self, running: &Running, index: usize) -> crate::Result<()> {
         if let Some(id) = self.rules.remove(&index) {
             running.hub.send(Control::RemoveRule(id)).await??;
         }
@@ -142,7 +142,7 @@ impl Actions {
     }
 
     /// Ends the flood of a babbling idiot, if one runs.
-    pub(super) async fn end_babble(&mut self, running: &Running) -> crate::Result<()> {
+    pub(crate) async fn end_babble(&mut self, running: &Running) -> crate::Result<()> {
         self.babblers.stop(running).await
     }
 

@@ -27,6 +27,7 @@ mod states;
 pub mod trace_count;
 mod validate;
 
+pub(crate) use actions::Actions;
 pub use check::Verdict;
 pub use load::{Loaded, from_text, load, load_with, node_names};
 pub use model::*;

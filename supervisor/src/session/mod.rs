@@ -11,20 +11,15 @@
 //! them) and wait in a queue of at most [`QUEUE`] frames, the oldest dropped beyond it, as in a
 //! socket's buffer: also while the program does not wait for one ([`Session::run_for`]).
 
+mod driver;
 mod program;
 
-use crate::harvester::{self, Harvester};
+use crate::harvester::Harvester;
 use crate::{Error, Result};
-use actix::prelude::*;
 use bus::Frame;
-use bus::engine::ControllerConfig;
-use bus::time::{BusDuration, BusTime};
-use bus_runtime::hub::{Attach, Control, GetSnapshot, Submit, runtime};
-use bus_runtime::node::NodeActor;
+use bus::time::BusTime;
 pub use program::{Filter, Inbox, QUEUE};
-use std::cell::RefCell;
 use std::path::PathBuf;
-use std::rc::Rc;
 use std::thread::JoinHandle;
 use tokio::sync::{mpsc, oneshot};
 
@@ -53,7 +48,7 @@ pub struct Received {
     pub frame: Frame,
 }
 
-enum Command {
+pub(crate) enum Command {
     Filters(Vec<Filter>, oneshot::Sender<Result<()>>),
     Recv(f64, oneshot::Sender<Result<Option<Received>>>),
     Send(Frame, oneshot::Sender<Result<()>>),
@@ -64,6 +59,7 @@ enum Command {
     States(oneshot::Sender<Result<Vec<NodeState>>>),
     Display(oneshot::Sender<Result<Option<String>>>),
     Input(String, f64, oneshot::Sender<Result<()>>),
+    Act(String, oneshot::Sender<Result<()>>),
     ModifyPeriodic(u64, Vec<Frame>, oneshot::Sender<Result<bool>>),
 }
 
@@ -105,7 +101,7 @@ impl Session {
         let (ready_tx, ready) = oneshot::channel();
         let thread = std::thread::Builder::new()
             .name("harvemu-session".into())
-            .spawn(move || drive(h, name, rx, ready_tx))
+            .spawn(move || driver::drive(h, name, rx, ready_tx))
             .map_err(|e| Error::Internal(format!("cannot start the harvester's thread: {e}")))?;
         let session = Session {
             commands: Some(tx),
@@ -204,6 +200,14 @@ impl Session {
         self.ask(move |tx| Command::Input(input, value, tx))
     }
 
+    /// Carries out a scenario action, written as in a scenario's timeline (docs/SCENARIOS.md):
+    /// `Disconnect("D3")`, `BitErrors(target: Node("D2"), hits: Always, until_s: Some(12.5))`,
+    /// `Crash("B1")`, ... An `until_s` is bus time, as in a scenario: the fault ends there.
+    pub fn act(&self, action: &str) -> Result<()> {
+        let action = action.to_string();
+        self.ask(move |tx| Command::Act(action, tx))
+    }
+
     /// Stops a periodic task; false when it had stopped already.
     pub fn stop_periodic(&self, id: u64) -> Result<bool> {
         self.ask(|tx| Command::StopPeriodic(id, tx))
@@ -226,146 +230,6 @@ impl Drop for Session {
             let _ = t.join();
         }
     }
-}
-
-/// The harvester's thread: starts it, then carries out commands until the session is dropped.
-fn drive(
-    h: Harvester,
-    name: String,
-    mut commands: mpsc::UnboundedReceiver<Command>,
-    ready: oneshot::Sender<Result<()>>,
-) {
-    let system = match runtime(true) {
-        Ok(rt) => System::with_tokio_rt(move || rt),
-        Err(e) => {
-            let _ = ready.send(Err(Error::Internal(format!("no runtime: {e}"))));
-            return;
-        }
-    };
-    system.block_on(async move {
-        let inbox = Rc::new(RefCell::new(Inbox::default()));
-        let started = async {
-            let running = harvester::begin(&h, false, Vec::new()).await?;
-            let actor = NodeActor::new(name.clone(), Box::new(program::Program::new(inbox.clone()))).start();
-            let id = running
-                .hub
-                .send(Attach {
-                    controller: ControllerConfig::named(name.clone()),
-                    node: Some(actor.recipient()),
-                    reaction: std::time::Duration::ZERO,
-                })
-                .await?;
-            Ok::<_, Error>((running, id))
-        };
-        let (mut running, id) = match started.await {
-            Ok(r) => {
-                let _ = ready.send(Ok(()));
-                r
-            }
-            Err(e) => {
-                let _ = ready.send(Err(e));
-                return;
-            }
-        };
-        while let Some(c) = commands.recv().await {
-            match c {
-                Command::Filters(filters, tx) => {
-                    inbox.borrow_mut().set_filters(filters);
-                    let _ = tx.send(Ok(()));
-                }
-                Command::Recv(timeout, tx) => {
-                    let end = running.now() + BusDuration::from_secs_f64(timeout);
-                    let got = async {
-                        loop {
-                            if let Some(r) = inbox.borrow_mut().pop() {
-                                return Ok(Some(r));
-                            }
-                            if running.now() >= end {
-                                return Ok(None);
-                            }
-                            inbox.borrow_mut().waiting = true;
-                            let waited = running.run_until_or(end, || !inbox.borrow().is_empty()).await;
-                            inbox.borrow_mut().waiting = false;
-                            waited?;
-                        }
-                    }
-                    .await;
-                    let _ = tx.send(got);
-                }
-                Command::Send(frame, tx) => {
-                    let sent = running.hub.send(Submit { node: id, frame }).await;
-                    let answer = match sent {
-                        Ok(Ok(true)) => Ok(()),
-                        Ok(Ok(false)) => Err(Error::BadInput(
-                            "the program's transmit queue is full: the frame was not sent".into(),
-                        )),
-                        Ok(Err(e)) => Err(e.into()),
-                        Err(e) => Err(e.into()),
-                    };
-                    let _ = tx.send(answer);
-                }
-                Command::Periodic(frames, period, duration, tx) => {
-                    let now = running.now();
-                    let end = duration.map(|d| now + BusDuration::from_secs_f64(d));
-                    let period = BusDuration::from_secs_f64(period);
-                    let task = inbox.borrow_mut().start_task(frames, period, now, end);
-                    // The node hears of its new deadline at a wake: one now.
-                    let poked = running.hub.send(Control::Poke(id)).await;
-                    let _ = tx.send(match poked {
-                        Ok(Ok(_)) => Ok(task),
-                        Ok(Err(e)) => Err(e.into()),
-                        Err(e) => Err(e.into()),
-                    });
-                }
-                Command::Sent(tx) => {
-                    let snap = running.hub.send(GetSnapshot).await;
-                    let _ = tx.send(
-                        snap.map_err(Error::from)
-                            .map(|s| s.nodes.get(id.index()).map_or(0, |n| n.counters.tx_frames)),
-                    );
-                }
-                Command::States(tx) => {
-                    let snap = running.hub.send(GetSnapshot).await;
-                    let _ = tx.send(snap.map_err(Error::from).map(|s| {
-                        s.nodes
-                            .iter()
-                            .map(|n| NodeState {
-                                name: n.name.clone(),
-                                state: n.state.to_string(),
-                                tec: n.tec,
-                                rec: n.rec,
-                            })
-                            .collect()
-                    }));
-                }
-                Command::Display(tx) => {
-                    let shown = running
-                        .display
-                        .as_ref()
-                        .map(|d| serde_json::to_string(&*d.borrow()))
-                        .transpose()
-                        .map_err(Error::from);
-                    let _ = tx.send(shown);
-                }
-                Command::Input(input, value, tx) => {
-                    let now = running.now();
-                    let set = running.plant.borrow_mut().set_input_at(now, &input, value);
-                    let _ = tx.send(set.map_err(Error::from));
-                }
-                Command::StopPeriodic(task, tx) => {
-                    let _ = tx.send(Ok(inbox.borrow_mut().stop_task(task)));
-                }
-                Command::ModifyPeriodic(task, frames, tx) => {
-                    let _ = tx.send(Ok(inbox.borrow_mut().modify_task(task, frames)));
-                }
-                Command::RunFor(seconds, tx) => {
-                    let end = running.now() + BusDuration::from_secs_f64(seconds);
-                    let ran = running.run_until(end).await;
-                    let _ = tx.send(ran.map(|()| running.now().as_secs_f64()));
-                }
-            }
-        }
-    });
 }
 
 /// Bus time in seconds, as python-can stamps messages.

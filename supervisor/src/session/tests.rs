@@ -146,3 +146,34 @@ fn node_states_the_display_and_plant_inputs() {
     let e = s.set_input("operator.warp", 1.0).unwrap_err().to_string();
     assert!(e.contains("operator.warp"), "{e}");
 }
+
+#[test]
+fn scenario_actions_reach_the_bus_and_their_faults_end_in_time() {
+    let s = without_monitor(1);
+    s.set_filters(&[from_d0()]).unwrap();
+    s.run_for(2.0).unwrap();
+    while s.recv(Some(0.0)).unwrap().is_some() {}
+    // Disconnected, D0 is silent (it says "awaiting calibration" every 250 ms otherwise).
+    s.act(r#"Disconnect("D0")"#).unwrap();
+    assert_eq!(s.recv(Some(1.0)).unwrap(), None);
+    s.act(r#"Reconnect("D0")"#).unwrap();
+    assert!(s.recv(Some(1.0)).unwrap().is_some());
+    // Every D0 frame corrupted for a second: none reaches the program whole (an error flag
+    // destroys each, ISO 11898-1), then the fault ends by itself and D0 is heard again.
+    let until = (s.now().unwrap() + 1.0).round();
+    s.act(&format!(
+        "BitErrors(target: Node(\"D0\"), hits: Always, until_s: Some({until:.1}))"
+    ))
+    .unwrap();
+    let during = s.recv(Some(until - s.now().unwrap() - 0.001)).unwrap();
+    assert_eq!(during, None);
+    let after = s
+        .recv(Some(1.0))
+        .unwrap()
+        .expect("D0 is heard again once the fault ended");
+    assert!(after.at_s > until, "{after:?}");
+    // Bad text is named with its position; an unknown node is refused.
+    let e = s.act("Disconnect(").unwrap_err().to_string();
+    assert!(e.contains("the action:1:"), "{e}");
+    assert!(s.act(r#"Crash("ZZ")"#).is_err());
+}
