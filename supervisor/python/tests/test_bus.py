@@ -215,3 +215,20 @@ def test_faults_from_python_reach_the_program_as_on_a_bus():
             bus.harvester.act("Disconnect(")
         with pytest.raises(ValueError, match="ZZ"):
             bus.harvester.act('Crash("ZZ")')
+
+
+def test_a_python_monitor_keeps_all_six_sensors_streaming_for_ten_minutes():
+    from harvemu import monitor
+
+    first = monitor.run(600.0, seed=2011)
+    second = monitor.run(600.0, seed=2011)
+    # Byte for byte: every frame, every time stamp.
+    assert first["digest"] == second["digest"]
+    assert first["frames"] == second["frames"]
+    for name, s in first["sensors"].items():
+        # A flow group every 100 ms once running (docs/PROTOCOL.md); calibration takes about a
+        # second after the time relay: some 5,985 groups in 600 s.
+        assert 5900 <= s["flow_groups"] <= 6000, (name, s)
+        # Awaiting calibration, calibrating, running; never "no acknowledgement" (4).
+        assert s["states"] == [1, 2, 3], (name, s)
+        assert s["flow_sum"] > 0, (name, s)
