@@ -10,6 +10,8 @@
 //! program pass its filters when they arrive (the others are dropped, as a kernel filter drops
 //! them) and wait in a queue of at most [`QUEUE`] frames, the oldest dropped beyond it, as in a
 //! socket's buffer: also while the program does not wait for one ([`Session::run_for`]).
+//! Periodic tasks are sent by the program's node in bus time; actions are a scenario timeline's,
+//! carried out at the present bus time, their faults ended at their `until_s` as the bus runs.
 
 mod driver;
 mod program;
