@@ -640,6 +640,8 @@ impl Running {
             if self.now >= until || done() {
                 return Ok(());
             }
+            // The hub stops early by itself when a node crashes or asks to (`done` then says
+            // whether to go on); restarts are due at known times.
             let next = self
                 .members
                 .iter()

@@ -135,11 +135,7 @@ impl Handler<Wake> for NodeActor {
         })) {
             Ok(report) => report,
             Err(panic) => {
-                let message = panic
-                    .downcast_ref::<&str>()
-                    .map(|s| s.to_string())
-                    .or_else(|| panic.downcast_ref::<String>().cloned())
-                    .unwrap_or_else(|| "panic".to_string());
+                let message = panic_message(panic.as_ref()).unwrap_or_else(|| "panic".to_string());
                 tracing::error!(node = %self.name, %message, "node logic panicked");
                 ctx.stop();
                 Report {
@@ -151,6 +147,14 @@ impl Handler<Wake> for NodeActor {
         };
         reply.send(report);
     }
+}
+
+/// The message a panic carried, when it carried text (`panic!("...")` does).
+pub fn panic_message(panic: &(dyn std::any::Any + Send)) -> Option<String> {
+    panic
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| panic.downcast_ref::<String>().cloned())
 }
 
 /// What a node reports when it crashed because it was told to ([`Crash`]).

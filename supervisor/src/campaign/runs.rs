@@ -129,11 +129,8 @@ impl Campaign {
         let played = catch_unwind(AssertUnwindSafe(|| scenario::run(l, None, |_| {})));
         match played {
             Err(panic) => {
-                let why = panic
-                    .downcast_ref::<&str>()
-                    .map(|s| s.to_string())
-                    .or_else(|| panic.downcast_ref::<String>().cloned())
-                    .unwrap_or_else(|| "a panic".into());
+                let why =
+                    bus_runtime::node::panic_message(panic.as_ref()).unwrap_or_else(|| "a panic".into());
                 Some(vec![(NO_PANIC.into(), why)])
             }
             Ok(Err(e)) => Some(vec![(NO_ERROR.into(), e.report().to_string())]),

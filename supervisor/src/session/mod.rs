@@ -19,7 +19,6 @@ mod program;
 use crate::harvester::Harvester;
 use crate::{Error, Result};
 use bus::Frame;
-use bus::time::BusTime;
 pub use program::{Filter, Inbox, QUEUE};
 use std::path::PathBuf;
 use std::thread::JoinHandle;
@@ -232,11 +231,6 @@ impl Drop for Session {
             let _ = t.join();
         }
     }
-}
-
-/// Bus time in seconds, as python-can stamps messages.
-pub fn seconds(t: BusTime) -> f64 {
-    t.as_secs_f64()
 }
 
 #[cfg(test)]

@@ -150,7 +150,7 @@ impl Inbox {
             self.dropped += 1;
         }
         self.queue.push_back(Received {
-            at_s: super::seconds(at),
+            at_s: at.as_secs_f64(),
             frame: *frame,
         });
         self.stop |= self.waiting;
