@@ -345,3 +345,84 @@ fn validate_knows_firmware_nodes_and_networks() {
          configs/firmware/irq_receiver.ron: ok (firmware node)\n"
     );
 }
+
+/// `harvemu run` of the seed lab for 10 ms with `RUST_LOG` set to `filter`: its stderr.
+fn lab_log(filter: &str) -> String {
+    let out = Command::new(env!("CARGO_BIN_EXE_harvemu"))
+        .current_dir(root())
+        .env("RUST_LOG", filter)
+        .args(["run", "configs/firmware/seed_lab.ron", "--fast", "--for", "10ms"])
+        .output()
+        .expect("run harvemu");
+    assert!(out.status.success(), "{}", text(&out));
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// The receiver's register writes, as (time in µs, register, value), from a debug log.
+fn receiver_writes(log: &str) -> Vec<(u64, u8, u8)> {
+    log.lines()
+        .filter(|l| l.contains("node=RECEIVER"))
+        .filter_map(|l| {
+            let rest = l.split_once("SJA1000 at D400h: register ")?.1;
+            let (register, rest) = rest.split_once(" <- ")?;
+            let value = rest.get(..2)?;
+            let at = l.split_once(" at=")?.1.trim();
+            let (secs, frac) = at.split_once('.')?;
+            let us = secs.parse::<u64>().ok()? * 1_000_000 + frac.get(..6)?.parse::<u64>().ok()?;
+            Some((us, register.parse().ok()?, u8::from_str_radix(value, 16).ok()?))
+        })
+        .collect()
+}
+
+/// At debug level every write of the firmware to its SJA1000 is logged once, with the register,
+/// the value and the bus time; at info level none is. The receiver's are INITCAN's writes to
+/// its chip at D400h, in the listing's order, each at the end of its `MOVX`, in machine cycles
+/// of 1 µs (Intel MCS-51 User's Manual): its chip's INITCAN call starts at cycle 100 (`LJMP`
+/// 2, `MOV DPH` 2, `MOV R0` 1, `LCALL` 2, the first INITCAN into nothing 88, then `MOV DPH` 2,
+/// `MOV R0` 1, `LCALL` 2); a write with `MOV DPL,#` and `MOV A,#` (or `MOV A,Rn`) before it ends
+/// 5 cycles after the one before, one with `INC DPTR` and `MOV A,#` 5, with `INC DPTR` or
+/// `MOV DPL,#` alone 4; the OCR write comes 2 cycles later for the `MOVX A,@DPTR` that reads BTR1
+/// back.
+#[test]
+fn the_firmwares_register_writes_are_logged_at_debug_level_only() {
+    // (register, value, cycles since the write before), from can_seed.asm's INITCAN.
+    let listing: [(u8, u8, u64); 18] = [
+        (0x00, 0x09, 5), // MOD: reset mode, single filter
+        (0x1F, 0x88, 5), // CDR: PeliCAN, CLKOUT off
+        (0x04, 0x0D, 5), // IER
+        (0x06, 0x03, 5), // BTR0
+        (0x07, 0xFF, 5), // BTR1
+        (0x08, 0xAA, 7), // OCR, after reading BTR1 back
+        (0x10, 0xBB, 5), // ACR0: the receiver's acceptance code
+        (0x11, 0xFF, 5), // ACR1
+        (0x12, 0xFF, 4), // ACR2
+        (0x13, 0xFF, 4), // ACR3
+        (0x14, 0x00, 5), // AMR0
+        (0x15, 0xFF, 5), // AMR1
+        (0x16, 0xFF, 4), // AMR2
+        (0x17, 0xFF, 4), // AMR3
+        (0x1E, 0x00, 5), // RBSA
+        (0x0F, 0x00, 4), // TXERR
+        (0x0C, 0x00, 4), // ECC
+        (0x00, 0x08, 5), // MOD: operating mode
+    ];
+    let mut at = 100;
+    let expected: Vec<(u64, u8, u8)> = listing
+        .iter()
+        .map(|&(r, v, dt)| {
+            at += dt;
+            (at, r, v)
+        })
+        .collect();
+    let debug = lab_log("nodes::firmware=debug");
+    // No frame reaches the receiver's buffer in 10 ms while it waits in DELAY: nothing else.
+    assert_eq!(receiver_writes(&debug), expected, "{debug}");
+    // The sender's transmission request, CMR (1) = 01h, at cycle 337 (firmware_seed_lab.rs).
+    assert!(
+        debug.contains("SJA1000 at D300h: register 1 <- 01h node=SENDER at=0.000337"),
+        "{debug}"
+    );
+    let info = lab_log("nodes::firmware=info");
+    assert!(!info.contains("SJA1000 at"), "{info}");
+    assert!(!lab_log("info").contains("register"));
+}
