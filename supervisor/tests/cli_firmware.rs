@@ -426,3 +426,121 @@ fn the_firmwares_register_writes_are_logged_at_debug_level_only() {
     assert!(!info.contains("SJA1000 at"), "{info}");
     assert!(!lab_log("info").contains("register"));
 }
+
+/// Assembles `source` with Debian's `as31` into `dir/name.hex`. Panics naming the package when
+/// `as31` is missing: a test that needs it fails, it never passes without it.
+fn assemble_into(dir: &Path, name: &str, source: &str) {
+    std::fs::write(dir.join(format!("{name}.asm")), source).expect("write the source");
+    let out = Command::new("as31")
+        .current_dir(dir)
+        .args([
+            "-Fhex".to_string(),
+            format!("-O{name}.hex"),
+            format!("{name}.asm"),
+        ])
+        .output()
+        .unwrap_or_else(|e| panic!("cannot run as31 ({e}): install the Debian package as31"));
+    assert!(out.status.success(), "as31 failed: {}", text(&out));
+}
+
+/// Three lines on the serial port in mode 1, polling TI: "HELLO" (CR LF), 300 'x' (LF), and
+/// "TAIL" with no end of line, after which the program waits in a loop for ever.
+const SERIAL_ASM: &str = "        .org    0
+        MOV     TMOD, #20H      ; timer 1 in mode 2 clocks the serial port
+        MOV     TH1, #0FFH
+        SETB    TR1
+        MOV     SCON, #40H      ; mode 1, 8 bits
+        MOV     DPTR, #HELLO
+        LCALL   PUTS
+        MOV     R7, #0          ; 256 'x'
+X1:     MOV     A, #78H
+        LCALL   PUT
+        DJNZ    R7, X1
+        MOV     R7, #44         ; and 44 more
+X2:     MOV     A, #78H
+        LCALL   PUT
+        DJNZ    R7, X2
+        MOV     A, #0AH
+        LCALL   PUT
+        MOV     DPTR, #TAIL
+        LCALL   PUTS
+HERE:   SJMP    HERE
+PUTS:   CLR     A
+        MOVC    A, @A+DPTR
+        JZ      DONE
+        LCALL   PUT
+        INC     DPTR
+        SJMP    PUTS
+DONE:   RET
+PUT:    MOV     SBUF, A
+WAIT:   JNB     TI, WAIT
+        CLR     TI
+        RET
+HELLO:  .byte   48H, 45H, 4CH, 4CH, 4FH, 0DH, 0AH, 0
+TAIL:   .byte   54H, 41H, 49H, 4CH, 0
+";
+
+/// Runs `source` as the only node of a network for a second of bus time: the lines its serial
+/// port gave the log, and the whole log.
+fn serial_lines(tag: &str, source: &str) -> (Vec<String>, String) {
+    let dir = scratch("cli-firmware", tag);
+    assemble_into(&dir, "serial", source);
+    std::fs::write(
+        dir.join("serial.ron"),
+        "Firmware(name: \"TTY\", image: \"serial.hex\", entry: None, \
+         cpu: I80C51(clock_hz: 12000000), controllers: [])",
+    )
+    .expect("write");
+    std::fs::write(
+        dir.join("net.ron"),
+        "Network(name: \"serial\", bitrate: 30000, nodes: [\"serial.ron\"])",
+    )
+    .expect("write");
+    let out = Command::new(env!("CARGO_BIN_EXE_harvemu"))
+        .current_dir(&dir)
+        .env("RUST_LOG", "nodes::firmware=info")
+        .args(["run", "net.ron", "--fast", "--for", "1s"])
+        .output()
+        .expect("run harvemu");
+    assert!(out.status.success(), "{}", text(&out));
+    let log = String::from_utf8_lossy(&out.stderr).into_owned();
+    let lines = log
+        .lines()
+        .filter_map(|l| l.split_once("serial: ").map(|(_, rest)| rest))
+        .map(|rest| rest.trim_end_matches(" node=TTY").to_string())
+        .collect();
+    (lines, log)
+}
+
+/// What the firmware writes to its serial port reaches the log at info level, a line at a time:
+/// a line longer than 256 bytes in pieces, the first marked as cut, and the line it had begun
+/// when the run ended as it is, marked so.
+#[test]
+fn serial_lines_reach_the_log_whole_cut_and_unfinished() {
+    let (lines, log) = serial_lines("serial", SERIAL_ASM);
+    let x = "x".repeat(256);
+    let cut = format!("{x} [cut: the line goes on]");
+    let rest = "x".repeat(44);
+    assert_eq!(
+        lines,
+        [
+            "HELLO",
+            cut.as_str(),
+            rest.as_str(),
+            "TAIL [no end of line: the node stopped]"
+        ],
+        "{log}"
+    );
+    // One byte, then a loop that changes nothing: the node idles in it from then on, and the
+    // byte still reaches the log.
+    let one = "        .org    0
+        MOV     TMOD, #20H
+        MOV     TH1, #0FFH
+        SETB    TR1
+        MOV     SCON, #40H
+        MOV     SBUF, #41H
+HERE:   SJMP    HERE
+";
+    let (lines, log) = serial_lines("serial-one", one);
+    assert_eq!(lines, ["A [no end of line: the node stopped]"], "{log}");
+}
