@@ -140,9 +140,9 @@ fn firmware_in_the_monitors_place_receives_the_flow_sensors_frames() {
     // R5: only those. Every other frame on the bus went to F5 too (the field nodes talk to the
     // monitor), and the filter kept them out.
     assert_eq!(usize::from(iram(0x05)), all % 256);
-    let others = frames
+    let to_f5 = frames
         .iter()
         .filter(|f| f.at > joined && f.frame.raw_id() & 0xFF00 == 0xF500)
         .count();
-    assert!(others > all, "{others} frames to F5, {all} from flow sensors");
+    assert!(to_f5 > all, "{to_f5} frames to F5, {all} from flow sensors");
 }
