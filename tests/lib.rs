@@ -190,23 +190,55 @@ pub fn run_firmware_with(
     end: BusTime,
     fault: Option<BitErrorsOf>,
 ) -> FirmwareRun {
+    run_firmware_specs(bench_specs(benches), end, fault)
+}
+
+/// The checked node files of `benches` (as [`run_firmware`] takes them), for a test that
+/// changes a spec before running them with [`run_firmware_specs`].
+pub fn bench_specs(benches: &[(String, String)]) -> Vec<std::sync::Arc<nodes::firmware::FirmwareSpec>> {
+    benches
+        .iter()
+        .map(|(text, hex)| {
+            let hex = hex.clone();
+            let read = move |_: &Path| Ok(("lab.hex".to_string(), hex.clone()));
+            let spec =
+                nodes::firmware::load("bench.ron", Path::new("bench.ron"), text, &read).expect("bench");
+            std::sync::Arc::new(spec)
+        })
+        .collect()
+}
+
+/// Collects the end-of-frame time of every frame, exactly (a candump line has microseconds).
+struct FrameEnds(Rc<RefCell<Vec<BusTime>>>);
+
+impl Sink for FrameEnds {
+    fn record(&mut self, r: &bus::trace::Record<'_>) -> std::io::Result<()> {
+        if let bus::trace::Kind::Frame(_) = r.kind {
+            self.0.borrow_mut().push(r.at);
+        }
+        Ok(())
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+/// [`run_firmware_with`] for nodes already checked.
+pub fn run_firmware_specs(
+    specs: Vec<std::sync::Arc<nodes::firmware::FirmwareSpec>>,
+    end: BusTime,
+    fault: Option<BitErrorsOf>,
+) -> FirmwareRun {
     use bus::engine::{
         BitPosition, BusConfig, ControllerConfig, Filter, NodeId, Recovery, Rule, Schedule, Target,
     };
     use bus_runtime::hub::{Attach, Control, GetCrashed, Hub, HubConfig};
     use bus_runtime::node::{Apply, NodeActor};
     use nodes::firmware::FirmwareNode;
-    use std::sync::Arc;
-    let specs: Vec<_> = benches
-        .iter()
-        .map(|(text, hex)| {
-            let hex = hex.clone();
-            let read = move |_: &Path| Ok(("lab.hex".to_string(), hex.clone()));
-            Arc::new(nodes::firmware::load("bench.ron", Path::new("bench.ron"), text, &read).expect("bench"))
-        })
-        .collect();
     let trace = Shared::default();
     let t = trace.clone();
+    let ends = Rc::new(RefCell::new(Vec::new()));
+    let e = ends.clone();
     let (states, crashed) = System::with_tokio_rt(|| runtime(true).expect("runtime")).block_on(async move {
         let config = HubConfig {
             bus: BusConfig {
@@ -215,8 +247,11 @@ pub fn run_firmware_with(
             },
             ..HubConfig::new(false)
         };
-        let sink = Box::new(CandumpWriter::new(t, Epoch::FIXED));
-        let hub = Hub::new(config, vec![sink]).expect("hub").start();
+        let sinks: Vec<Box<dyn Sink>> = vec![
+            Box::new(CandumpWriter::new(t, Epoch::FIXED)),
+            Box::new(FrameEnds(e)),
+        ];
+        let hub = Hub::new(config, sinks).expect("hub").start();
         let mut actors = Vec::new();
         for spec in specs {
             let logic = FirmwareNode::new(spec.clone(), BusTime::ZERO, 30_000.0);
@@ -276,6 +311,7 @@ pub fn run_firmware_with(
     });
     FirmwareRun {
         trace: String::from_utf8(trace.0.take()).expect("utf-8"),
+        ends: ends.take(),
         states,
         crashed,
     }
@@ -285,6 +321,8 @@ pub fn run_firmware_with(
 pub struct FirmwareRun {
     /// The candump trace.
     pub trace: String,
+    /// Every frame's end-of-frame time, exactly, in trace order.
+    pub ends: Vec<BusTime>,
     /// Each node's hardware at the end.
     pub states: Vec<Option<bus::node::HardwareState>>,
     /// Crashed nodes by index, and why.

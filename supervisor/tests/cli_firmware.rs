@@ -345,3 +345,202 @@ fn validate_knows_firmware_nodes_and_networks() {
          configs/firmware/irq_receiver.ron: ok (firmware node)\n"
     );
 }
+
+/// `harvemu run` of the seed lab for 10 ms with `RUST_LOG` set to `filter`: its stderr.
+fn lab_log(filter: &str) -> String {
+    let out = Command::new(env!("CARGO_BIN_EXE_harvemu"))
+        .current_dir(root())
+        .env("RUST_LOG", filter)
+        .args(["run", "configs/firmware/seed_lab.ron", "--fast", "--for", "10ms"])
+        .output()
+        .expect("run harvemu");
+    assert!(out.status.success(), "{}", text(&out));
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// The receiver's register writes, as (time in µs, register, value), from a debug log.
+fn receiver_writes(log: &str) -> Vec<(u64, u8, u8)> {
+    log.lines()
+        .filter(|l| l.contains("node=RECEIVER"))
+        .filter_map(|l| {
+            let rest = l.split_once("SJA1000 at D400h: register ")?.1;
+            let (register, rest) = rest.split_once(" <- ")?;
+            let value = rest.get(..2)?;
+            let at = l.split_once(" at=")?.1.trim();
+            let (secs, frac) = at.split_once('.')?;
+            let us = secs.parse::<u64>().ok()? * 1_000_000 + frac.get(..6)?.parse::<u64>().ok()?;
+            Some((us, register.parse().ok()?, u8::from_str_radix(value, 16).ok()?))
+        })
+        .collect()
+}
+
+/// At debug level every write of the firmware to its SJA1000 is logged once, with the register,
+/// the value and the bus time; at info level none is. The receiver's are INITCAN's writes to
+/// its chip at D400h, in the listing's order, each at the end of its `MOVX`, in machine cycles
+/// of 1 µs (Intel MCS-51 User's Manual): its chip's INITCAN call starts at cycle 100 (`LJMP`
+/// 2, `MOV DPH` 2, `MOV R0` 1, `LCALL` 2, the first INITCAN into nothing 88, then `MOV DPH` 2,
+/// `MOV R0` 1, `LCALL` 2); a write with `MOV DPL,#` and `MOV A,#` (or `MOV A,Rn`) before it ends
+/// 5 cycles after the one before, one with `INC DPTR` and `MOV A,#` 5, with `INC DPTR` or
+/// `MOV DPL,#` alone 4; the OCR write comes 2 cycles later for the `MOVX A,@DPTR` that reads BTR1
+/// back.
+#[test]
+fn the_firmwares_register_writes_are_logged_at_debug_level_only() {
+    // (register, value, cycles since the write before), from can_seed.asm's INITCAN.
+    let listing: [(u8, u8, u64); 18] = [
+        (0x00, 0x09, 5), // MOD: reset mode, single filter
+        (0x1F, 0x88, 5), // CDR: PeliCAN, CLKOUT off
+        (0x04, 0x0D, 5), // IER
+        (0x06, 0x03, 5), // BTR0
+        (0x07, 0xFF, 5), // BTR1
+        (0x08, 0xAA, 7), // OCR, after reading BTR1 back
+        (0x10, 0xBB, 5), // ACR0: the receiver's acceptance code
+        (0x11, 0xFF, 5), // ACR1
+        (0x12, 0xFF, 4), // ACR2
+        (0x13, 0xFF, 4), // ACR3
+        (0x14, 0x00, 5), // AMR0
+        (0x15, 0xFF, 5), // AMR1
+        (0x16, 0xFF, 4), // AMR2
+        (0x17, 0xFF, 4), // AMR3
+        (0x1E, 0x00, 5), // RBSA
+        (0x0F, 0x00, 4), // TXERR
+        (0x0C, 0x00, 4), // ECC
+        (0x00, 0x08, 5), // MOD: operating mode
+    ];
+    let mut at = 100;
+    let expected: Vec<(u64, u8, u8)> = listing
+        .iter()
+        .map(|&(r, v, dt)| {
+            at += dt;
+            (at, r, v)
+        })
+        .collect();
+    let debug = lab_log("nodes::firmware=debug");
+    // No frame reaches the receiver's buffer in 10 ms while it waits in DELAY: nothing else.
+    assert_eq!(receiver_writes(&debug), expected, "{debug}");
+    // The sender's transmission request, CMR (1) = 01h, at cycle 337 (firmware_seed_lab.rs).
+    assert!(
+        debug.contains("SJA1000 at D300h: register 1 <- 01h node=SENDER at=0.000337"),
+        "{debug}"
+    );
+    let info = lab_log("nodes::firmware=info");
+    assert!(!info.contains("SJA1000 at"), "{info}");
+    assert!(!lab_log("info").contains("register"));
+}
+
+/// Assembles `source` with Debian's `as31` into `dir/name.hex`. Panics naming the package when
+/// `as31` is missing: a test that needs it fails, it never passes without it.
+fn assemble_into(dir: &Path, name: &str, source: &str) {
+    std::fs::write(dir.join(format!("{name}.asm")), source).expect("write the source");
+    let out = Command::new("as31")
+        .current_dir(dir)
+        .args([
+            "-Fhex".to_string(),
+            format!("-O{name}.hex"),
+            format!("{name}.asm"),
+        ])
+        .output()
+        .unwrap_or_else(|e| panic!("cannot run as31 ({e}): install the Debian package as31"));
+    assert!(out.status.success(), "as31 failed: {}", text(&out));
+}
+
+/// Three lines on the serial port in mode 1, polling TI: "HELLO" (CR LF), 300 'x' (LF), and
+/// "TAIL" with no end of line, after which the program waits in a loop for ever.
+const SERIAL_ASM: &str = "        .org    0
+        MOV     TMOD, #20H      ; timer 1 in mode 2 clocks the serial port
+        MOV     TH1, #0FFH
+        SETB    TR1
+        MOV     SCON, #40H      ; mode 1, 8 bits
+        MOV     DPTR, #HELLO
+        LCALL   PUTS
+        MOV     R7, #0          ; 256 'x'
+X1:     MOV     A, #78H
+        LCALL   PUT
+        DJNZ    R7, X1
+        MOV     R7, #44         ; and 44 more
+X2:     MOV     A, #78H
+        LCALL   PUT
+        DJNZ    R7, X2
+        MOV     A, #0AH
+        LCALL   PUT
+        MOV     DPTR, #TAIL
+        LCALL   PUTS
+HERE:   SJMP    HERE
+PUTS:   CLR     A
+        MOVC    A, @A+DPTR
+        JZ      DONE
+        LCALL   PUT
+        INC     DPTR
+        SJMP    PUTS
+DONE:   RET
+PUT:    MOV     SBUF, A
+WAIT:   JNB     TI, WAIT
+        CLR     TI
+        RET
+HELLO:  .byte   48H, 45H, 4CH, 4CH, 4FH, 0DH, 0AH, 0
+TAIL:   .byte   54H, 41H, 49H, 4CH, 0
+";
+
+/// Runs `source` as the only node of a network for a second of bus time: the lines its serial
+/// port gave the log, and the whole log.
+fn serial_lines(tag: &str, source: &str) -> (Vec<String>, String) {
+    let dir = scratch("cli-firmware", tag);
+    assemble_into(&dir, "serial", source);
+    std::fs::write(
+        dir.join("serial.ron"),
+        "Firmware(name: \"TTY\", image: \"serial.hex\", entry: None, \
+         cpu: I80C51(clock_hz: 12000000), controllers: [])",
+    )
+    .expect("write");
+    std::fs::write(
+        dir.join("net.ron"),
+        "Network(name: \"serial\", bitrate: 30000, nodes: [\"serial.ron\"])",
+    )
+    .expect("write");
+    let out = Command::new(env!("CARGO_BIN_EXE_harvemu"))
+        .current_dir(&dir)
+        .env("RUST_LOG", "nodes::firmware=info")
+        .args(["run", "net.ron", "--fast", "--for", "1s"])
+        .output()
+        .expect("run harvemu");
+    assert!(out.status.success(), "{}", text(&out));
+    let log = String::from_utf8_lossy(&out.stderr).into_owned();
+    let lines = log
+        .lines()
+        .filter_map(|l| l.split_once("serial: ").map(|(_, rest)| rest))
+        .map(|rest| rest.trim_end_matches(" node=TTY").to_string())
+        .collect();
+    (lines, log)
+}
+
+/// What the firmware writes to its serial port reaches the log at info level, a line at a time:
+/// a line longer than 256 bytes in pieces, the first marked as cut, and the line it had begun
+/// when the run ended as it is, marked so.
+#[test]
+fn serial_lines_reach_the_log_whole_cut_and_unfinished() {
+    let (lines, log) = serial_lines("serial", SERIAL_ASM);
+    let x = "x".repeat(256);
+    let cut = format!("{x} [cut: the line goes on]");
+    let rest = "x".repeat(44);
+    assert_eq!(
+        lines,
+        [
+            "HELLO",
+            cut.as_str(),
+            rest.as_str(),
+            "TAIL [no end of line: the node stopped]"
+        ],
+        "{log}"
+    );
+    // One byte, then a loop that changes nothing: the node idles in it from then on, and the
+    // byte still reaches the log.
+    let one = "        .org    0
+        MOV     TMOD, #20H
+        MOV     TH1, #0FFH
+        SETB    TR1
+        MOV     SCON, #40H
+        MOV     SBUF, #41H
+HERE:   SJMP    HERE
+";
+    let (lines, log) = serial_lines("serial-one", one);
+    assert_eq!(lines, ["A [no end of line: the node stopped]"], "{log}");
+}

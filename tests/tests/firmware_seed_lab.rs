@@ -7,8 +7,10 @@
 //! sender sends one frame per pass of its loop, 99 916 machine cycles (µs at 12 MHz); a receiver
 //! whose acceptance code is AAh instead of BBh never stores it.
 
-use bus::time::BusDuration;
-use harvemu_e2e::{FirmwareRun, assemble, bench_file, parse_trace, root, run_firmware};
+use bus::time::{BusDuration, BusTime};
+use harvemu_e2e::{
+    FirmwareRun, assemble, bench_file, bench_specs, parse_trace, root, run_firmware, run_firmware_specs,
+};
 
 const LOOP_CYCLES: u64 = 99_916;
 const DATA: [u8; 8] = [0xAA, 0xBB, 0xCC, 0xD4, 0xE5, 0xF6, 0x97, 0x18];
@@ -21,22 +23,24 @@ fn source() -> String {
     std::fs::read_to_string(root().join("configs/firmware/can_seed.asm")).expect("the source")
 }
 
-/// The lab for a second: the sender running `sender_hex` on a 6 MHz crystal, the receiver
+/// The two benches: the sender running `sender_hex` on a 6 MHz crystal, the receiver
 /// `receiver_hex` on one of `receiver_xtal_hz`.
+fn benches(sender_hex: &str, receiver_hex: &str, receiver_xtal_hz: u32) -> Vec<(String, String)> {
+    vec![
+        (
+            bench_file("SENDER", 0x4000, 0xD300, 6_000_000, "None"),
+            sender_hex.to_string(),
+        ),
+        (
+            bench_file("RECEIVER", 0x4000, 0xD400, receiver_xtal_hz, "None"),
+            receiver_hex.to_string(),
+        ),
+    ]
+}
+
+/// The lab for a second.
 fn lab(sender_hex: &str, receiver_hex: &str, receiver_xtal_hz: u32) -> FirmwareRun {
-    run_firmware(
-        &[
-            (
-                bench_file("SENDER", 0x4000, 0xD300, 6_000_000, "None"),
-                sender_hex.to_string(),
-            ),
-            (
-                bench_file("RECEIVER", 0x4000, 0xD400, receiver_xtal_hz, "None"),
-                receiver_hex.to_string(),
-            ),
-        ],
-        1,
-    )
+    run_firmware(&benches(sender_hex, receiver_hex, receiver_xtal_hz), 1)
 }
 
 #[test]
@@ -129,4 +133,93 @@ fn a_drifted_crystal_stops_communication_and_a_good_one_does_not() {
         DATA,
         "receiver 30H-37H"
     );
+}
+
+/// Machine cycles (µs at 12 MHz) from reset to the end of the sender's first `MOVX @DPTR,A` to
+/// CMR (TR), counted from the listing with the Intel MCS-51 User's Manual's cycle counts
+/// (LJMP, LCALL, RET, MOV direct,#data, MOV DPTR,#data16, MOVX, MOVC, INC DPTR, CJNE, DJNZ: 2;
+/// MOV A,#data, MOV Rn,#data, MOV A,Rn, MOV A,@Ri, MOV @Ri,A, INC Rn, INC direct: 1). A
+/// register write takes effect at the end of its instruction.
+///
+/// - `LJMP START`: 2.
+/// - `MOV DPH,#0D3H` 2, `MOV R0,#0AAH` 1, `LCALL INITCAN` 2: 5.
+/// - INITCAN: MOD, CDR, IER, BTR0, BTR1 (`MOV DPL,#` 2 + `MOV A,#` 1 + `MOVX` 2) 5 × 5 = 25; the
+///   read back of BTR1 2; OCR 5; ACR0 (`MOV A,R0`) 5; ACR1 (`INC DPTR` 2 + `MOV A,#` 1 +
+///   `MOVX` 2) 5; ACR2, ACR3 (`INC DPTR` + `MOVX`) 4 + 4; AMR0 5, AMR1 5, AMR2 4, AMR3 4; RBSA 5;
+///   TXERR, ECC (`MOV DPL,#` + `MOVX`) 4 + 4; MOD 5; `RET` 2: 88.
+/// - `MOV DPH,#0D4H` 2, `MOV R0,#0BBH` 1, `LCALL` 2, INITCAN again (into nothing) 88: 93.
+/// - `MOV R0,#20H` 1, `MOV R1,#00H` 1, `MOV DPTR,#TXDATA` 2: 4; SS1 eight times (`MOV A,R1` 1,
+///   `MOVC` 2, `MOV @R0,A` 1, `INC R0` 1, `INC R1` 1, `CJNE` 2 = 8): 64.
+/// - LOOP: `MOV DPH,#0D3H` 2, `MOV R0,#20H` 1, `LCALL SEND` 2: 5.
+/// - SEND: FIN 5; ID1, ID2 (`INC DPL` 1 + `MOV A,#` 1 + `MOVX` 2) 4 + 4; `INC DPL` 1;
+///   `MOV R2,#08H` 1; SEND1 eight times (`MOV A,@R0` 1, `MOVX` 2, `INC R0` 1, `INC DPL` 1,
+///   `DJNZ` 2 = 7) 56; CMR (`MOV DPL,#` 2, `MOV A,#` 1, `MOVX` 2) 5: 76.
+///
+/// 2 + 5 + 88 + 93 + 4 + 64 + 5 + 76 = 337.
+const CYCLES_TO_TR: u64 = 337;
+
+/// The frame's bits from start of frame to the end of end of frame. Unstuffed, SOF 1, the
+/// identifier 5DFh 11, RTR, IDE, r0 3, DLC 4, data 64 and the CRC 15 are 98 bits:
+///
+/// ```text
+/// 0 10111011111 000 1000 10101010 10111011 11001100 11010100 11100101 11110110 10010111 00011000
+///   110001101100110
+/// ```
+///
+/// (the CRC-15, polynomial 4599h, of the 83 bits before it is 6366h). Five equal bits in a row
+/// get a stuff bit: the identifier's last five ones (a 0 after them), and E5h's last one with
+/// F6h's first four (a 0 after them); no other run reaches five, the stuff bits included (the
+/// first makes four zeros with RTR, IDE and r0). 98 + 2 = 100, and the CRC delimiter, ACK slot,
+/// ACK delimiter and 7 bits of end of frame make 110.
+const FRAME_BITS: u64 = 110;
+
+#[test]
+fn the_first_frame_ends_at_the_senders_start_up_plus_its_length_on_the_bus() {
+    let hex = shipped_hex();
+    let run = run_firmware(&benches(&hex, &hex, 6_000_000), 1);
+    // The bus is idle and the sender's chip joined it at its first INITCAN (cycle 93), so the
+    // frame starts at the TR write; a bit at 30 kbit/s is 1/30 000 s, 115 200 000 bus-clock
+    // ticks (3.456e12 / 30 000), so 110 bits are 3.667 ms.
+    let bit = BusDuration::from_ticks(3_456_000_000_000 / 30_000);
+    let first = BusTime::ZERO + BusDuration::from_micros(CYCLES_TO_TR) + bit * FRAME_BITS;
+    assert_eq!(run.ends.first(), Some(&first), "{}", run.trace);
+    // Every frame is as long: each ends one loop after the one before.
+    let period = BusDuration::from_micros(LOOP_CYCLES);
+    for (k, end) in run.ends.iter().enumerate() {
+        assert_eq!(*end, first + period * k as u64, "frame {k}");
+    }
+}
+
+/// The optimistic run ahead is deterministic: two runs give the same trace, to the nanosecond,
+/// and the same hardware at the end.
+#[test]
+fn the_lab_runs_the_same_twice() {
+    let hex = shipped_hex();
+    let b = benches(&hex, &hex, 6_000_000);
+    let end = BusTime::from_millis(500);
+    let one = run_firmware_specs(bench_specs(&b), end, None);
+    let two = run_firmware_specs(bench_specs(&b), end, None);
+    assert!(one.ends.len() >= 5, "{}", one.trace);
+    assert_eq!(one.ends, two.ends);
+    assert_eq!(one.trace, two.trace);
+    assert_eq!(one.states, two.states);
+}
+
+/// Skipping idle loops and frames the chip would not take changes nothing: the same trace and
+/// the same hardware as when the nodes work through every instruction and every frame.
+#[test]
+fn the_lab_runs_the_same_without_skipping_idle_loops() {
+    let hex = shipped_hex();
+    let b = benches(&hex, &hex, 6_000_000);
+    let end = BusTime::from_millis(500);
+    let skipping = run_firmware_specs(bench_specs(&b), end, None);
+    let mut specs = bench_specs(&b);
+    for s in &mut specs {
+        std::sync::Arc::make_mut(s).skip_idle_loops = false;
+    }
+    let working = run_firmware_specs(specs, end, None);
+    assert!(skipping.ends.len() >= 5, "{}", skipping.trace);
+    assert_eq!(skipping.ends, working.ends);
+    assert_eq!(skipping.trace, working.trace);
+    assert_eq!(skipping.states, working.states);
 }

@@ -37,6 +37,8 @@ const SHIPPED: &[(&str, &[&str])] = &[
     ("local_crc_errors.ron", &["BitErrors"]),
     ("overload.ron", &["Overload"]),
     ("lab_bus_off.ron", &["BitErrors"]),
+    ("lab_disconnect.ron", &["Disconnect", "Reconnect"]),
+    ("lab_ack_failure.ron", &["AckFailure", "AckRestored"]),
     ("c0_bus_off.ron", &["BitErrors"]),
 ];
 

@@ -53,6 +53,8 @@ const LOOK_BACKOFF: u32 = 64;
 const HORIZON: (u64, u64) = (12_000, 768_000);
 /// Instructions watched at the start of every chunk for a loop whose state repeats.
 const LOOP_WATCH: usize = 64;
+/// Longest piece of a serial line the log takes at once: a longer line goes out in pieces.
+const SERIAL_LINE: usize = 256;
 
 /// How a run ahead ended.
 #[derive(Clone, Debug, PartialEq)]
@@ -333,18 +335,28 @@ impl FirmwareNode {
         }
     }
 
-    /// Lines the firmware wrote to its serial port go to the log.
+    /// Lines the firmware wrote to its serial port go to the log; a line longer than
+    /// [`SERIAL_LINE`] bytes in pieces of that length, each but the last marked as cut.
     fn serial(&mut self) {
         let bytes = self.now.cpu.take_serial();
         for b in bytes {
             if b == b'\n' {
-                let line = String::from_utf8_lossy(&self.serial).trim_end().to_string();
-                tracing::info!(node = %self.spec.name, "serial: {line}");
-                self.serial.clear();
-            } else if self.serial.len() < 256 {
+                self.log_serial("");
+            } else {
                 self.serial.push(b);
+                if self.serial.len() >= SERIAL_LINE {
+                    self.log_serial(" [cut: the line goes on]");
+                }
             }
         }
+    }
+
+    /// Logs the serial line so far, with `note` after it, and starts a new one.
+    fn log_serial(&mut self, note: &str) {
+        let line = String::from_utf8_lossy(&self.serial);
+        let line = line.trim_end_matches(['\r', ' ']);
+        tracing::info!(node = %self.spec.name, "serial: {line}{note}");
+        self.serial.clear();
     }
 
     /// An input for chip 0 at `at`.
@@ -393,6 +405,16 @@ fn find_loop(m: &mut Machine) -> Result<Option<u64>, mcs51::Error> {
         }
     }
     Ok(None)
+}
+
+/// A line the firmware had begun on its serial port when the node goes (the run ends, or the
+/// supervisor replaces it) is not lost: it goes to the log as it is.
+impl Drop for FirmwareNode {
+    fn drop(&mut self) {
+        if !self.serial.is_empty() {
+            self.log_serial(" [no end of line: the node stopped]");
+        }
+    }
 }
 
 impl NodeLogic for FirmwareNode {
