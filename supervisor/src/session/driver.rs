@@ -60,7 +60,26 @@ pub(super) fn drive(
                 return;
             }
         };
-        while let Some(c) = commands.recv().await {
+        loop {
+            // The next command usually follows at once: look for it awake a little first.
+            let mut next = None;
+            for _ in 0..20_000 {
+                match commands.try_recv() {
+                    Ok(c) => {
+                        next = Some(c);
+                        break;
+                    }
+                    Err(mpsc::error::TryRecvError::Empty) => std::hint::spin_loop(),
+                    Err(mpsc::error::TryRecvError::Disconnected) => return,
+                }
+            }
+            let c = match next {
+                Some(c) => c,
+                None => match commands.recv().await {
+                    Some(c) => c,
+                    None => return,
+                },
+            };
             d.carry_out(c).await;
         }
     });
