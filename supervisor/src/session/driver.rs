@@ -23,7 +23,7 @@ use tokio::sync::{mpsc, oneshot};
 
 /// Bus time a paced bus runs between looks at the commands: how long a call waits at most before
 /// the thread hears of it.
-const SLICE: BusDuration = BusDuration::from_micros(500);
+const SLICE: BusDuration = BusDuration::from_micros(2000);
 
 /// A `recv` or a `run_for` waiting for a paced bus.
 enum Wait {
