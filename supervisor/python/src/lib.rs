@@ -3,8 +3,9 @@
 //! interface on it.
 //!
 //! Contract: every call that runs the harvester releases the GIL while it runs, so other Python
-//! threads go on; a session is used from any thread, one call at a time (calls from two threads
-//! are served in turn). Bad input (a config with problems, a frame that cannot be) raises
+//! threads go on; a session is used from any thread. In virtual time, calls from two threads are
+//! served in turn; paced by the wall clock, the bus runs between calls, and a `recv` waiting in
+//! one thread does not hold up a `send` from another. Bad input (a config with problems, a frame that cannot be) raises
 //! `ValueError` with harvemu's message, naming file and line where there are some; a failure of
 //! harvemu itself raises `RuntimeError`.
 
@@ -12,11 +13,13 @@ use bus::{Frame, Id, extended_id, standard_id};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
-use std::sync::Mutex;
+use std::sync::RwLock;
 use supervisor::session::{FOREVER_S, Filter, Options, Session};
 
-/// Bus time a `recv` runs between looks at Python's signals, s.
+/// Bus time a `recv` runs between looks at Python's signals, s: in virtual time, and paced by
+/// the wall clock (where it is also how long a `close` may wait for a `recv` in another thread).
 const STEP_S: f64 = 1.0;
+const PACED_STEP_S: f64 = 0.1;
 
 fn error(e: supervisor::Error) -> PyErr {
     let message = e.report().to_string();
@@ -74,7 +77,8 @@ fn frames(parts: Vec<Parts>) -> PyResult<Vec<Frame>> {
 /// A harvester with a program on its bus.
 #[pyclass(module = "harvemu._harvemu", frozen)]
 struct Harvester {
-    session: Mutex<Option<Session>>,
+    session: RwLock<Option<Session>>,
+    paced: bool,
 }
 
 impl Harvester {
@@ -86,7 +90,7 @@ impl Harvester {
         py.allow_threads(|| {
             let guard = self
                 .session
-                .lock()
+                .read()
                 .map_err(|_| PyRuntimeError::new_err("the session broke in another thread"))?;
             let session = guard
                 .as_ref()
@@ -99,26 +103,42 @@ impl Harvester {
 #[pymethods]
 impl Harvester {
     /// Starts the harvester of `config` (the built-in default when None) without the nodes in
-    /// `without`, with the program on its bus as `name`.
+    /// `without`, with the program on its bus as `name`; in virtual time, or paced by the wall
+    /// clock when `virtual_time` is False.
     #[new]
-    #[pyo3(signature = (config=None, without=Vec::new(), seed=None, name=String::from("program")))]
+    #[pyo3(signature = (config=None, without=Vec::new(), seed=None, name=String::from("program"), virtual_time=true))]
     fn new(
         py: Python<'_>,
         config: Option<std::path::PathBuf>,
         without: Vec<String>,
         seed: Option<u64>,
         name: String,
+        virtual_time: bool,
     ) -> PyResult<Harvester> {
         let options = Options {
             config,
             without,
             seed,
             name,
+            paced: !virtual_time,
         };
         let session = py.allow_threads(|| Session::start(&options)).map_err(error)?;
         Ok(Harvester {
-            session: Mutex::new(Some(session)),
+            session: RwLock::new(Some(session)),
+            paced: !virtual_time,
         })
+    }
+
+    /// Whether bus time is virtual (False: paced by the wall clock).
+    #[getter]
+    fn virtual_time(&self) -> bool {
+        !self.paced
+    }
+
+    /// When bus time zero is, in seconds since 1970: the wall clock at the start when paced,
+    /// 2024-01-01T00:00:00Z in virtual time.
+    fn epoch(&self, py: Python<'_>) -> PyResult<f64> {
+        self.with(py, |s| Ok(s.epoch_s()))
     }
 
     /// Sets the program's filters: (can_id, can_mask, extended or None) each.
@@ -139,8 +159,9 @@ impl Harvester {
         }
         // A second of bus time at a time, with Python's signals looked at in between: Ctrl-C
         // ends a recv that would wait long (a filter nothing passes, no timeout).
+        let chunk = if self.paced { PACED_STEP_S } else { STEP_S };
         loop {
-            let step = left.min(STEP_S);
+            let step = left.min(chunk);
             if let Some(r) = self.with(py, move |s| s.recv(Some(step)))? {
                 let f = r.frame;
                 let data = PyBytes::new(py, f.data());
@@ -244,15 +265,16 @@ impl Harvester {
 
     /// Stops the harvester; later calls raise ValueError.
     fn close(&self, py: Python<'_>) -> PyResult<()> {
-        let taken = {
-            let mut guard = self
+        // Without the GIL: a call in another thread may have to finish first.
+        py.allow_threads(|| {
+            let taken = self
                 .session
-                .lock()
-                .map_err(|_| PyRuntimeError::new_err("the session broke in another thread"))?;
-            guard.take()
-        };
-        py.allow_threads(move || drop(taken));
-        Ok(())
+                .write()
+                .map_err(|_| PyRuntimeError::new_err("the session broke in another thread"))?
+                .take();
+            drop(taken);
+            Ok(())
+        })
     }
 }
 

@@ -232,3 +232,31 @@ def test_a_python_monitor_keeps_all_six_sensors_streaming_for_ten_minutes():
         # Awaiting calibration, calibrating, running; never "no acknowledgement" (4).
         assert s["states"] == [1, 2, 3], (name, s)
         assert s["flow_sum"] > 0, (name, s)
+
+
+def test_with_virtual_time_false_the_bus_keeps_to_the_wall_clock():
+    import time
+    with monitorless(virtual_time=False, can_filters=only_d0()) as bus:
+        assert bus.harvester.virtual_time is False
+        reader = can.BufferedReader()
+        notifier = can.Notifier(bus, [reader], timeout=0.1)
+        # Sent from this thread while the notifier's thread waits in recv.
+        bus.send(can.Message(arbitration_id=0x18FF00F5, data=b"\x01\x02"))
+        first = reader.get_message(timeout=30.0)
+        assert first is not None and first.arbitration_id == D0_TO_F5
+        # Stamped as time.time() stamps: the epoch is the wall clock at the start.
+        assert abs(first.timestamp - time.time()) < 30
+        sent = 0
+        for _ in range(3000):
+            sent = bus.harvester.sent()
+            if sent:
+                break
+            time.sleep(0.01)
+        assert sent == 1
+        # The bus runs on between calls, never ahead of the wall clock.
+        start = bus.harvester.now()
+        wall = time.monotonic()
+        time.sleep(0.3)
+        later = bus.harvester.now()
+        assert start < later <= start + (time.monotonic() - wall) + 0.01
+        notifier.stop()

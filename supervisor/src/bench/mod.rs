@@ -10,6 +10,9 @@
 //! - realtime: the same harvester paced by the wall clock, watched from outside the hub.
 //! - campaign: runs of the built-in campaign `harvest` (the default harvester for 60 s with random
 //!   faults) on every core, as `harvemu campaign` plays them: runs per hour.
+//! - python-monitor: the six-sensor monitor written in Python on the python-can interface, in
+//!   F5's place, as `python -m harvemu.monitor` measures itself: microseconds per received frame
+//!   (only when named in `--only`: it needs the Python package installed).
 //!
 //! Every workload reports the same figures ([`Measurement`]); the peak RSS is the process's peak
 //! since the workload started (the kernel's high-water mark is reset before each one).
@@ -22,6 +25,7 @@ use std::time::Instant;
 mod campaign;
 mod cpu;
 mod harvester;
+mod python;
 mod realtime;
 mod saturated;
 
@@ -68,9 +72,16 @@ pub struct Args {
     #[arg(long, value_name = "N", default_value_t = 40, value_parser = clap::value_parser!(u64).range(1..))]
     campaign_runs: u64,
     /// Run only these scenarios (saturated, saturated-multi, harvester, realtime, firmware-cpu,
-    /// firmware-lab, firmware-c0, campaign).
+    /// firmware-lab, firmware-c0, campaign, python-monitor). python-monitor runs only when named
+    /// here: it needs the Python package (pip install supervisor/python).
     #[arg(long, value_name = "SCENARIO,...", value_delimiter = ',')]
     only: Vec<String>,
+    /// The Python with the harvemu package, for python-monitor.
+    #[arg(long, value_name = "PYTHON", default_value = "python3")]
+    python: String,
+    /// Bus seconds of the python-monitor scenario.
+    #[arg(long, value_name = "SECONDS", default_value_t = 600.0)]
+    python_seconds: f64,
     /// Run the harvester in real time for this many seconds and measure period jitter against
     /// the wall clock and losses (the realtime scenario, which only runs when asked; e.g. 600).
     #[arg(long, value_name = "SECONDS")]
@@ -231,7 +242,7 @@ pub fn measure(
     })
 }
 
-const SCENARIOS: [&str; 8] = [
+const SCENARIOS: [&str; 9] = [
     "saturated",
     "saturated-multi",
     "harvester",
@@ -240,6 +251,7 @@ const SCENARIOS: [&str; 8] = [
     "firmware-lab",
     "firmware-c0",
     "campaign",
+    "python-monitor",
 ];
 
 /// Runs `harvemu bench`.
@@ -249,6 +261,7 @@ pub fn run(args: &Args) -> crate::Result<()> {
         ("--harvester-seconds", args.harvester_seconds),
         ("--many-seconds", args.many_seconds),
         ("--lab-seconds", args.lab_seconds),
+        ("--python-seconds", args.python_seconds),
         ("--realtime", args.realtime.unwrap_or(1.0)),
     ] {
         if !(v > 0.0 && v.is_finite()) {
@@ -329,7 +342,7 @@ pub fn run(args: &Args) -> crate::Result<()> {
             ));
         }
     }
-    if !args.json {
+    if !args.json && !plan.is_empty() {
         crate::output::stdout(&format!(
             "{:<20} {:>5} {:>7} {:>8} {:>8} {:>11} {:>12} {:>9} {:>6} {:>9}\n",
             "scenario",
@@ -405,6 +418,22 @@ pub fn run(args: &Args) -> crate::Result<()> {
                 "campaign: {:.0} runs per hour on {} job(s) ({} runs of {:.0} s with {} random \
                  faults in all, {} failed, in {:.2} s)\n",
                 m.runs_per_hour, m.jobs, m.runs, m.virtual_seconds, m.faults, m.failed, m.wall_seconds
+            ))?;
+        }
+    }
+    if args.only.iter().any(|o| o == "python-monitor") {
+        eprintln!(
+            "bench: python-monitor, {} s of bus time with {} -m harvemu.monitor ...",
+            args.python_seconds, args.python
+        );
+        let m = python::measure(&args.python, args.python_seconds)?;
+        if args.json {
+            crate::output::stdout(&format!("{}\n", serde_json::to_string(&m)?))?;
+        } else {
+            crate::output::stdout(&format!(
+                "python-monitor: {:.1} µs per received frame, Python included: {:.0} times real \
+                 time ({} frames in {:.0} s of bus time, {:.2} s; digest {})\n",
+                m.us_per_frame, m.speedup, m.frames, m.virtual_seconds, m.wall_seconds, m.digest
             ))?;
         }
     }

@@ -1,5 +1,10 @@
 //! The harvester's thread: it starts the harvester with the program on its bus, then carries out
 //! the session's commands one at a time, until the session is dropped.
+//!
+//! In virtual time the bus runs only inside a `recv` or a `run_for`, which the thread carries out
+//! before it takes the next command. Paced by the wall clock, the bus runs all the time, in short
+//! slices with the commands carried out between them; a `recv` or a `run_for` waits for the bus
+//! as it runs, so that a call from another thread is not held up behind one.
 
 use super::program::{Inbox, Program};
 use super::{Command, NodeState, Received};
@@ -12,8 +17,29 @@ use bus::time::{BusDuration, BusTime};
 use bus_runtime::hub::{Attach, Control, GetSnapshot, Submit, runtime};
 use bus_runtime::node::NodeActor;
 use std::cell::RefCell;
+use std::collections::VecDeque;
 use std::rc::Rc;
 use tokio::sync::{mpsc, oneshot};
+
+/// Bus time a paced bus runs between looks at the commands: how long a call waits at most before
+/// the thread hears of it.
+const SLICE: BusDuration = BusDuration::from_micros(2000);
+
+/// A `recv` or a `run_for` waiting for a paced bus.
+enum Wait {
+    /// A frame, or none by the time given.
+    Recv(BusTime, oneshot::Sender<Result<Option<Received>>>),
+    /// The time given.
+    Until(BusTime, oneshot::Sender<Result<f64>>),
+}
+
+impl Wait {
+    fn deadline(&self) -> BusTime {
+        match self {
+            Wait::Recv(t, _) | Wait::Until(t, _) => *t,
+        }
+    }
+}
 
 /// What ends a fault that an action started.
 enum End {
@@ -39,10 +65,11 @@ struct Driver {
 pub(super) fn drive(
     h: Harvester,
     name: String,
+    paced: bool,
     mut commands: mpsc::UnboundedReceiver<Command>,
     ready: oneshot::Sender<Result<()>>,
 ) {
-    let system = match runtime(true) {
+    let system = match runtime(!paced) {
         Ok(rt) => System::with_tokio_rt(move || rt),
         Err(e) => {
             let _ = ready.send(Err(Error::Internal(format!("no runtime: {e}"))));
@@ -50,7 +77,7 @@ pub(super) fn drive(
         }
     };
     system.block_on(async move {
-        let mut d = match Driver::start(&h, name).await {
+        let mut d = match Driver::start(&h, name, paced).await {
             Ok(d) => {
                 let _ = ready.send(Ok(()));
                 d
@@ -60,16 +87,44 @@ pub(super) fn drive(
                 return;
             }
         };
-        while let Some(c) = commands.recv().await {
+        if paced {
+            d.run_paced(commands).await;
+            return;
+        }
+        loop {
+            // The next command usually follows at once: look for it awake a little first.
+            let mut next = None;
+            let started = std::time::Instant::now();
+            loop {
+                match commands.try_recv() {
+                    Ok(c) => {
+                        next = Some(c);
+                        break;
+                    }
+                    Err(mpsc::error::TryRecvError::Empty) => {
+                        if !super::look_again(started) {
+                            break;
+                        }
+                    }
+                    Err(mpsc::error::TryRecvError::Disconnected) => return,
+                }
+            }
+            let c = match next {
+                Some(c) => c,
+                None => match commands.recv().await {
+                    Some(c) => c,
+                    None => return,
+                },
+            };
             d.carry_out(c).await;
         }
     });
 }
 
 impl Driver {
-    async fn start(h: &Harvester, name: String) -> Result<Driver> {
+    async fn start(h: &Harvester, name: String, paced: bool) -> Result<Driver> {
         let inbox = Rc::new(RefCell::new(Inbox::default()));
-        let running = harvester::begin(h, false, Vec::new()).await?;
+        let running = harvester::begin(h, paced, Vec::new()).await?;
         let actor = NodeActor::new(name.clone(), Box::new(Program::new(inbox.clone()))).start();
         let id = running
             .hub
@@ -169,6 +224,86 @@ impl Driver {
                 let _ = tx.send(ran.map(|()| self.running.now().as_secs_f64()));
             }
         }
+    }
+
+    /// Runs the bus paced by the wall clock until the session is dropped: slice by slice,
+    /// carrying out the commands in between and answering the waits as their frame or their time
+    /// comes.
+    async fn run_paced(&mut self, mut commands: mpsc::UnboundedReceiver<Command>) {
+        let mut waits: VecDeque<Wait> = VecDeque::new();
+        // Set when the bus failed: waits are answered with it from then on.
+        let mut broken: Option<String> = None;
+        loop {
+            loop {
+                let now = self.running.now();
+                match commands.try_recv() {
+                    Ok(Command::Recv(t, tx)) => {
+                        waits.push_back(Wait::Recv(now + BusDuration::from_secs_f64(t), tx));
+                    }
+                    Ok(Command::RunFor(t, tx)) => {
+                        waits.push_back(Wait::Until(now + BusDuration::from_secs_f64(t), tx));
+                    }
+                    Ok(c) => self.carry_out(c).await,
+                    Err(mpsc::error::TryRecvError::Empty) => break,
+                    Err(mpsc::error::TryRecvError::Disconnected) => return,
+                }
+            }
+            if let Some(why) = &broken {
+                for w in waits.drain(..) {
+                    let e = || Error::Internal(why.clone());
+                    match w {
+                        Wait::Recv(_, tx) => drop(tx.send(Err(e()))),
+                        Wait::Until(_, tx) => drop(tx.send(Err(e()))),
+                    }
+                }
+                // Nothing runs any more: sleep until the next command.
+                match commands.recv().await {
+                    Some(Command::Recv(_, tx)) => waits.push_back(Wait::Recv(BusTime::ZERO, tx)),
+                    Some(Command::RunFor(_, tx)) => waits.push_back(Wait::Until(BusTime::ZERO, tx)),
+                    Some(c) => self.carry_out(c).await,
+                    None => return,
+                }
+                continue;
+            }
+            self.answer(&mut waits);
+            let now = self.running.now();
+            let end = waits.iter().map(Wait::deadline).fold(now + SLICE, BusTime::min);
+            let receiving = waits.iter().any(|w| matches!(w, Wait::Recv(..)));
+            self.inbox.borrow_mut().waiting = receiving;
+            let inbox = self.inbox.clone();
+            let ran = self
+                .advance(end, move || receiving && !inbox.borrow().is_empty())
+                .await;
+            self.inbox.borrow_mut().waiting = false;
+            if let Err(e) = ran {
+                broken = Some(e.report().to_string());
+            }
+        }
+    }
+
+    /// Answers the waits whose frame or time has come: frames go to the `recv`s in the order
+    /// they were called.
+    fn answer(&mut self, waits: &mut VecDeque<Wait>) {
+        let now = self.running.now();
+        let mut left = VecDeque::with_capacity(waits.len());
+        for w in waits.drain(..) {
+            match w {
+                Wait::Recv(t, tx) => match self.inbox.borrow_mut().pop() {
+                    Some(r) => {
+                        let _ = tx.send(Ok(Some(r)));
+                    }
+                    None if now >= t => {
+                        let _ = tx.send(Ok(None));
+                    }
+                    None => left.push_back(Wait::Recv(t, tx)),
+                },
+                Wait::Until(t, tx) if now >= t => {
+                    let _ = tx.send(Ok(now.as_secs_f64()));
+                }
+                w => left.push_back(w),
+            }
+        }
+        *waits = left;
     }
 
     async fn poke(&self) -> Result<()> {

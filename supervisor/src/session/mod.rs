@@ -5,8 +5,10 @@
 //! leaves out the nodes named, and puts a program in their place: a node of its own on the bus,
 //! with a controller like any other (it arbitrates, is acknowledged, retransmits). The harvester
 //! runs on a thread of its own, behind a channel, so a session can be used from any thread.
-//! Bus time moves only inside [`Session::recv`] and [`Session::run_for`]: the same seed and the
-//! same calls give the same frames at the same times, run after run. Frames that reach the
+//! In virtual time (the default) bus time moves only inside [`Session::recv`] and
+//! [`Session::run_for`]: the same seed and the same calls give the same frames at the same times,
+//! run after run. Paced ([`Options::paced`]), the bus keeps to the wall clock and runs between
+//! calls too, and a call from one thread is not held up by another's `recv` or `run_for`. Frames that reach the
 //! program pass its filters when they arrive (the others are dropped, as a kernel filter drops
 //! them) and wait in a queue of at most [`QUEUE`] frames, the oldest dropped beyond it, as in a
 //! socket's buffer: also while the program does not wait for one ([`Session::run_for`]).
@@ -19,10 +21,27 @@ mod program;
 use crate::harvester::Harvester;
 use crate::{Error, Result};
 use bus::Frame;
+use bus::time::Epoch;
+use bus_runtime::hub::default_epoch;
 pub use program::{Filter, Inbox, QUEUE};
 use std::path::PathBuf;
 use std::thread::JoinHandle;
 use tokio::sync::{mpsc, oneshot};
+
+/// How long a thread looks for an answer (the session's caller) or the next command (the
+/// harvester's thread) before it sleeps on it. Both usually come within tens of microseconds, and
+/// a sleep costs a wake-up through the kernel each way.
+const LOOK: std::time::Duration = std::time::Duration::from_micros(200);
+
+/// Whether to look once more, since `started`. The thread yields in between rather than spinning:
+/// on a busy machine, or on one core, the thread it waits for may need this core to answer.
+pub(crate) fn look_again(started: std::time::Instant) -> bool {
+    if started.elapsed() >= LOOK {
+        return false;
+    }
+    std::thread::yield_now();
+    true
+}
 
 /// Longest a `recv` without a timeout waits, in bus time: the longest run a scenario may have.
 pub const FOREVER_S: f64 = crate::scenario::MAX_DURATION_S;
@@ -38,6 +57,9 @@ pub struct Options {
     pub seed: Option<u64>,
     /// The program's name on the bus (in traces and reports).
     pub name: String,
+    /// Bus time paced by the wall clock, the bus running between calls too; virtual time when
+    /// false.
+    pub paced: bool,
 }
 
 /// A frame the program received, with its end-of-frame time.
@@ -81,6 +103,7 @@ pub struct NodeState {
 pub struct Session {
     commands: Option<mpsc::UnboundedSender<Command>>,
     thread: Option<JoinHandle<()>>,
+    epoch: Epoch,
 }
 
 impl Session {
@@ -90,6 +113,7 @@ impl Session {
         let path = o.config.clone().unwrap_or_else(|| "configs/harvester.ron".into());
         let mut h = Harvester::load(&path)?;
         h.without(&o.without)?;
+        let epoch = *h.epoch.get_or_insert_with(|| default_epoch(o.paced));
         if let Some(seed) = o.seed {
             h.config.seed = seed;
         }
@@ -100,13 +124,15 @@ impl Session {
         };
         let (tx, rx) = mpsc::unbounded_channel();
         let (ready_tx, ready) = oneshot::channel();
+        let paced = o.paced;
         let thread = std::thread::Builder::new()
             .name("harvemu-session".into())
-            .spawn(move || driver::drive(h, name, rx, ready_tx))
+            .spawn(move || driver::drive(h, name, paced, rx, ready_tx))
             .map_err(|e| Error::Internal(format!("cannot start the harvester's thread: {e}")))?;
         let session = Session {
             commands: Some(tx),
             thread: Some(thread),
+            epoch,
         };
         ready
             .blocking_recv()
@@ -122,7 +148,26 @@ impl Session {
             .ok_or_else(gone)?
             .send(make(tx))
             .map_err(|_| gone())?;
+        let mut rx = rx;
+        let started = std::time::Instant::now();
+        loop {
+            match rx.try_recv() {
+                Ok(answer) => return answer,
+                Err(oneshot::error::TryRecvError::Empty) => {
+                    if !look_again(started) {
+                        break;
+                    }
+                }
+                Err(oneshot::error::TryRecvError::Closed) => return Err(gone()),
+            }
+        }
         rx.blocking_recv().map_err(|_| gone())?
+    }
+
+    /// When bus time zero is, in seconds since 1970: the wall clock at the start when paced,
+    /// 2024-01-01T00:00:00Z in virtual time (harvemu's traces are stamped from it).
+    pub fn epoch_s(&self) -> f64 {
+        self.epoch.as_micros() as f64 / 1e6
     }
 
     /// Sets the program's filters: from now on a frame reaches it when any of them passes it
@@ -132,8 +177,8 @@ impl Session {
         self.ask(|tx| Command::Filters(filters.to_vec(), tx))
     }
 
-    /// The oldest frame waiting for the program; when none is, runs the harvester until one
-    /// comes or `timeout_s` of bus time have passed (`None`: [`FOREVER_S`]).
+    /// The oldest frame waiting for the program; when none is, runs the harvester (paced: waits
+    /// for it) until one comes or `timeout_s` of bus time have passed (`None`: [`FOREVER_S`]).
     pub fn recv(&self, timeout_s: Option<f64>) -> Result<Option<Received>> {
         let t = timeout_s.unwrap_or(FOREVER_S);
         if !(t.is_finite() && t >= 0.0) {
@@ -147,7 +192,8 @@ impl Session {
         self.ask(|tx| Command::Send(frame, tx))
     }
 
-    /// Runs the harvester for `seconds` of bus time; answers with the bus time reached, s.
+    /// Runs the harvester (paced: waits for it) for `seconds` of bus time; answers with the bus
+    /// time reached, s.
     pub fn run_for(&self, seconds: f64) -> Result<f64> {
         if !(0.0..=FOREVER_S).contains(&seconds) {
             return Err(Error::BadInput(format!(

@@ -177,3 +177,88 @@ fn scenario_actions_reach_the_bus_and_their_faults_end_in_time() {
     assert!(e.contains("the action:1:"), "{e}");
     assert!(s.act(r#"Crash("ZZ")"#).is_err());
 }
+
+fn paced_without_monitor(seed: u64) -> Session {
+    Session::start(&Options {
+        without: vec!["F5".into()],
+        seed: Some(seed),
+        name: "F5".into(),
+        paced: true,
+        ..Options::default()
+    })
+    .unwrap_or_else(|e| panic!("{e}"))
+}
+
+#[test]
+fn paced_bus_time_keeps_behind_the_wall_clock_and_runs_between_calls() {
+    let started = std::time::Instant::now();
+    let s = paced_without_monitor(3);
+    let since_1970 = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_secs_f64();
+    // Stamped from the wall clock at the start, as candump -l stamps.
+    assert!((s.epoch_s() - since_1970).abs() < 60.0, "{}", s.epoch_s());
+    // D0 asks for its calibration every 250 ms once the field nodes are up.
+    s.set_filters(&[from_d0()]).unwrap();
+    let first = s.recv(Some(30.0)).unwrap().expect("D0 speaks within 30 s");
+    assert_eq!(first.frame.data()[0], 0x30, "{first:?}");
+    // The hub may let a frame out a little before its time on the wall clock, never more.
+    let wall = started.elapsed().as_secs_f64();
+    assert!(
+        first.at_s <= wall + 0.01,
+        "bus time {} ahead of the wall clock {wall}",
+        first.at_s
+    );
+    // No recv, no run_for, and yet the bus goes on.
+    let before = s.now().unwrap();
+    let mut after = before;
+    for _ in 0..3000 {
+        std::thread::sleep(std::time::Duration::from_millis(10));
+        after = s.now().unwrap();
+        if after > before + 0.1 {
+            break;
+        }
+    }
+    assert!(
+        after > before + 0.1,
+        "bus time stood at {before} s, then {after} s"
+    );
+    assert!(after <= started.elapsed().as_secs_f64() + 0.01);
+}
+
+#[test]
+fn paced_a_recv_waiting_in_one_thread_does_not_hold_up_another() {
+    let s = paced_without_monitor(4);
+    let nothing = Filter {
+        id: 0x1FFF_FFFF,
+        mask: 0x1FFF_FFFF,
+        extended: Some(true),
+    };
+    s.set_filters(&[nothing]).unwrap();
+    let done = std::sync::atomic::AtomicBool::new(false);
+    std::thread::scope(|scope| {
+        let waiting = scope.spawn(|| {
+            let got = s.recv(Some(600.0));
+            done.store(true, std::sync::atomic::Ordering::SeqCst);
+            got
+        });
+        // Sent and acknowledged (by every field node) while the other thread waits.
+        let frame = parse_frame("18FF00F5#0102").unwrap();
+        s.send(frame).unwrap();
+        let mut sent = 0;
+        for _ in 0..3000 {
+            sent = s.sent().unwrap();
+            if sent > 0 {
+                break;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(10));
+        }
+        assert_eq!(sent, 1);
+        assert!(!done.load(std::sync::atomic::Ordering::SeqCst));
+        // Letting D0's frames through ends the wait.
+        s.set_filters(&[from_d0()]).unwrap();
+        let got = waiting.join().unwrap().unwrap().expect("a frame from D0");
+        assert_eq!(got.frame.raw_id(), 0x0601_F5D0);
+    });
+}

@@ -1,8 +1,10 @@
 """The python-can interface ``harvemu``: the program stands on the emulated harvester's bus.
 
-Bus time is harvemu's: it moves only inside ``recv`` and ``run_for``, so the same seed and the
-same calls give the same frames at the same times. Filters are applied inside harvemu, where the
-frames arrive, as a kernel applies a socket's filters.
+In virtual time (the default) bus time is harvemu's: it moves only inside ``recv`` and
+``run_for``, so the same seed and the same calls give the same frames at the same times. With
+``virtual_time=False`` the bus keeps to the wall clock and runs between calls, as a real one does.
+Filters are applied inside harvemu, where the frames arrive, as a kernel applies a socket's
+filters.
 """
 
 import can
@@ -56,22 +58,28 @@ class HarvemuBus(can.BusABC):
     :param config: a harvester config file; the built-in default when None.
     :param without: the nodes the program stands in for ("F5": the monitor).
     :param seed: the run's seed; the config's when None.
+    :param virtual_time: True: bus time moves only inside ``recv`` and ``run_for``, and message
+        timestamps are bus time in seconds from the start. False: the bus keeps to the wall
+        clock, and timestamps are seconds since 1970, as ``time.time()`` gives them.
     """
 
     def __init__(self, channel="harv0", can_filters=None, config=None, without=("F5",),
-                 seed=None, **kwargs):
+                 seed=None, virtual_time=True, **kwargs):
         try:
             self._harvester = Harvester(
                 config=None if config is None else str(config),
                 without=list(without),
                 seed=seed,
                 name=str(channel),
+                virtual_time=bool(virtual_time),
             )
         except ValueError as e:
             raise can.CanInitializationError(str(e)) from e
         except RuntimeError as e:
             raise can.CanInitializationError(str(e)) from e
         self.channel_info = f"harvemu {channel}"
+        # Bus time zero on the wall clock, added to timestamps when the bus keeps to it.
+        self._epoch = 0.0 if virtual_time else self._harvester.epoch()
         super().__init__(channel=channel, can_filters=can_filters, **kwargs)
 
     @property
@@ -86,7 +94,8 @@ class HarvemuBus(can.BusABC):
         self._harvester.set_filters(specs)
 
     def recv(self, timeout=None):
-        """The next frame that passes the filters, within ``timeout`` s of bus time."""
+        """The next frame that passes the filters, within ``timeout`` s of bus time (of the wall
+        clock when the bus keeps to it)."""
         try:
             got = self._harvester.recv(timeout)
         except (ValueError, RuntimeError) as e:
@@ -95,7 +104,7 @@ class HarvemuBus(can.BusABC):
             return None
         t, arbitration_id, extended, remote, dlc, data = got
         return can.Message(
-            timestamp=t,
+            timestamp=self._epoch + t,
             arbitration_id=arbitration_id,
             is_extended_id=extended,
             is_remote_frame=remote,
@@ -106,7 +115,8 @@ class HarvemuBus(can.BusABC):
         )
 
     def send(self, msg, timeout=None):
-        """Hands ``msg`` to the program's controller; it goes out when the bus next runs."""
+        """Hands ``msg`` to the program's controller; it goes out when the bus next runs (at once
+        when the bus keeps to the wall clock)."""
         try:
             self._harvester.send(
                 msg.arbitration_id,
@@ -127,7 +137,8 @@ class HarvemuBus(can.BusABC):
         return BusTimeCyclicTask(self._harvester, msgs, period, duration, autostart)
 
     def run_for(self, seconds):
-        """Runs the harvester for ``seconds`` of bus time; the bus time reached, s."""
+        """Runs the harvester for ``seconds`` of bus time (waits for it when the bus keeps to
+        the wall clock); the bus time reached, s."""
         return self._harvester.run_for(seconds)
 
     def shutdown(self):

@@ -1,0 +1,50 @@
+"""`harvemu bench --only python-monitor`: the Python monitor's speed as a bench row.
+
+The row runs ``python -m harvemu.monitor`` in a process of its own; what it reports must be that
+monitor's own run, frame for frame. HARVEMU_BIN names the harvemu binary (scripts/test sets it);
+without it, the workspace's debug build is used.
+"""
+
+import json
+import os
+import pathlib
+import subprocess
+import sys
+
+from harvemu import monitor
+
+ROOT = pathlib.Path(__file__).parents[3]
+
+
+def harvemu():
+    binary = pathlib.Path(os.environ.get("HARVEMU_BIN", ROOT / "target" / "debug" / "harvemu"))
+    assert binary.is_file(), f"no harvemu binary at {binary}: build it or set HARVEMU_BIN"
+    return str(binary)
+
+
+def test_the_bench_row_is_the_monitors_own_run():
+    out = subprocess.run(
+        [harvemu(), "bench", "--only", "python-monitor", "--python", sys.executable,
+         "--python-seconds", "20", "--json"],
+        cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr
+    rows = [json.loads(line) for line in out.stdout.splitlines()]
+    assert len(rows) == 1, out.stdout
+    row = rows[0]
+    direct = monitor.run(20)
+    assert row["scenario"] == "python-monitor"
+    assert row["python"] == sys.executable
+    # The same seed: the same frames at the same times, whoever runs the monitor.
+    assert row["digest"] == direct["digest"]
+    assert row["frames"] == direct["frames"] > 0
+    assert row["virtual_seconds"] == direct["bus_seconds"] >= 20
+    assert row["us_per_frame"] > 0 and row["speedup"] > 0
+
+
+def test_a_python_without_the_package_is_a_clear_error():
+    out = subprocess.run(
+        [harvemu(), "bench", "--only", "python-monitor", "--python", "/nonexistent/python3"],
+        cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert out.returncode == 2, out
+    assert "/nonexistent/python3 -m harvemu.monitor" in out.stderr, out.stderr
+    assert "pip install supervisor/python" in out.stderr, out.stderr
