@@ -124,3 +124,22 @@ fn a_stopped_conveyor_belt_raises_an_alarm_on_screen() {
     );
     assert!(line_with(&screen, "0400F5C2").contains("belt_stopped=on"));
 }
+
+#[test]
+fn the_seed_lab_with_firmware_on_both_benches_shows_on_screen() {
+    let lab =
+        supervisor::harvester::Harvester::load(&harvemu_e2e::root().join("configs/firmware/seed_lab.ron"))
+            .expect("the seed lab loads");
+    // The sender's frames end at 4.003 ms and every 99.916 ms after (docs/FIRMWARE.md): ten by
+    // 0.95 s, the eleventh not begun.
+    let until = BusTime::from_micros(950_000);
+    let (trace, screen) = run_virtual(lab, until, |_| {}, |running, snap| screen(running, snap));
+    assert_eq!(trace.len(), 10, "{trace:?}");
+    line_with(&screen, &format!("frames {} ", trace.len()));
+    // The seed's frame: identifier 5DFh, its eight bytes as the seed's result analysis has them.
+    let row = line_with(&screen, "5DF");
+    assert!(row.contains("AA BB CC D4 E5 F6 97 18"), "{row}");
+    for name in ["SENDER", "RECEIVER"] {
+        line_with(&screen, &format!("{name} active 0/0"));
+    }
+}

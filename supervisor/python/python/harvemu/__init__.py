@@ -1,4 +1,5 @@
-"""The emulated 4MZ-6A cotton harvester's CAN network, in virtual time, for Python.
+"""The emulated 4MZ-6A cotton harvester's CAN network for Python, in virtual time or paced by the
+wall clock.
 
 ``can.Bus(interface="harvemu", channel="harv0", without=["F5"], seed=2011)`` puts the program on
 the emulated bus in the place of the nodes it leaves out (docs/PYTHON.md).
