@@ -133,7 +133,7 @@ fn the_seed_lab_with_firmware_on_both_benches_shows_on_screen() {
     // The sender's frames end at 4.003 ms and every 99.916 ms after (docs/FIRMWARE.md): ten by
     // 0.95 s, the eleventh not begun.
     let until = BusTime::from_micros(950_000);
-    let (trace, screen) = run_virtual(lab, until, |_| {}, |running, snap| screen(running, snap));
+    let (trace, screen) = run_virtual(lab, until, |_| {}, screen);
     assert_eq!(trace.len(), 10, "{trace:?}");
     line_with(&screen, &format!("frames {} ", trace.len()));
     // The seed's frame: identifier 5DFh, its eight bytes as the seed's result analysis has them.
