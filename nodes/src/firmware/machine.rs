@@ -275,23 +275,35 @@ impl Machine {
         self.cpu.skip_cycles(cycles);
     }
 
-    /// Drives the interrupt pins from the SJA1000s' INT outputs (active low), and tells the
-    /// on-chip controller the time.
+    /// Drives the interrupt pins from the SJA1000s' INT outputs, and tells the on-chip
+    /// controller the time. INT is active low and open drain: several chips wired to one pin
+    /// pull it low together, so the pin is low while any of them holds its INT active.
     fn sync_pins(&mut self) {
         let clocks = self.cpu.clocks();
+        let mut pins: [(super::Pin, Option<bool>); 2] = [(super::Pin::Int0, None), (super::Pin::Int1, None)];
         for i in 0..self.board.chips.len() {
             match &mut self.board.chips[i] {
                 Chip::Sja {
                     irq: Some(pin), sja, ..
                 } => {
-                    let (port, bit) = pin.port_bit();
-                    self.cpu.set_pin(port, bit, !sja.int_active());
+                    for (p, low) in &mut pins {
+                        if p == pin {
+                            *low = Some(low.unwrap_or(false) || sja.int_active());
+                        }
+                    }
                 }
                 Chip::Sja { irq: None, .. } => {}
                 // F_CAN = F_OSC / 2.
                 Chip::OnChip(can) => can.set_time(clocks / 2),
             }
             self.board.refresh(i);
+        }
+        // A pin no chip is wired to is left alone.
+        for (pin, low) in pins {
+            if let Some(low) = low {
+                let (port, bit) = pin.port_bit();
+                self.cpu.set_pin(port, bit, !low);
+            }
         }
         self.board.stop = false;
     }
@@ -364,5 +376,107 @@ impl Machine {
     /// The chips' requests since the last call, in order.
     pub fn take_actions(&mut self) -> Vec<Request> {
         std::mem::take(&mut self.board.actions)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::firmware::Pin;
+    use bus::time::BusDuration;
+    use std::sync::Arc;
+
+    /// `MOV A, P3` at 0000h, then `SJMP 0000h`: each pass reads the port's pins into A.
+    const READ_P3: [u8; 4] = [0xE5, 0xB0, 0x80, 0xFC];
+
+    /// An 80C51 at 12 MHz with SJA1000s at `bases`, every INT output wired to INT0.
+    fn two_chips(bases: &[u16]) -> Machine {
+        let mut code = vec![0xFF; 0x10000];
+        code[..READ_P3.len()].copy_from_slice(&READ_P3);
+        let spec = FirmwareSpec {
+            name: "BENCH".into(),
+            file: "bench.ron".into(),
+            image: Arc::new(mcs51::Image {
+                code,
+                written: std::iter::once(0..READ_P3.len() as u32).collect(),
+            }),
+            entry: 0,
+            variant: mcs51::Variant::I8051,
+            clock_hz: 12_000_000,
+            clock: BusDuration::period_of(12_000_000).unwrap(),
+            chips: bases
+                .iter()
+                .map(|&base| ChipSpec::Sja1000 {
+                    base,
+                    xtal_hz: 6_000_000,
+                    irq: Some(Pin::Int0),
+                })
+                .collect(),
+            vref_mv: 0,
+            analog: Vec::new(),
+            pins: Vec::new(),
+            skip_idle_loops: false,
+        };
+        let mut m = Machine::new(&spec, 30_000.0);
+        // PeliCAN, receive interrupt enabled, every identifier accepted, operating mode.
+        for &base in bases {
+            for (register, value) in [(0, 0x01), (31, 0x88), (4, 0x01), (20, 0xFF), (21, 0xFF)] {
+                m.board.write(base + register, value);
+            }
+            for register in [22, 23] {
+                m.board.write(base + register, 0xFF);
+            }
+            m.board.write(base, 0x00);
+        }
+        m.sync_pins();
+        m.take_actions();
+        m
+    }
+
+    /// P3.2 (INT0) as the CPU reads it.
+    fn int0_high(m: &mut Machine) -> bool {
+        m.cpu.set_pc(0);
+        m.step().unwrap();
+        m.cpu.sfr()[0x60] & 0x04 != 0
+    }
+
+    fn receive(m: &mut Machine, chip: usize) {
+        let frame = bus::candump::parse_frame("123#0102").unwrap();
+        m.input(chip, BusSide::Received(frame));
+    }
+
+    /// CMR.RRB: the chip at `base` releases its receive buffer, which clears RI (and INT).
+    fn release(m: &mut Machine, base: u16) {
+        m.board.write(base + 1, 0x04);
+        m.sync_pins();
+    }
+
+    #[test]
+    fn int_outputs_on_one_pin_pull_it_low_together() {
+        for first_released in [0, 1] {
+            let bases = [0xD300, 0xD400];
+            let mut m = two_chips(&bases);
+            assert!(int0_high(&mut m), "no interrupt pending: INT0 high");
+            receive(&mut m, 0);
+            receive(&mut m, 1);
+            assert!(!int0_high(&mut m), "both pending: INT0 low");
+            release(&mut m, bases[first_released]);
+            assert!(
+                !int0_high(&mut m),
+                "chip {} released, the other still pending: INT0 low",
+                first_released
+            );
+            release(&mut m, bases[1 - first_released]);
+            assert!(int0_high(&mut m), "both released: INT0 high");
+        }
+    }
+
+    #[test]
+    fn one_chip_pending_pulls_the_shared_pin_low() {
+        for pending in [0, 1] {
+            let mut m = two_chips(&[0xD300, 0xD400]);
+            receive(&mut m, pending);
+            assert!(!int0_high(&mut m), "chip {pending} pending: INT0 low");
+        }
     }
 }
