@@ -185,9 +185,14 @@ fn bad_node_files_are_refused_with_file_and_line() {
     let two = "        Sja1000(base: 0xD400, xtal_hz: 6000000, irq: None),\n        \
                Sja1000(base: 0xD480, xtal_hz: 6000000, irq: None),";
     let out = run_bad("overlap-chips", &receiver("can_seed.hex", CPU, two), &hex);
+    // The second controller's base: line 8, column 17 of the file `receiver` writes.
     assert_refused(
         &out,
-        &["receiver.ron", "controllers[1].base", "overlaps controllers[0]"],
+        &[
+            "receiver.ron:8:17:",
+            "controllers[1].base",
+            "overlaps controllers[0]",
+        ],
     );
 
     let int2 = "        Sja1000(base: 0xD400, xtal_hz: 6000000, irq: Some(Int2)),";
