@@ -1,4 +1,4 @@
-//! One firmware node's hardware: the CPU and its CAN controller (an SJA1000 in its external data
+//! One firmware node's hardware: the CPU and its CAN controllers (SJA1000s in its external data
 //! space, or the AT89C51CC03's own behind its SFRs), wired together (MOVX windows, SFRs,
 //! interrupt pins and sources). Deterministic: the same inputs at the same oscillator clocks
 //! give the same state.
@@ -42,17 +42,23 @@ impl Chip {
         }
     }
 
-    fn take_actions(&mut self, bitrate_hz: f64, into: &mut Vec<Request>) {
+    /// Moves its requests into `into`, as chip `chip`'s.
+    fn take_actions(&mut self, chip: usize, bitrate_hz: f64, into: &mut Vec<Request>) {
         let from = into.len();
+        let request = |action| Request {
+            chip,
+            action,
+            tuned: false,
+        };
         match self {
-            Chip::Sja { sja, .. } => into.extend(sja.take_actions().map(|a| (a, false))),
-            Chip::OnChip(can) => into.extend(can.take_actions().map(|a| (a, false))),
+            Chip::Sja { sja, .. } => into.extend(sja.take_actions().map(request)),
+            Chip::OnChip(can) => into.extend(can.take_actions().map(request)),
         }
         // Worked out only when there is a request: most register accesses make none.
         if into.len() > from {
             let tuned = self.tuned(bitrate_hz);
             for r in &mut into[from..] {
-                r.1 = tuned;
+                r.tuned = tuned;
             }
         }
     }
@@ -87,9 +93,16 @@ impl Chip {
     }
 }
 
-/// A chip's request, with whether its bit timing read the bus correctly when it made it (which
-/// decides whether it can read the bus when it joins it).
-pub(crate) type Request = (Action, bool);
+/// A chip's request of the bus.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct Request {
+    /// Which chip (its index in the node file's controllers).
+    pub chip: usize,
+    pub action: Action,
+    /// Whether its bit timing read the bus correctly when it made it (which decides whether it
+    /// can read the bus when it joins it).
+    pub tuned: bool,
+}
 
 /// The CPU's surroundings: the chips, and what they asked of the bus since the CPU last
 /// stopped.
@@ -149,7 +162,7 @@ impl Board {
     /// Collects chip `i`'s actions and notes a change of its interrupt output.
     fn after(&mut self, i: usize) {
         let before = self.actions.len();
-        self.chips[i].take_actions(self.bitrate_hz, &mut self.actions);
+        self.chips[i].take_actions(i, self.bitrate_hz, &mut self.actions);
         let changed = self.refresh(i);
         self.stop |= self.actions.len() > before || changed;
     }
@@ -358,7 +371,7 @@ impl Machine {
         self.sync_pins();
         if let Some(chip) = self.board.chips.get_mut(i) {
             chip.on_event(event);
-            chip.take_actions(self.board.bitrate_hz, &mut self.board.actions);
+            chip.take_actions(i, self.board.bitrate_hz, &mut self.board.actions);
             self.board.refresh(i);
         }
         self.sync_pins();
