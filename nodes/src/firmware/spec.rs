@@ -1,6 +1,6 @@
-//! The firmware node file: which image runs on which CPU, which CAN controller it drives (an
-//! SJA1000 in its external data space, or the AT89C51CC03's own), and which plant signals its
-//! analog inputs and port pins are wired to.
+//! The firmware node file: which image runs on which CPU, which CAN controllers it drives
+//! (SJA1000s in its external data space, each in a window of its own, and the AT89C51CC03's
+//! own), and which plant signals its analog inputs and port pins are wired to.
 
 use super::wires::{self, AnalogFile, AnalogWire, PinFile, PinWire};
 use crate::{Error, Problem, parse_ron};
@@ -134,7 +134,8 @@ pub struct FirmwareSpec {
     pub clock_hz: u64,
     /// One oscillator period, exactly.
     pub clock: BusDuration,
-    /// The CAN controllers.
+    /// The CAN controllers, in the node file's order: each is a controller of its own on the
+    /// bus ([`FirmwareSpec::controller_name`]).
     pub chips: Vec<ChipSpec>,
     /// The ADC's reference voltage, mV (AT89C51CC03).
     pub vref_mv: u32,
@@ -146,6 +147,18 @@ pub struct FirmwareSpec {
     /// on-chip controller would not take (always, but for a benchmark or a test that measures
     /// or checks what the skipping saves).
     pub skip_idle_loops: bool,
+}
+
+impl FirmwareSpec {
+    /// The name of its controller `k` on the bus (traces, reports): the node's name for the
+    /// first, `NAME.k` for the others.
+    pub fn controller_name(&self, k: usize) -> String {
+        if k == 0 {
+            self.name.clone()
+        } else {
+            format!("{}.{k}", self.name)
+        }
+    }
 }
 
 /// Reads a file beside the node file (the image): its name for messages and its text.
@@ -295,13 +308,11 @@ fn controllers(f: &File, cc03: bool, text: &str, at: At, problems: &mut Vec<Prob
             }
         }
     }
-    if chips.len() > 1 {
+    let on_chip = chips.iter().filter(|c| **c == ChipSpec::OnChip).count();
+    if on_chip > 1 {
         problems.push(at(
             "controllers",
-            format!(
-                "{} controllers: a firmware node has at most one CAN controller so far",
-                chips.len()
-            ),
+            format!("OnChip {on_chip} times: the AT89C51CC03 has one CAN controller on chip"),
         ));
     }
     chips
