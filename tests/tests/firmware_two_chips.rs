@@ -229,3 +229,47 @@ fn each_chip_acknowledges_by_itself() {
     // The counters are bytes: the entries may have wrapped past FFh.
     assert_eq!((entries, idle), (d300.wrapping_add(d400), 0), "{counts:?}");
 }
+
+/// The lab program as CAN.ASM was written, for one board with both chips: CAN1 at D300h sends,
+/// CAN2 at D400h (acceptance code BBh) receives, and nothing else is on the bus. CAN2
+/// acknowledges CAN1's frames and takes every one, as a chip of another node would; CAN1 never
+/// receives its own frames, even with its acceptance code made BBh so that its filter passes
+/// them (SJA1000 data sheet: only a self reception request, CMR.SRR, stores a chip's own frame).
+#[test]
+fn one_board_with_both_lab_chips_talks_to_itself() {
+    let source = std::fs::read_to_string(root().join("configs/firmware/can_seed.asm")).expect("source");
+    let own_code = source.replacen("#0AAH", "#0BBH", 1);
+    assert_ne!(own_code, source, "CAN1's acceptance code AAh is in the source");
+    let shipped = std::fs::read_to_string(root().join("configs/firmware/can_seed.hex")).expect("HEX");
+    let board = "Firmware(name: \"BOARD\", image: \"lab.hex\", entry: Some(0x4000), \
+                 cpu: I80C51(clock_hz: 12000000), \
+                 controllers: [\
+                    Sja1000(base: 0xD300, xtal_hz: 6000000, irq: None), \
+                    Sja1000(base: 0xD400, xtal_hz: 6000000, irq: None)])";
+    for (hex, what) in [(shipped, "AAh"), (assemble(&own_code), "BBh")] {
+        let run = run_firmware(&[(board.to_string(), hex)], 1);
+        assert!(run.crashed.is_empty(), "{:?}", run.crashed);
+        assert_eq!(run.iram(0, 0x30, 8), DATA, "CAN1 code {what}: 30H-37H");
+        let frames = parse_trace(&run.trace);
+        assert!(!frames.is_empty(), "CAN1 code {what}: {}", run.trace);
+        for f in &frames {
+            assert_eq!((f.frame.raw_id(), f.frame.data()), (0x5DF, &DATA[..]));
+        }
+        let n = frames.len() as u64;
+        let (can1, can2) = (&run.controllers[0][0], &run.controllers[0][1]);
+        assert_eq!(
+            (can1.counters.tx_frames, can1.counters.rx_frames),
+            (n, 0),
+            "CAN1 code {what}"
+        );
+        assert_eq!(
+            (can2.counters.tx_frames, can2.counters.rx_frames),
+            (0, n),
+            "CAN1 code {what}"
+        );
+        // RMC (register 29) counts the messages in CAN1's receive FIFO: none.
+        let state = run.states[0].as_ref().expect("the board's hardware");
+        let registers = &state.controllers[0].registers;
+        assert_eq!(&registers[58..60], "00", "CAN1 code {what}: RMC");
+    }
+}
