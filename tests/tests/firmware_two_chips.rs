@@ -1,6 +1,6 @@
 //! A firmware node with two SJA1000s on one bus, their INT outputs both wired to INT0 (open
 //! drain, so the pin is low while either chip holds its INT active), taking the lab sender's
-//! frames in one interrupt handler.
+//! frames in one interrupt handler; and the lab program on one board with both its chips.
 //!
 //! The receiver is written here and assembled with as31: an 80C51 at 12 MHz with chips at D300h
 //! and D400h (6 MHz crystals, 30 kbit/s, PeliCAN, acceptance code BBh on ID10..3, receive
