@@ -232,88 +232,109 @@ pub fn run_firmware_specs(
     use bus::engine::{
         BitPosition, BusConfig, ControllerConfig, Filter, NodeId, Recovery, Rule, Schedule, Target,
     };
-    use bus_runtime::hub::{Attach, Control, GetCrashed, Hub, HubConfig};
+    use bus_runtime::hub::{AttachControllers, Control, GetCrashed, GetSnapshot, Hub, HubConfig};
     use bus_runtime::node::{Apply, NodeActor};
     use nodes::firmware::FirmwareNode;
     let trace = Shared::default();
     let t = trace.clone();
     let ends = Rc::new(RefCell::new(Vec::new()));
     let e = ends.clone();
-    let (states, crashed) = System::with_tokio_rt(|| runtime(true).expect("runtime")).block_on(async move {
-        let config = HubConfig {
-            bus: BusConfig {
-                bitrate: bus::bits::BitRate::new(30_000).expect("30 kbit/s"),
-                ..BusConfig::default()
-            },
-            ..HubConfig::new(false)
-        };
-        let sinks: Vec<Box<dyn Sink>> = vec![
-            Box::new(CandumpWriter::new(t, Epoch::FIXED)),
-            Box::new(FrameEnds(e)),
-        ];
-        let hub = Hub::new(config, sinks).expect("hub").start();
-        let mut actors = Vec::new();
-        for spec in specs {
-            let logic = FirmwareNode::new(spec.clone(), BusTime::ZERO, 30_000.0);
-            let actor = NodeActor::new(spec.name.clone(), Box::new(logic)).start();
-            let controller = ControllerConfig {
-                recovery: Recovery::OnRequest,
-                ..ControllerConfig::named(spec.name.clone()).with_filter(Filter::All)
+    let (states, crashed, controllers) =
+        System::with_tokio_rt(|| runtime(true).expect("runtime")).block_on(async move {
+            let config = HubConfig {
+                bus: BusConfig {
+                    bitrate: bus::bits::BitRate::new(30_000).expect("30 kbit/s"),
+                    ..BusConfig::default()
+                },
+                ..HubConfig::new(false)
             };
-            hub.send(Attach {
-                controller,
-                node: Some(actor.clone().recipient()),
-                reaction: std::time::Duration::ZERO,
-            })
-            .await
-            .expect("attach");
-            actors.push(actor);
-        }
-        if let Some(f) = fault.filter(|f| f.from < end) {
-            hub.send(RunUntil(f.from)).await.expect("hub").expect("run");
-            let target = Target::Node(NodeId(f.node as u16));
-            let rule = Rule::bit_errors(target, Schedule::Always, BitPosition::Random);
-            let id = hub
-                .send(Control::AddRule(rule))
-                .await
-                .expect("hub")
-                .expect("rule");
-            hub.send(RunUntil(f.to.min(end)))
-                .await
-                .expect("hub")
-                .expect("run");
-            if let Some(id) = id {
-                hub.send(Control::RemoveRule(id))
+            let sinks: Vec<Box<dyn Sink>> = vec![
+                Box::new(CandumpWriter::new(t, Epoch::FIXED)),
+                Box::new(FrameEnds(e)),
+            ];
+            let hub = Hub::new(config, sinks).expect("hub").start();
+            let mut actors = Vec::new();
+            // Each bench's controller ids, one a chip.
+            let mut ids: Vec<Vec<NodeId>> = Vec::new();
+            for spec in specs {
+                let logic = FirmwareNode::new(spec.clone(), BusTime::ZERO, 30_000.0);
+                let actor = NodeActor::new(spec.name.clone(), Box::new(logic)).start();
+                let controllers = (0..spec.chips.len().max(1))
+                    .map(|k| ControllerConfig {
+                        recovery: Recovery::OnRequest,
+                        ..ControllerConfig::named(spec.controller_name(k)).with_filter(Filter::All)
+                    })
+                    .collect();
+                let attached = hub
+                    .send(AttachControllers {
+                        controllers,
+                        node: Some(actor.clone().recipient()),
+                        reaction: std::time::Duration::ZERO,
+                    })
+                    .await
+                    .expect("hub")
+                    .expect("attach");
+                ids.push(attached);
+                actors.push(actor);
+            }
+            let bench_of = |id: NodeId| {
+                ids.iter()
+                    .position(|b| b.contains(&id))
+                    .expect("a bench's controller")
+            };
+            if let Some(f) = fault.filter(|f| f.from < end) {
+                hub.send(RunUntil(f.from)).await.expect("hub").expect("run");
+                let target = Target::Node(ids[f.node][0]);
+                let rule = Rule::bit_errors(target, Schedule::Always, BitPosition::Random);
+                let id = hub
+                    .send(Control::AddRule(rule))
                     .await
                     .expect("hub")
                     .expect("rule");
+                hub.send(RunUntil(f.to.min(end)))
+                    .await
+                    .expect("hub")
+                    .expect("run");
+                if let Some(id) = id {
+                    hub.send(Control::RemoveRule(id))
+                        .await
+                        .expect("hub")
+                        .expect("rule");
+                }
             }
-        }
-        hub.send(RunUntil(end)).await.expect("hub").expect("run");
-        let crashed: Vec<(usize, String)> = hub
-            .send(GetCrashed)
-            .await
-            .expect("crashes")
-            .into_iter()
-            .map(|(id, why)| (id.index(), why))
-            .collect();
-        let mut states = Vec::new();
-        for a in actors {
-            let (tx, rx) = std::sync::mpsc::channel();
-            let asked = a
-                .send(Apply(Box::new(move |logic| {
-                    let _ = tx.send(logic.hardware(end));
-                })))
-                .await;
-            states.push(asked.ok().and_then(|()| rx.recv().ok()).flatten());
-        }
-        (states, crashed)
-    });
+            hub.send(RunUntil(end)).await.expect("hub").expect("run");
+            // A bench crashes as a whole: once, however many chips it has.
+            let mut crashed: Vec<(usize, String)> = hub
+                .send(GetCrashed)
+                .await
+                .expect("crashes")
+                .into_iter()
+                .map(|(id, why)| (bench_of(id), why))
+                .collect();
+            crashed.dedup_by_key(|(bench, _)| *bench);
+            let snapshot = hub.send(GetSnapshot).await.expect("snapshot");
+            let controllers: Vec<Vec<bus_runtime::hub::NodeSnapshot>> = ids
+                .iter()
+                .map(|b| b.iter().map(|id| snapshot.nodes[id.index()].clone()).collect())
+                .collect();
+            let mut states = Vec::new();
+            for a in actors {
+                let (tx, rx) = std::sync::mpsc::channel();
+                let asked = a
+                    .send(Apply(Box::new(move |logic| {
+                        let _ = tx.send(logic.hardware(end));
+                    })))
+                    .await;
+                states.push(asked.ok().and_then(|()| rx.recv().ok()).flatten());
+            }
+            (states, crashed, controllers)
+        });
     FirmwareRun {
         trace: String::from_utf8(trace.0.take()).expect("utf-8"),
         ends: ends.take(),
         states,
         crashed,
+        controllers,
     }
 }
 
@@ -327,6 +348,8 @@ pub struct FirmwareRun {
     pub states: Vec<Option<bus::node::HardwareState>>,
     /// Crashed nodes by index, and why.
     pub crashed: Vec<(usize, String)>,
+    /// Each node's controllers on the bus at the end, as the hub sees them, one a chip.
+    pub controllers: Vec<Vec<bus_runtime::hub::NodeSnapshot>>,
 }
 
 impl FirmwareRun {

@@ -12,7 +12,10 @@
 //! commands (join or leave the bus, abort, counters, bus-off recovery, whether its bit timing
 //! can read the bus), hears of every controller event as it happens
 //! ([`NodeLogic::wants_every_event`]), may stop for good ([`NodeLogic::failed`]) and shows its
-//! hardware for state dumps ([`NodeLogic::hardware`]).
+//! hardware for state dumps ([`NodeLogic::hardware`]). Such a node may have several controllers
+//! on the bus (a board with several CAN chips): each has its own place on the bus, its inputs
+//! come tagged with its index ([`NodeLogic::handle_frame_on`], [`NodeLogic::handle_event_on`])
+//! and so do the commands for it. Every other node has one controller, controller 0.
 
 use crate::Frame;
 use crate::engine::{BusError, Location, Received};
@@ -99,8 +102,21 @@ pub trait NodeLogic {
     }
     /// The next frame to hand to the controller, if any.
     fn poll_transmit(&mut self) -> Option<Frame>;
-    /// The next command for the controller, if any; drained before `poll_transmit`.
-    fn poll_command(&mut self) -> Option<ControllerCommand> {
+    /// A frame that passed the acceptance filter of controller `controller` (0 for a node with
+    /// one); `now` is its end-of-frame time. By default, [`NodeLogic::handle_frame`].
+    fn handle_frame_on(&mut self, controller: usize, now: BusTime, frame: &Frame) {
+        let _ = controller;
+        self.handle_frame(now, frame);
+    }
+    /// A notification of controller `controller` (0 for a node with one). By default,
+    /// [`NodeLogic::handle_event`].
+    fn handle_event_on(&mut self, controller: usize, now: BusTime, event: ControllerEvent) {
+        let _ = controller;
+        self.handle_event(now, event);
+    }
+    /// The next command, with the controller it is for (0 for a node with one), if any; drained
+    /// before `poll_transmit`.
+    fn poll_command(&mut self) -> Option<(usize, ControllerCommand)> {
         None
     }
     /// True when the logic models its controller's registers and must hear of every change as
@@ -226,9 +242,10 @@ pub struct Refused(pub String);
 /// A node's answer to a wake.
 #[derive(Debug, Default, PartialEq)]
 pub struct Report {
-    /// Commands for the controller, at the wake's time, before `transmit`.
-    pub commands: Vec<ControllerCommand>,
-    /// Frames to submit, at the wake's time.
+    /// Commands for its controllers, each with the controller's index, at the wake's time,
+    /// before `transmit`.
+    pub commands: Vec<(usize, ControllerCommand)>,
+    /// Frames to submit by its first controller, at the wake's time.
     pub transmit: Vec<Frame>,
     /// Next deadline.
     pub next_timeout: Option<BusTime>,
@@ -258,13 +275,15 @@ pub fn drive(
     frames: Vec<Received>,
     events: Vec<(BusTime, ControllerEvent)>,
 ) -> Report {
-    drive_counted(logic, now, frames, events, &mut 0)
+    drive_counted(logic, 0, now, frames, events, &mut 0)
 }
 
-/// [`drive`], counting in `handled` the frames handed to the logic as it goes, so that the count
-/// survives a panic in the logic.
+/// [`drive`] with the inputs of controller `controller` (0 for a node with one), counting in
+/// `handled` the frames handed to the logic as it goes, so that the count survives a panic in
+/// the logic.
 pub fn drive_counted(
     logic: &mut dyn NodeLogic,
+    controller: usize,
     now: BusTime,
     frames: Vec<Received>,
     events: Vec<(BusTime, ControllerEvent)>,
@@ -289,10 +308,10 @@ pub fn drive_counted(
         } else if tf == Some(next) {
             if let Some(r) = frames.next() {
                 *handled += 1;
-                logic.handle_frame(r.at, &r.frame);
+                logic.handle_frame_on(controller, r.at, &r.frame);
             }
         } else if let Some((t, e)) = events.next() {
-            logic.handle_event(t, e);
+            logic.handle_event_on(controller, t, e);
         }
     }
     let mut commands = Vec::new();

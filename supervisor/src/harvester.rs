@@ -8,7 +8,7 @@ use bus::engine::{BusConfig, ControllerConfig, Filter, NodeId};
 use bus::filter::SocketCanFilterSet;
 use bus::time::{BusDuration, BusTime};
 use bus::trace::Sink;
-use bus_runtime::hub::{Attach, GetCrashed, Hub, HubConfig, Replace, RunUntil};
+use bus_runtime::hub::{AttachControllers, GetCrashed, Hub, HubConfig, Replace, RunUntil};
 use bus_runtime::node::{Crash, NodeActor};
 use nodes::firmware::{FirmwareNode, FirmwareSpec};
 use nodes::monitor::{DisplayHandle, Monitor, MonitorConfig};
@@ -296,7 +296,8 @@ pub enum NodeFile {
     Firmware(Arc<FirmwareSpec>),
 }
 
-/// Firmware nodes whose names clash with each other, with a script's or with the monitor's.
+/// Firmware nodes whose names (or their further chips' names on the bus) clash with each other,
+/// with a script's or with the monitor's.
 fn firmware_clashes(
     file: &str,
     scripts: &[NodeScript],
@@ -327,28 +328,53 @@ fn firmware_clashes(
             )));
         }
     }
+    // A firmware node's further chips are controllers on the bus with names of their own.
+    for (f, place) in firmware.iter().zip(firmware_places) {
+        for k in 1..f.chips.len() {
+            let chip = f.controller_name(k);
+            if let Some(other) = seen.get(chip.as_str()) {
+                problems.push(Problem {
+                    file: file.to_string(),
+                    position: None,
+                    node: Some(f.name.clone()),
+                    field: Some(place.clone()),
+                    message: format!("its controllers[{k}] is {chip} on the bus, the name of {other}"),
+                });
+            }
+        }
+    }
     problems
 }
 
-/// The controller of a node: a field node's as its script declares it; the monitor's keeps every
-/// extended frame addressed to it (a PC-side CAN interface filtering on the destination byte).
-fn controller(name: &str, spec: &Spec) -> crate::Result<ControllerConfig> {
+/// A node's controllers: a field node's as its script declares it; the monitor's keeps every
+/// extended frame addressed to it (a PC-side CAN interface filtering on the destination byte); a
+/// firmware node has one for each of its chips.
+fn controllers(name: &str, spec: &Spec) -> crate::Result<Vec<ControllerConfig>> {
     let filter = match spec {
         Spec::Monitor => Filter::SocketCan(SocketCanFilterSet(vec![protocol::ident::to_node_filter(
             Address::MONITOR,
         )])),
-        // Its controller is the chip's: it filters itself, and leaves bus off when the firmware
-        // says so (an SJA1000) or by itself (the AT89C51CC03's).
+        // Each controller is a chip's: it filters itself, and leaves bus off when the firmware
+        // says so (an SJA1000) or by itself (the AT89C51CC03's). A node without a chip still has
+        // one on the bus, which its firmware never takes out of reset.
         Spec::Firmware(f) => {
-            let recovery = if f.chips.iter().any(|c| c.recovers_by_itself()) {
-                bus::engine::Recovery::Automatic
-            } else {
-                bus::engine::Recovery::OnRequest
+            let chip = |k: usize, by_itself: bool| ControllerConfig {
+                recovery: if by_itself {
+                    bus::engine::Recovery::Automatic
+                } else {
+                    bus::engine::Recovery::OnRequest
+                },
+                ..ControllerConfig::named(f.controller_name(k)).with_filter(Filter::All)
             };
-            return Ok(ControllerConfig {
-                recovery,
-                ..ControllerConfig::named(name).with_filter(Filter::All)
-            });
+            if f.chips.is_empty() {
+                return Ok(vec![chip(0, false)]);
+            }
+            return Ok(f
+                .chips
+                .iter()
+                .enumerate()
+                .map(|(k, c)| chip(k, c.recovers_by_itself()))
+                .collect());
         }
         // Loaded scripts have been validated, so this only fails for a script built in code.
         Spec::Script(script) => script.filter.to_filter().map_err(|problems| {
@@ -359,7 +385,7 @@ fn controller(name: &str, spec: &Spec) -> crate::Result<ControllerConfig> {
             crate::Error::BadInput(format!("node {name}: {}", what.join("; ")))
         })?,
     };
-    Ok(ControllerConfig::named(name).with_filter(filter))
+    Ok(vec![ControllerConfig::named(name).with_filter(filter)])
 }
 
 /// How crashed nodes are restarted (the `restart` section of the harvester config).
@@ -437,7 +463,8 @@ pub struct Running {
     pub hub: Addr<Hub>,
     /// The plant.
     pub plant: PlantHandle,
-    /// Node ids by name, monitor first.
+    /// Controller ids by name, monitor first: a node's, and a firmware node's further chips' as
+    /// `NAME.k` ([`FirmwareSpec::controller_name`]).
     pub nodes: Vec<(String, NodeId)>,
     /// The monitor's display, when the monitor is emulated.
     pub display: Option<DisplayHandle>,
@@ -546,7 +573,7 @@ impl Running {
         reaction_us: u64,
         power_on: BusTime,
     ) -> crate::Result<()> {
-        let controller = controller(name, &spec)?;
+        let controllers = controllers(name, &spec)?;
         let logic = build(
             &self.harvester,
             &spec,
@@ -556,15 +583,17 @@ impl Running {
             self.cpu_trace.as_ref(),
         );
         let actor = NodeActor::new(name, logic).start();
-        let id = self
+        let names: Vec<String> = controllers.iter().map(|c| c.name.clone()).collect();
+        let ids = self
             .hub
-            .send(Attach {
-                controller,
+            .send(AttachControllers {
+                controllers,
                 node: Some(actor.clone().recipient()),
                 reaction: Duration::from_micros(reaction_us),
             })
-            .await?;
-        self.nodes.push((name.to_string(), id));
+            .await??;
+        let id = ids.first().copied().ok_or(bus_runtime::Error::NoControllers)?;
+        self.nodes.extend(names.into_iter().zip(ids));
         self.members.push(Member {
             name: name.to_string(),
             id,

@@ -185,9 +185,14 @@ fn bad_node_files_are_refused_with_file_and_line() {
     let two = "        Sja1000(base: 0xD400, xtal_hz: 6000000, irq: None),\n        \
                Sja1000(base: 0xD480, xtal_hz: 6000000, irq: None),";
     let out = run_bad("overlap-chips", &receiver("can_seed.hex", CPU, two), &hex);
+    // The second controller's base: line 8, column 17 of the file `receiver` writes.
     assert_refused(
         &out,
-        &["receiver.ron", "controllers[1].base", "overlaps controllers[0]"],
+        &[
+            "receiver.ron:8:17:",
+            "controllers[1].base",
+            "overlaps controllers[0]",
+        ],
     );
 
     let int2 = "        Sja1000(base: 0xD400, xtal_hz: 6000000, irq: Some(Int2)),";
@@ -201,6 +206,93 @@ fn bad_node_files_are_refused_with_file_and_line() {
 
     let out = run_bad("missing", &receiver("nothing.hex", CPU, CHIP), &hex);
     assert_refused(&out, &["receiver.ron", "image", "nothing.hex"]);
+}
+
+/// The lab's receiver with two more SJA1000s, at D500h and D600h, which the lab program never
+/// touches: they stay in reset mode (BasicCAN, off the bus, data sheet reset values) while the
+/// D400h chip takes the sender's frames as in the lab; the dump lists the three, each at its base.
+#[test]
+fn three_chips_are_three_controllers_in_the_state_dump() {
+    let chips = "        Sja1000(base: 0xD400, xtal_hz: 6000000, irq: None),\n        \
+                 Sja1000(base: 0xD500, xtal_hz: 6000000, irq: Some(Int0)),\n        \
+                 Sja1000(base: 0xD600, xtal_hz: 6000000, irq: Some(Int0)),";
+    let dir = scratch("cli-firmware", "three-chips");
+    let lab = root().join("configs/firmware");
+    for f in ["seed_lab.ron", "sender.ron", "can_seed.hex"] {
+        std::fs::copy(lab.join(f), dir.join(f)).expect("copy");
+    }
+    std::fs::write(dir.join("receiver.ron"), receiver("can_seed.hex", CPU, chips)).expect("write");
+    let dump = dir.join("state.json");
+    let out = harvemu(&[
+        "run",
+        dir.join("seed_lab.ron").to_str().unwrap(),
+        "--fast",
+        "--for",
+        "1s",
+        "--dump-state",
+        dump.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", text(&out));
+    let dump: Value = serde_json::from_str(&std::fs::read_to_string(&dump).expect("the dump")).expect("JSON");
+    let receiver = &dump["nodes"]["RECEIVER"];
+    assert_eq!(
+        &bytes(&receiver["cpu"]["iram"])[0x30..0x38],
+        [0xAA, 0xBB, 0xCC, 0xD4, 0xE5, 0xF6, 0x97, 0x18]
+    );
+    let chips = receiver["controllers"].as_array().expect("a list");
+    let seen: Vec<(u64, &str, &str)> = chips
+        .iter()
+        .map(|c| {
+            (
+                c["base"].as_u64().expect("base"),
+                c["kind"].as_str().expect("kind"),
+                c["mode"].as_str().expect("mode"),
+            )
+        })
+        .collect();
+    assert_eq!(
+        seen,
+        [
+            (0xD400, "SJA1000", "PeliCAN"),
+            (0xD500, "SJA1000", "BasicCAN"),
+            (0xD600, "SJA1000", "BasicCAN"),
+        ]
+    );
+    // An untouched chip: CR 21h (reset request, and bit 5, which reads 1), SR 0Ch (transmit
+    // buffer free, transmission complete), as data sheet Table 5 gives them after a reset.
+    for c in &chips[1..] {
+        let registers = bytes(&c["registers"]);
+        assert_eq!((registers[0], registers[2]), (0x21, 0x0C), "{c}");
+    }
+}
+
+/// A further chip is a controller on the bus named `NODE.k`: a node already called that is
+/// refused, as two nodes of one name are.
+#[test]
+fn a_further_chip_may_not_take_another_nodes_name() {
+    let two = "        Sja1000(base: 0xD400, xtal_hz: 6000000, irq: None),\n        \
+               Sja1000(base: 0xD500, xtal_hz: 6000000, irq: None),";
+    let dir = scratch("cli-firmware", "chip-name");
+    let lab = root().join("configs/firmware");
+    for f in ["seed_lab.ron", "can_seed.hex"] {
+        std::fs::copy(lab.join(f), dir.join(f)).expect("copy");
+    }
+    let sender = std::fs::read_to_string(lab.join("sender.ron")).expect("sender.ron");
+    let renamed = sender.replacen("\"SENDER\"", "\"RECEIVER.1\"", 1);
+    assert_ne!(renamed, sender, "the sender's name is in its file");
+    std::fs::write(dir.join("sender.ron"), renamed).expect("write");
+    std::fs::write(dir.join("receiver.ron"), receiver("can_seed.hex", CPU, two)).expect("write");
+    let out = harvemu(&[
+        "run",
+        dir.join("seed_lab.ron").to_str().unwrap(),
+        "--fast",
+        "--for",
+        "1s",
+    ]);
+    assert_refused(
+        &out,
+        &["node RECEIVER", "its controllers[1] is RECEIVER.1 on the bus"],
+    );
 }
 
 /// An AT89C51CC03 receiver whose wires are `wires` (RON fields after `controllers`).

@@ -11,6 +11,9 @@ pub enum Error {
     /// A node the request names is not on the hub.
     #[error("no node {0}")]
     NoNode(u16),
+    /// A node was to be attached with no controller at all.
+    #[error("a node needs a controller")]
+    NoControllers,
     /// The hub actor is gone (the run is ending), so it could not answer.
     #[error("the hub stopped")]
     HubStopped,

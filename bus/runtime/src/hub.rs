@@ -30,6 +30,10 @@
 //! happens instead (confirmations, counters, bus errors, lost arbitration, bus-off recovery), and
 //! its commands (join or leave the bus, abort, counters, recovery, tuning) act at its wake's
 //! time (`hub/commands.rs`).
+//! Such a node may have several controllers on the bus ([`AttachControllers`]), each a slot of its
+//! own (arbitration, acknowledgement, error counters, bus off) that wakes the node's one actor
+//! with its inputs tagged by its index; the node's deadline, crashes, hangs and replacements are
+//! the node's, shared by all its controllers.
 //! A hung node (fault injection) is never woken, so its FIFO fills and overruns as a real one
 //! would.
 
@@ -101,6 +105,11 @@ pub fn default_epoch(paced: bool) -> Epoch {
 struct Slot {
     name: String,
     node: Option<Recipient<Wake>>,
+    /// The slot of the node's first controller: its own, but for a further controller of a
+    /// node with several ([`AttachControllers`]). The node's deadline is kept there.
+    first: usize,
+    /// Which of the node's controllers this is.
+    controller: usize,
     reaction: BusDuration,
     next_timeout: Option<BusTime>,
     pending_since: Option<BusTime>,
@@ -529,6 +538,7 @@ impl Hub {
                 // A node whose actor is gone answers at once: its reply is dropped with the wake.
                 node.do_send(Wake {
                     now: at,
+                    controller: slot.controller,
                     frames,
                     events,
                     reply: Reply::new(me.clone(), i, self.round),
@@ -536,6 +546,14 @@ impl Hub {
             }
         }
         self.waiting > 0
+    }
+
+    /// The slots of the node slot `i` belongs to: its controllers, first to last.
+    fn group(&self, i: usize) -> Vec<usize> {
+        let first = self.slots[i].first;
+        (first..self.slots.len())
+            .filter(|&j| self.slots[j].first == first)
+            .collect()
     }
 
     /// Takes a node's answer; true when the node crashed.
@@ -546,36 +564,60 @@ impl Hub {
         let handled = report.frames_handled.min(sent);
         h.handled += handled;
         h.crashed += sent - handled;
+        let first = self.slots[i].first;
         if let Some(message) = report.crashed {
-            if message == crate::node::INJECTED_CRASH {
-                // Asked for by a scenario: expected, so not a warning on the operator's screen.
-                tracing::info!(node = %self.slots[i].name, %message, "node crashed");
-            } else {
-                tracing::warn!(node = %self.slots[i].name, %message, "node crashed");
+            if self.slots[i].crashed.is_none() {
+                if message == crate::node::INJECTED_CRASH {
+                    // Asked for by a scenario: expected, so not a warning on the operator's screen.
+                    tracing::info!(node = %self.slots[i].name, %message, "node crashed");
+                } else {
+                    tracing::warn!(node = %self.slots[i].name, %message, "node crashed");
+                }
             }
-            self.slots[i].crashed = Some(message);
+            // One logic behind all of a node's controllers: they go down together.
+            for j in self.group(i) {
+                self.slots[j].crashed = Some(message.clone());
+            }
             return true;
         }
         if report.every_event != self.slots[i].every_event {
-            self.slots[i].every_event = report.every_event;
+            for j in self.group(i) {
+                self.slots[j].every_event = report.every_event;
+            }
             self.register_level = self.slots.iter().filter(|s| s.every_event).count();
             self.bus.report_arbitration(self.register_level > 0);
         }
-        for command in report.commands {
-            self.apply(i, command, now);
+        for (k, command) in report.commands {
+            let target = if k == self.slots[i].controller {
+                Some(i)
+            } else {
+                self.group(i).into_iter().find(|&j| self.slots[j].controller == k)
+            };
+            match target {
+                Some(j) => self.apply(j, command, now),
+                None => tracing::error!(
+                    node = %self.slots[i].name,
+                    controller = k,
+                    "a command for a controller the node does not have"
+                ),
+            }
         }
         for frame in report.transmit {
-            self.submit_for(i, frame, now);
+            self.submit_for(first, frame, now);
         }
         // A deadline the logic left in the past would wake it at the same instant for ever.
-        self.slots[i].next_timeout = report.next_timeout.map(|t| {
+        self.slots[first].next_timeout = report.next_timeout.map(|t| {
             if t <= now {
                 now + BusDuration::from_millis(1)
             } else {
                 t
             }
         });
-        self.slots[i].frames_can_wait = report.frames_can_wait;
+        if report.frames_can_wait != self.slots[i].frames_can_wait {
+            for j in self.group(i) {
+                self.slots[j].frames_can_wait = report.frames_can_wait;
+            }
+        }
         false
     }
 
@@ -704,27 +746,76 @@ pub struct Attach {
 impl Handler<Attach> for Hub {
     type Result = MessageResult<Attach>;
     fn handle(&mut self, msg: Attach, ctx: &mut Context<Self>) -> Self::Result {
-        let id = self.bus.attach(msg.controller.clone());
-        let now = self.now.max(self.bus.committed());
-        self.slots.push(Slot {
-            name: msg.controller.name,
-            node: msg.node,
-            reaction: BusDuration::from_std(msg.reaction),
-            // A first wake tells the node the time and collects its first deadline.
-            next_timeout: Some(now),
-            pending_since: None,
-            events: Vec::new(),
-            event_wake: false,
-            frames_can_wait: false,
-            buffered: Vec::new(),
-            handover: Handover::default(),
-            hung: false,
-            crashed: None,
-            every_event: false,
-            switches: commands::Switches::default(),
-        });
+        let id = self.attach(vec![msg.controller], msg.node, msg.reaction)[0];
         self.pump(ctx);
         MessageResult(id)
+    }
+}
+
+/// Attaches a node with several controllers on the bus (a firmware node with several CAN
+/// chips), as [`Attach`] attaches a node with one: each controller has a place of its own on the
+/// bus (arbitration, acknowledgement, error counters, bus off) and wakes the node's actor with
+/// its inputs tagged by its index in `controllers`, the index the node's commands for it carry.
+/// The node's deadline, crash, hang and replacement are shared by all its controllers. Answers
+/// with their ids, in order; the first is the node's.
+#[derive(Message)]
+#[rtype(result = "Result<Vec<NodeId>, Error>")]
+pub struct AttachControllers {
+    /// The controllers, at least one.
+    pub controllers: Vec<ControllerConfig>,
+    /// The node's actor.
+    pub node: Option<Recipient<Wake>>,
+    /// How long after an input the node acts on it.
+    pub reaction: Duration,
+}
+
+impl Handler<AttachControllers> for Hub {
+    type Result = Result<Vec<NodeId>, Error>;
+    fn handle(&mut self, msg: AttachControllers, ctx: &mut Context<Self>) -> Self::Result {
+        if msg.controllers.is_empty() {
+            return Err(Error::NoControllers);
+        }
+        let ids = self.attach(msg.controllers, msg.node, msg.reaction);
+        self.pump(ctx);
+        Ok(ids)
+    }
+}
+
+impl Hub {
+    /// Attaches the controllers of one node, all at once so that no wake comes between them.
+    fn attach(
+        &mut self,
+        controllers: Vec<ControllerConfig>,
+        node: Option<Recipient<Wake>>,
+        reaction: Duration,
+    ) -> Vec<NodeId> {
+        let now = self.now.max(self.bus.committed());
+        let first = self.slots.len();
+        let mut ids = Vec::with_capacity(controllers.len());
+        for (k, controller) in controllers.into_iter().enumerate() {
+            ids.push(self.bus.attach(controller.clone()));
+            self.slots.push(Slot {
+                name: controller.name,
+                node: node.clone(),
+                first,
+                controller: k,
+                reaction: BusDuration::from_std(reaction),
+                // A first wake tells the node the time and collects its first deadline (which
+                // the first controller's slot keeps).
+                next_timeout: (k == 0).then_some(now),
+                pending_since: None,
+                events: Vec::new(),
+                event_wake: false,
+                frames_can_wait: false,
+                buffered: Vec::new(),
+                handover: Handover::default(),
+                hung: false,
+                crashed: None,
+                every_event: false,
+                switches: commands::Switches::default(),
+            });
+        }
+        ids
     }
 }
 
@@ -796,16 +887,18 @@ impl Handler<Control> for Hub {
                 .set_connected(n, on, now)
                 .map(|_| None)
                 .map_err(Error::from),
-            Control::SetHung(n, on) => match self.slots.get_mut(n.index()) {
-                Some(slot) => {
+            // A node hangs as a whole, all its controllers.
+            Control::SetHung(n, on) if n.index() < self.slots.len() => {
+                for j in self.group(n.index()) {
+                    let slot = &mut self.slots[j];
                     slot.hung = on;
-                    if !on {
+                    if !on && slot.first == j {
                         slot.next_timeout = Some(now);
                     }
-                    Ok(None)
                 }
-                None => Err(Error::NoNode(n.0)),
-            },
+                Ok(None)
+            }
+            Control::SetHung(n, _) => Err(Error::NoNode(n.0)),
             Control::Reset(n) => {
                 let r = self.bus.reset_node(n, now).map(|_| None).map_err(Error::from);
                 self.dispatch();
@@ -829,12 +922,12 @@ impl Handler<Control> for Hub {
     }
 }
 
-/// Puts a new actor behind a node whose logic crashed (or is being restarted): its controller is
-/// reset, and the new logic is woken at once.
+/// Puts a new actor behind a node whose logic crashed (or is being restarted): its controllers
+/// (all of them, for a node with several) are reset, and the new logic is woken at once.
 #[derive(Message)]
 #[rtype(result = "Result<(), Error>")]
 pub struct Replace {
-    /// The node.
+    /// The node (any of its controllers).
     pub node: NodeId,
     /// Its new actor.
     pub actor: Recipient<Wake>,
@@ -844,16 +937,18 @@ impl Handler<Replace> for Hub {
     type Result = Result<(), Error>;
     fn handle(&mut self, msg: Replace, ctx: &mut Context<Self>) -> Self::Result {
         let now = self.now.max(self.bus.committed());
-        self.bus.reset_node(msg.node, now)?;
-        let slot = self
-            .slots
-            .get_mut(msg.node.index())
-            .ok_or(Error::NoNode(msg.node.0))?;
-        slot.node = Some(msg.actor);
-        slot.crashed = None;
-        slot.hung = false;
-        slot.clear();
-        slot.next_timeout = Some(now);
+        if msg.node.index() >= self.slots.len() {
+            return Err(Error::NoNode(msg.node.0));
+        }
+        for j in self.group(msg.node.index()) {
+            self.bus.reset_node(NodeId(j as u16), now)?;
+            let slot = &mut self.slots[j];
+            slot.node = Some(msg.actor.clone());
+            slot.crashed = None;
+            slot.hung = false;
+            slot.clear();
+            slot.next_timeout = (slot.first == j).then_some(now);
+        }
         self.dispatch();
         self.pump(ctx);
         Ok(())

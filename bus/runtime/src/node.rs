@@ -17,6 +17,9 @@ use std::sync::Arc;
 pub struct Wake {
     /// Bus time of the wake.
     pub now: BusTime,
+    /// Which of the node's controllers the inputs are from: 0, but for a node with several
+    /// ([`crate::hub::AttachControllers`]).
+    pub controller: usize,
     /// Frames from the receive FIFO, oldest first.
     pub frames: Vec<Received>,
     /// Controller notifications, oldest first.
@@ -115,6 +118,7 @@ impl Handler<Wake> for NodeActor {
     fn handle(&mut self, wake: Wake, ctx: &mut Context<Self>) {
         let Wake {
             now,
+            controller,
             frames,
             events,
             reply,
@@ -131,7 +135,7 @@ impl Handler<Wake> for NodeActor {
         }
         let mut handled = 0;
         let report = match catch_unwind(AssertUnwindSafe(|| {
-            drive_counted(self.logic.as_mut(), now, frames, events, &mut handled)
+            drive_counted(self.logic.as_mut(), controller, now, frames, events, &mut handled)
         })) {
             Ok(report) => report,
             Err(panic) => {

@@ -1,4 +1,4 @@
-//! One firmware node's hardware: the CPU and its CAN controller (an SJA1000 in its external data
+//! One firmware node's hardware: the CPU and its CAN controllers (SJA1000s in its external data
 //! space, or the AT89C51CC03's own behind its SFRs), wired together (MOVX windows, SFRs,
 //! interrupt pins and sources). Deterministic: the same inputs at the same oscillator clocks
 //! give the same state.
@@ -42,17 +42,23 @@ impl Chip {
         }
     }
 
-    fn take_actions(&mut self, bitrate_hz: f64, into: &mut Vec<Request>) {
+    /// Moves its requests into `into`, as chip `chip`'s.
+    fn take_actions(&mut self, chip: usize, bitrate_hz: f64, into: &mut Vec<Request>) {
         let from = into.len();
+        let request = |action| Request {
+            chip,
+            action,
+            tuned: false,
+        };
         match self {
-            Chip::Sja { sja, .. } => into.extend(sja.take_actions().map(|a| (a, false))),
-            Chip::OnChip(can) => into.extend(can.take_actions().map(|a| (a, false))),
+            Chip::Sja { sja, .. } => into.extend(sja.take_actions().map(request)),
+            Chip::OnChip(can) => into.extend(can.take_actions().map(request)),
         }
         // Worked out only when there is a request: most register accesses make none.
         if into.len() > from {
             let tuned = self.tuned(bitrate_hz);
             for r in &mut into[from..] {
-                r.1 = tuned;
+                r.tuned = tuned;
             }
         }
     }
@@ -87,9 +93,16 @@ impl Chip {
     }
 }
 
-/// A chip's request, with whether its bit timing read the bus correctly when it made it (which
-/// decides whether it can read the bus when it joins it).
-pub(crate) type Request = (Action, bool);
+/// A chip's request of the bus.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct Request {
+    /// Which chip (its index in the node file's controllers).
+    pub chip: usize,
+    pub action: Action,
+    /// Whether its bit timing read the bus correctly when it made it (which decides whether it
+    /// can read the bus when it joins it).
+    pub tuned: bool,
+}
 
 /// The CPU's surroundings: the chips, and what they asked of the bus since the CPU last
 /// stopped.
@@ -149,7 +162,7 @@ impl Board {
     /// Collects chip `i`'s actions and notes a change of its interrupt output.
     fn after(&mut self, i: usize) {
         let before = self.actions.len();
-        self.chips[i].take_actions(self.bitrate_hz, &mut self.actions);
+        self.chips[i].take_actions(i, self.bitrate_hz, &mut self.actions);
         let changed = self.refresh(i);
         self.stop |= self.actions.len() > before || changed;
     }
@@ -275,23 +288,35 @@ impl Machine {
         self.cpu.skip_cycles(cycles);
     }
 
-    /// Drives the interrupt pins from the SJA1000s' INT outputs (active low), and tells the
-    /// on-chip controller the time.
+    /// Drives the interrupt pins from the SJA1000s' INT outputs, and tells the on-chip
+    /// controller the time. INT is active low and open drain: several chips wired to one pin
+    /// pull it low together, so the pin is low while any of them holds its INT active.
     fn sync_pins(&mut self) {
         let clocks = self.cpu.clocks();
+        let mut pins: [(super::Pin, Option<bool>); 2] = [(super::Pin::Int0, None), (super::Pin::Int1, None)];
         for i in 0..self.board.chips.len() {
             match &mut self.board.chips[i] {
                 Chip::Sja {
                     irq: Some(pin), sja, ..
                 } => {
-                    let (port, bit) = pin.port_bit();
-                    self.cpu.set_pin(port, bit, !sja.int_active());
+                    for (p, low) in &mut pins {
+                        if p == pin {
+                            *low = Some(low.unwrap_or(false) || sja.int_active());
+                        }
+                    }
                 }
                 Chip::Sja { irq: None, .. } => {}
                 // F_CAN = F_OSC / 2.
                 Chip::OnChip(can) => can.set_time(clocks / 2),
             }
             self.board.refresh(i);
+        }
+        // A pin no chip is wired to is left alone.
+        for (pin, low) in pins {
+            if let Some(low) = low {
+                let (port, bit) = pin.port_bit();
+                self.cpu.set_pin(port, bit, !low);
+            }
         }
         self.board.stop = false;
     }
@@ -346,7 +371,7 @@ impl Machine {
         self.sync_pins();
         if let Some(chip) = self.board.chips.get_mut(i) {
             chip.on_event(event);
-            chip.take_actions(self.board.bitrate_hz, &mut self.board.actions);
+            chip.take_actions(i, self.board.bitrate_hz, &mut self.board.actions);
             self.board.refresh(i);
         }
         self.sync_pins();
@@ -364,5 +389,107 @@ impl Machine {
     /// The chips' requests since the last call, in order.
     pub fn take_actions(&mut self) -> Vec<Request> {
         std::mem::take(&mut self.board.actions)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::firmware::Pin;
+    use bus::time::BusDuration;
+    use std::sync::Arc;
+
+    /// `MOV A, P3` at 0000h, then `SJMP 0000h`: each pass reads the port's pins into A.
+    const READ_P3: [u8; 4] = [0xE5, 0xB0, 0x80, 0xFC];
+
+    /// An 80C51 at 12 MHz with SJA1000s at `bases`, every INT output wired to INT0.
+    fn two_chips(bases: &[u16]) -> Machine {
+        let mut code = vec![0xFF; 0x10000];
+        code[..READ_P3.len()].copy_from_slice(&READ_P3);
+        let spec = FirmwareSpec {
+            name: "BENCH".into(),
+            file: "bench.ron".into(),
+            image: Arc::new(mcs51::Image {
+                code,
+                written: std::iter::once(0..READ_P3.len() as u32).collect(),
+            }),
+            entry: 0,
+            variant: mcs51::Variant::I8051,
+            clock_hz: 12_000_000,
+            clock: BusDuration::period_of(12_000_000).unwrap(),
+            chips: bases
+                .iter()
+                .map(|&base| ChipSpec::Sja1000 {
+                    base,
+                    xtal_hz: 6_000_000,
+                    irq: Some(Pin::Int0),
+                })
+                .collect(),
+            vref_mv: 0,
+            analog: Vec::new(),
+            pins: Vec::new(),
+            skip_idle_loops: false,
+        };
+        let mut m = Machine::new(&spec, 30_000.0);
+        // PeliCAN, receive interrupt enabled, every identifier accepted, operating mode.
+        for &base in bases {
+            for (register, value) in [(0, 0x01), (31, 0x88), (4, 0x01), (20, 0xFF), (21, 0xFF)] {
+                m.board.write(base + register, value);
+            }
+            for register in [22, 23] {
+                m.board.write(base + register, 0xFF);
+            }
+            m.board.write(base, 0x00);
+        }
+        m.sync_pins();
+        m.take_actions();
+        m
+    }
+
+    /// P3.2 (INT0) as the CPU reads it.
+    fn int0_high(m: &mut Machine) -> bool {
+        m.cpu.set_pc(0);
+        m.step().unwrap();
+        m.cpu.sfr()[0x60] & 0x04 != 0
+    }
+
+    fn receive(m: &mut Machine, chip: usize) {
+        let frame = bus::candump::parse_frame("123#0102").unwrap();
+        m.input(chip, BusSide::Received(frame));
+    }
+
+    /// CMR.RRB: the chip at `base` releases its receive buffer, which clears RI (and INT).
+    fn release(m: &mut Machine, base: u16) {
+        m.board.write(base + 1, 0x04);
+        m.sync_pins();
+    }
+
+    #[test]
+    fn int_outputs_on_one_pin_pull_it_low_together() {
+        for first_released in [0, 1] {
+            let bases = [0xD300, 0xD400];
+            let mut m = two_chips(&bases);
+            assert!(int0_high(&mut m), "no interrupt pending: INT0 high");
+            receive(&mut m, 0);
+            receive(&mut m, 1);
+            assert!(!int0_high(&mut m), "both pending: INT0 low");
+            release(&mut m, bases[first_released]);
+            assert!(
+                !int0_high(&mut m),
+                "chip {} released, the other still pending: INT0 low",
+                first_released
+            );
+            release(&mut m, bases[1 - first_released]);
+            assert!(int0_high(&mut m), "both released: INT0 high");
+        }
+    }
+
+    #[test]
+    fn one_chip_pending_pulls_the_shared_pin_low() {
+        for pending in [0, 1] {
+            let mut m = two_chips(&[0xD300, 0xD400]);
+            receive(&mut m, pending);
+            assert!(!int0_high(&mut m), "chip {pending} pending: INT0 low");
+        }
     }
 }

@@ -1,6 +1,6 @@
-//! The firmware node file: which image runs on which CPU, which CAN controller it drives (an
-//! SJA1000 in its external data space, or the AT89C51CC03's own), and which plant signals its
-//! analog inputs and port pins are wired to.
+//! The firmware node file: which image runs on which CPU, which CAN controllers it drives
+//! (SJA1000s in its external data space, each in a window of its own, and the AT89C51CC03's
+//! own), and which plant signals its analog inputs and port pins are wired to.
 
 use super::wires::{self, AnalogFile, AnalogWire, PinFile, PinWire};
 use crate::{Error, Problem, parse_ron};
@@ -134,7 +134,8 @@ pub struct FirmwareSpec {
     pub clock_hz: u64,
     /// One oscillator period, exactly.
     pub clock: BusDuration,
-    /// The CAN controllers.
+    /// The CAN controllers, in the node file's order: each is a controller of its own on the
+    /// bus ([`FirmwareSpec::controller_name`]).
     pub chips: Vec<ChipSpec>,
     /// The ADC's reference voltage, mV (AT89C51CC03).
     pub vref_mv: u32,
@@ -148,6 +149,18 @@ pub struct FirmwareSpec {
     pub skip_idle_loops: bool,
 }
 
+impl FirmwareSpec {
+    /// The name of its controller `k` on the bus (traces, reports): the node's name for the
+    /// first, `NAME.k` for the others.
+    pub fn controller_name(&self, k: usize) -> String {
+        if k == 0 {
+            self.name.clone()
+        } else {
+            format!("{}.{k}", self.name)
+        }
+    }
+}
+
 /// Reads a file beside the node file (the image): its name for messages and its text.
 pub type Reader<'a> = &'a dyn Fn(&Path) -> Result<(String, String), Error>;
 
@@ -158,7 +171,8 @@ pub const MAX_XTAL_HZ: u32 = 24_000_000;
 
 /// Parses and checks a firmware node file; `path` is where it was read (the image is relative to
 /// it), `file` its name in messages, `read` reads the image. Every problem is reported at once;
-/// a wire to a signal the plant does not have names the line it is on.
+/// a wire to a signal the plant does not have, and a controller whose window overlaps another's,
+/// name the line they are on.
 pub fn load(file: &str, path: &Path, text: &str, read: Reader) -> Result<FirmwareSpec, Error> {
     let f: File = parse_ron(file, text)?;
     let mut problems = Vec::new();
@@ -203,7 +217,7 @@ pub fn load(file: &str, path: &Path, text: &str, read: Reader) -> Result<Firmwar
             format!("{vref_mv} mV: the ADC's reference is 1 to {MAX_VREF_MV} mV"),
         ));
     }
-    let chips = controllers(&f, cc03, &at, &mut problems);
+    let chips = controllers(&f, cc03, text, &at, &mut problems);
     let analog = wires::analog(&f.analog, cc03, text, &at, &mut problems);
     let pins = wires::pins(&f.pins, &chips, text, &at, &mut problems);
     let image_path = path.parent().unwrap_or(Path::new("")).join(&f.image);
@@ -248,7 +262,7 @@ pub const MAX_VREF_MV: u32 = 10_000;
 /// Makes a problem about a field of the node file.
 pub(super) type At<'a> = &'a dyn Fn(&str, String) -> Problem;
 
-fn controllers(f: &File, cc03: bool, at: At, problems: &mut Vec<Problem>) -> Vec<ChipSpec> {
+fn controllers(f: &File, cc03: bool, text: &str, at: At, problems: &mut Vec<Problem>) -> Vec<ChipSpec> {
     let mut chips = Vec::new();
     let mut windows: Vec<(usize, u16)> = Vec::new();
     for (i, c) in f.controllers.iter().enumerate() {
@@ -279,13 +293,14 @@ fn controllers(f: &File, cc03: bool, at: At, problems: &mut Vec<Problem>) -> Vec
                 for &(j, b) in &windows {
                     let (lo, hi) = (u32::from(base.min(b)), u32::from(base.max(b)));
                     if hi < lo + CHIP_WINDOW {
-                        problems.push(at(
+                        let p = at(
                             &format!("{field}.base"),
                             format!(
                                 "{base:#06X}: its window overlaps controllers[{j}] at {b:#06X} \
                                  (each decodes {CHIP_WINDOW} bytes)"
                             ),
-                        ));
+                        );
+                        problems.push(locate_controller(p, text, i, "base"));
                     }
                 }
                 windows.push((i, base));
@@ -293,14 +308,42 @@ fn controllers(f: &File, cc03: bool, at: At, problems: &mut Vec<Problem>) -> Vec
             }
         }
     }
-    if chips.len() > 1 {
+    let on_chip = chips.iter().filter(|c| **c == ChipSpec::OnChip).count();
+    if on_chip > 1 {
         problems.push(at(
             "controllers",
-            format!(
-                "{} controllers: a firmware node has at most one CAN controller so far",
-                chips.len()
-            ),
+            format!("OnChip {on_chip} times: the AT89C51CC03 has one CAN controller on chip"),
         ));
     }
     chips
+}
+
+/// Where the node file writes the `index`th controller's `field` (or the controller itself,
+/// when it does not): the line and column of the problem about it. Controllers are counted by
+/// their names (`Sja1000(...)`, `OnChip`) after `controllers:`, outside `//` comments.
+fn locate_controller(mut p: Problem, text: &str, index: usize, field: &str) -> Problem {
+    let Some(from) = text.find("controllers:") else {
+        return p;
+    };
+    let mut starts: Vec<usize> = ["Sja1000", "OnChip"]
+        .iter()
+        .flat_map(|name| text[from..].match_indices(name).map(|(o, _)| from + o))
+        .filter(|&o| !in_comment(text, o))
+        .collect();
+    starts.sort_unstable();
+    let Some(&start) = starts.get(index) else {
+        return p;
+    };
+    let end = starts.get(index + 1).copied().unwrap_or(text.len());
+    let at = text[start..end]
+        .find(&format!("{field}:"))
+        .map_or(start, |o| start + o);
+    p.position = Some(crate::script::position_of(text, at));
+    p
+}
+
+/// Whether `offset` falls after a `//` on its line.
+fn in_comment(text: &str, offset: usize) -> bool {
+    let line_start = text[..offset].rfind('\n').map_or(0, |p| p + 1);
+    text[line_start..offset].contains("//")
 }

@@ -16,6 +16,11 @@
 //! changes nothing until an input arrives: such a node asks for no wake at all, and an input
 //! at clock `n` finds it where `n − c₀` mod `P` clocks into the loop puts it.
 //!
+//! Several chips: each is a controller of its own on the bus, controller `k` being chip `k` of
+//! the node file. An input of controller `k` reaches chip `k` at its moment, and each chip's
+//! requests become commands for its own controller; the CPU, its run ahead and its deadline are
+//! the node's, one for all the chips.
+//!
 //! Plant wiring: a node whose ADC channels or port pins are wired to the plant reads them when
 //! an input arrives and at least every [`SAMPLE_MS`] ms (it asks to be woken for it), and
 //! between those moments sees them unchanged; its output pins reach the plant at the same
@@ -101,10 +106,11 @@ pub struct FirmwareNode {
     ahead: Machine,
     stop: Stop,
     horizon: u64,
-    commands: VecDeque<ControllerCommand>,
+    /// Commands for the controllers on the bus, each with its chip's index.
+    commands: VecDeque<(usize, ControllerCommand)>,
     failed: Option<String>,
-    /// Error state as last heard, to tell the end of a bus-off recovery.
-    state: ErrorState,
+    /// Each chip's error state as last heard, to tell the end of a bus-off recovery.
+    states: Vec<ErrorState>,
     serial: Vec<u8>,
     trace: Option<CpuTrace>,
     /// Chunks to run before the next look for a repeating loop, and how many to wait after a
@@ -124,6 +130,7 @@ impl FirmwareNode {
         if tracing::enabled!(tracing::Level::DEBUG) {
             now.writes = Some(Vec::new());
         }
+        let chips = spec.chips.len();
         let mut node = FirmwareNode {
             ahead: now.clone(),
             now,
@@ -132,10 +139,13 @@ impl FirmwareNode {
             checkpoints: Vec::new(),
             stop: Stop::Horizon,
             horizon: HORIZON.0,
-            // Its controller is in reset mode, off the bus, until the firmware sets it up.
-            commands: VecDeque::from([ControllerCommand::Offline]),
+            // Its controllers are in reset mode, off the bus, until the firmware sets them up (a
+            // node without a chip still has one on the bus, always off).
+            commands: (0..chips.max(1))
+                .map(|chip| (chip, ControllerCommand::Offline))
+                .collect(),
             failed: None,
-            state: ErrorState::Active,
+            states: vec![ErrorState::Active; chips],
             serial: Vec::new(),
             trace: None,
             look_in: 0,
@@ -312,25 +322,24 @@ impl FirmwareNode {
         }
     }
 
-    /// Turns chip requests into controller commands.
+    /// Turns chip requests into commands for their controllers.
     fn command(&mut self, actions: Vec<Request>) {
-        for (a, tuned) in actions {
-            match a {
+        for Request { chip, action, tuned } in actions {
+            let mut push = |c| self.commands.push_back((chip, c));
+            match action {
                 Action::Online { listen_only, .. } => {
-                    self.commands.push_back(ControllerCommand::Tuned(tuned));
-                    self.commands.push_back(ControllerCommand::Online { listen_only });
+                    push(ControllerCommand::Tuned(tuned));
+                    push(ControllerCommand::Online { listen_only });
                 }
                 Action::StartRecovery { listen_only, .. } => {
-                    self.commands.push_back(ControllerCommand::Tuned(tuned));
-                    self.commands.push_back(ControllerCommand::Online { listen_only });
-                    self.commands.push_back(ControllerCommand::Recover);
+                    push(ControllerCommand::Tuned(tuned));
+                    push(ControllerCommand::Online { listen_only });
+                    push(ControllerCommand::Recover);
                 }
-                Action::Offline => self.commands.push_back(ControllerCommand::Offline),
-                Action::Transmit { frame, .. } => self.commands.push_back(ControllerCommand::Transmit(frame)),
-                Action::Abort => self.commands.push_back(ControllerCommand::Abort),
-                Action::SetCounters { tec, rec } => self
-                    .commands
-                    .push_back(ControllerCommand::SetCounters { tec, rec }),
+                Action::Offline => push(ControllerCommand::Offline),
+                Action::Transmit { frame, .. } => push(ControllerCommand::Transmit(frame)),
+                Action::Abort => push(ControllerCommand::Abort),
+                Action::SetCounters { tec, rec } => push(ControllerCommand::SetCounters { tec, rec }),
             }
         }
     }
@@ -359,13 +368,13 @@ impl FirmwareNode {
         self.serial.clear();
     }
 
-    /// An input for chip 0 at `at`.
-    fn input(&mut self, at: BusTime, events: &[BusSide]) {
+    /// An input for chip `chip` at `at`.
+    fn input(&mut self, at: BusTime, chip: usize, events: &[BusSide]) {
         let n = self.clock_at(at);
         self.advance_to(n);
         self.sample(at);
         for &e in events {
-            self.now.input(0, e);
+            self.now.input(chip, e);
         }
         let actions = self.now.take_actions();
         self.command(actions);
@@ -374,9 +383,9 @@ impl FirmwareNode {
 }
 
 impl FirmwareNode {
-    /// Whether a frame at `at` would find the controller as it is now, and not take it: the run
-    /// ahead got past `at` (or idles in a loop) without writing a controller register, and the
-    /// controller takes no such frame now. Such a frame changes nothing, so the run ahead
+    /// Whether a frame at `at` would find the controllers as they are now, and not be taken:
+    /// the run ahead got past `at` (or idles in a loop) without writing a controller register,
+    /// and no controller takes such a frame now. Such a frame changes nothing, so the run ahead
     /// stands; the hub hears about every frame on the bus, and the chip keeps few.
     fn changes_nothing(&self, at: BusTime, frame: &Frame) -> bool {
         let n = self.clock_at(at);
@@ -417,19 +426,28 @@ impl Drop for FirmwareNode {
     }
 }
 
+/// Its controllers on the bus are its chips, in the node file's order: controller `k` is chip `k`.
 impl NodeLogic for FirmwareNode {
     fn handle_frame(&mut self, now: BusTime, frame: &Frame) {
+        self.handle_frame_on(0, now, frame);
+    }
+
+    fn handle_frame_on(&mut self, chip: usize, now: BusTime, frame: &Frame) {
         if self.changes_nothing(now, frame) {
             return;
         }
-        self.input(now, &[BusSide::Received(*frame)]);
+        self.input(now, chip, &[BusSide::Received(*frame)]);
     }
 
     fn handle_timeout(&mut self, now: BusTime) {
-        self.input(now, &[]);
+        self.input(now, 0, &[]);
     }
 
     fn handle_event(&mut self, now: BusTime, event: ControllerEvent) {
+        self.handle_event_on(0, now, event);
+    }
+
+    fn handle_event_on(&mut self, chip: usize, now: BusTime, event: ControllerEvent) {
         let mut side = Vec::new();
         match event {
             ControllerEvent::Sent(_) => side.push(BusSide::Transmitted),
@@ -440,10 +458,12 @@ impl NodeLogic for FirmwareNode {
                 state: state_of(tec, rec),
             }),
             ControllerEvent::State(s) => {
-                if self.state == ErrorState::BusOff && s == ErrorState::Active {
-                    side.push(BusSide::RecoveryDone);
+                if let Some(state) = self.states.get_mut(chip) {
+                    if *state == ErrorState::BusOff && s == ErrorState::Active {
+                        side.push(BusSide::RecoveryDone);
+                    }
+                    *state = s;
                 }
-                self.state = s;
             }
             ControllerEvent::BusError {
                 error,
@@ -466,14 +486,14 @@ impl NodeLogic for FirmwareNode {
             // The chip keeps its own receive FIFO and counts its own overruns.
             ControllerEvent::Overrun => {}
         }
-        self.input(now, &side);
+        self.input(now, chip, &side);
     }
 
     fn poll_transmit(&mut self) -> Option<Frame> {
         None
     }
 
-    fn poll_command(&mut self) -> Option<ControllerCommand> {
+    fn poll_command(&mut self) -> Option<(usize, ControllerCommand)> {
         self.commands.pop_front()
     }
 
