@@ -76,8 +76,8 @@ pub struct Args {
     /// here: it needs the Python package (pip install supervisor/python).
     #[arg(long, value_name = "SCENARIO,...", value_delimiter = ',')]
     only: Vec<String>,
-    /// The Python with the harvemu package, for python-monitor.
-    #[arg(long, value_name = "PYTHON", default_value = "python3")]
+    /// The Python with the harvemu package, for python-monitor: a file, or a command on PATH.
+    #[arg(long, value_name = "COMMAND", default_value = "python3")]
     python: String,
     /// Bus seconds of the python-monitor scenario.
     #[arg(long, value_name = "SECONDS", default_value_t = 600.0)]
