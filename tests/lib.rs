@@ -102,6 +102,40 @@ pub fn run_virtual<T: 'static>(
     (parse_trace(&text), result)
 }
 
+/// Starts `h` in virtual time with its trace recorded and lets `script` drive it (run it, inject
+/// faults, read its hardware); returns the candump trace with what `script` returned.
+pub fn drive<T: 'static>(h: Harvester, script: impl AsyncFnOnce(&mut Running) -> T + 'static) -> (String, T) {
+    let trace = Shared::default();
+    let t = trace.clone();
+    let result = System::with_tokio_rt(|| runtime(true).expect("runtime")).block_on(async move {
+        let mut running = harvester::start(&h, false, vec![candump(t, &h)])
+            .await
+            .expect("the harvester starts");
+        script(&mut running).await
+    });
+    (String::from_utf8(trace.0.take()).expect("utf-8 trace"), result)
+}
+
+/// A checked firmware node file: its text, read as `file`, whose image `image` is `hex`.
+pub fn firmware_spec(
+    file: &str,
+    text: &str,
+    image: &str,
+    hex: &str,
+) -> std::sync::Arc<nodes::firmware::FirmwareSpec> {
+    let (image, hex) = (image.to_string(), hex.to_string());
+    let read = move |_: &Path| Ok((image.clone(), hex.clone()));
+    let spec = nodes::firmware::load(file, Path::new(file), text, &read).expect("the node file");
+    std::sync::Arc::new(spec)
+}
+
+/// Internal RAM bytes `from..from + n` of a firmware node's hardware.
+pub fn iram(hw: &bus::node::HardwareState, from: usize, n: usize) -> Vec<u8> {
+    (from..from + n)
+        .map(|i| u8::from_str_radix(&hw.cpu.iram[2 * i..2 * i + 2], 16).expect("hex"))
+        .collect()
+}
+
 /// Runs the default harvester in virtual time and lets `script` drive it (run to a time, send
 /// controls, submit frames); returns the trace, decoded through the catalogue, as (time, message)
 /// for `node`.
@@ -198,13 +232,7 @@ pub fn run_firmware_with(
 pub fn bench_specs(benches: &[(String, String)]) -> Vec<std::sync::Arc<nodes::firmware::FirmwareSpec>> {
     benches
         .iter()
-        .map(|(text, hex)| {
-            let hex = hex.clone();
-            let read = move |_: &Path| Ok(("lab.hex".to_string(), hex.clone()));
-            let spec =
-                nodes::firmware::load("bench.ron", Path::new("bench.ron"), text, &read).expect("bench");
-            std::sync::Arc::new(spec)
-        })
+        .map(|(text, hex)| firmware_spec("bench.ron", text, "lab.hex", hex))
         .collect()
 }
 
@@ -355,10 +383,7 @@ pub struct FirmwareRun {
 impl FirmwareRun {
     /// Internal RAM bytes `from..from + n` of node `node`.
     pub fn iram(&self, node: usize, from: usize, n: usize) -> Vec<u8> {
-        let state = self.states[node].as_ref().expect("the node's hardware");
-        (from..from + n)
-            .map(|i| u8::from_str_radix(&state.cpu.iram[2 * i..2 * i + 2], 16).expect("hex"))
-            .collect()
+        iram(self.states[node].as_ref().expect("the node's hardware"), from, n)
     }
 }
 

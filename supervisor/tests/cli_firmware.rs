@@ -6,7 +6,7 @@ mod common;
 
 use common::{harvemu, root, scratch};
 use serde_json::Value;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 fn text(out: &Output) -> String {
@@ -106,14 +106,20 @@ fn the_seed_lab_runs_from_the_command_line_and_dumps_its_state() {
     check_lab_dump(&elsewhere.join("s.json"));
 }
 
+/// A scratch folder `tag` with copies of the seed lab's `files` (from configs/firmware/).
+fn lab_copy(tag: &str, files: &[&str]) -> PathBuf {
+    let dir = scratch("cli-firmware", tag);
+    let lab = root().join("configs/firmware");
+    for f in files {
+        std::fs::copy(lab.join(f), dir.join(f)).expect("copy");
+    }
+    dir
+}
+
 /// A lab whose receiver file is `receiver` and whose image is `hex`; runs it and returns the
 /// output.
 fn run_bad(tag: &str, receiver: &str, hex: &str) -> Output {
-    let dir = scratch("cli-firmware", tag);
-    let lab = root().join("configs/firmware");
-    for f in ["seed_lab.ron", "sender.ron", "can_seed.hex"] {
-        std::fs::copy(lab.join(f), dir.join(f)).expect("copy");
-    }
+    let dir = lab_copy(tag, &["seed_lab.ron", "sender.ron", "can_seed.hex"]);
     std::fs::write(dir.join("receiver.ron"), receiver).expect("write");
     std::fs::write(dir.join("bad.hex"), hex).expect("write");
     harvemu(&[
@@ -216,11 +222,7 @@ fn three_chips_are_three_controllers_in_the_state_dump() {
     let chips = "        Sja1000(base: 0xD400, xtal_hz: 6000000, irq: None),\n        \
                  Sja1000(base: 0xD500, xtal_hz: 6000000, irq: Some(Int0)),\n        \
                  Sja1000(base: 0xD600, xtal_hz: 6000000, irq: Some(Int0)),";
-    let dir = scratch("cli-firmware", "three-chips");
-    let lab = root().join("configs/firmware");
-    for f in ["seed_lab.ron", "sender.ron", "can_seed.hex"] {
-        std::fs::copy(lab.join(f), dir.join(f)).expect("copy");
-    }
+    let dir = lab_copy("three-chips", &["seed_lab.ron", "sender.ron", "can_seed.hex"]);
     std::fs::write(dir.join("receiver.ron"), receiver("can_seed.hex", CPU, chips)).expect("write");
     let dump = dir.join("state.json");
     let out = harvemu(&[
@@ -272,12 +274,8 @@ fn three_chips_are_three_controllers_in_the_state_dump() {
 fn a_further_chip_may_not_take_another_nodes_name() {
     let two = "        Sja1000(base: 0xD400, xtal_hz: 6000000, irq: None),\n        \
                Sja1000(base: 0xD500, xtal_hz: 6000000, irq: None),";
-    let dir = scratch("cli-firmware", "chip-name");
-    let lab = root().join("configs/firmware");
-    for f in ["seed_lab.ron", "can_seed.hex"] {
-        std::fs::copy(lab.join(f), dir.join(f)).expect("copy");
-    }
-    let sender = std::fs::read_to_string(lab.join("sender.ron")).expect("sender.ron");
+    let dir = lab_copy("chip-name", &["seed_lab.ron", "can_seed.hex"]);
+    let sender = std::fs::read_to_string(root().join("configs/firmware/sender.ron")).expect("sender.ron");
     let renamed = sender.replacen("\"SENDER\"", "\"RECEIVER.1\"", 1);
     assert_ne!(renamed, sender, "the sender's name is in its file");
     std::fs::write(dir.join("sender.ron"), renamed).expect("write");

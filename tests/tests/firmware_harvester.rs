@@ -4,13 +4,9 @@
 //! frame (AMR0 = FFh). It takes C3's place, runs beside the other nodes without disturbing the
 //! bus, and its handler sees every frame the bus carries.
 
-use actix::prelude::*;
 use bus::time::BusTime;
-use bus_runtime::hub::{GetSnapshot, RunUntil, runtime};
-use harvemu_e2e::{Shared, assemble, candump, default_harvester, parse_trace, root};
-use std::path::Path;
-use std::sync::Arc;
-use supervisor::harvester;
+use bus_runtime::hub::{GetSnapshot, RunUntil};
+use harvemu_e2e::{assemble, default_harvester, drive, firmware_spec, parse_trace, root};
 
 #[test]
 fn a_firmware_node_takes_a_scripted_nodes_place() {
@@ -27,25 +23,18 @@ fn a_firmware_node_takes_a_scripted_nodes_place() {
     let hex = assemble(&patched);
     let text = "Firmware(name: \"C3\", image: \"fw.hex\", entry: None, cpu: I80C51(clock_hz: 12000000), \
                 controllers: [Sja1000(base: 0xD400, xtal_hz: 16000000, irq: Some(Int0))])";
-    let read = move |_: &Path| Ok(("fw.hex".to_string(), hex.clone()));
-    let spec = nodes::firmware::load("c3.ron", Path::new("c3.ron"), text, &read).expect("the node file");
     let mut h = default_harvester();
     h.scripts.retain(|s| s.name != "C3");
-    h.firmware.push(Arc::new(spec));
+    h.firmware.push(firmware_spec("c3.ron", text, "fw.hex", &hex));
     let relay = h.relay();
-    let trace = Shared::default();
-    let t = trace.clone();
     let end = BusTime::from_secs(20);
-    let (snap, state) = System::with_tokio_rt(|| runtime(true).expect("runtime")).block_on(async move {
-        let running = harvester::start(&h, false, vec![candump(t, &h)])
-            .await
-            .expect("start");
+    let (trace, (snap, state)) = drive(h, async move |running| {
         running.hub.send(RunUntil(end)).await.expect("hub").expect("run");
         let snap = running.hub.send(GetSnapshot).await.expect("snapshot");
         let state = running.hardware(end).await;
         (snap, state)
     });
-    let frames = parse_trace(&String::from_utf8(trace.0.take()).expect("utf-8"));
+    let frames = parse_trace(&trace);
     assert!(frames.len() > 1000, "{} frames", frames.len());
     // Nothing disturbed: no error frame, every node error active, the firmware's included.
     assert_eq!(snap.stats.error_frames, 0);

@@ -7,12 +7,11 @@
 //! RXERR at 14, TXERR at 15; SR bit 7 bus status, 6 error status, 2 transmit buffer status),
 //! and the listing's cycle counts as worked out in `firmware_seed_lab.rs`.
 
-use actix::prelude::*;
 use bus::node::HardwareState;
 use bus::time::{BusDuration, BusTime};
-use bus_runtime::hub::{Control, runtime};
-use harvemu_e2e::{Shared, candump, parse_trace, root};
-use supervisor::harvester::{self, Harvester, Running};
+use bus_runtime::hub::Control;
+use harvemu_e2e::{drive, iram, parse_trace, root};
+use supervisor::harvester::{Harvester, Running};
 
 const DATA: [u8; 8] = [0xAA, 0xBB, 0xCC, 0xD4, 0xE5, 0xF6, 0x97, 0x18];
 /// Reset to the end of the sender's first write of TR, machine cycles of 1 µs
@@ -44,26 +43,6 @@ fn register(hw: &HardwareState, r: usize) -> u8 {
     u8::from_str_radix(&text[2 * r..2 * r + 2], 16).expect("hex")
 }
 
-fn iram(hw: &HardwareState, from: usize, n: usize) -> Vec<u8> {
-    (from..from + n)
-        .map(|i| u8::from_str_radix(&hw.cpu.iram[2 * i..2 * i + 2], 16).expect("hex"))
-        .collect()
-}
-
-/// Runs the lab with `script` driving it; the trace comes back with what the script returned.
-fn drive<T: 'static>(script: impl AsyncFnOnce(&mut Running) -> T + 'static) -> (String, T) {
-    let h = lab();
-    let trace = Shared::default();
-    let t = trace.clone();
-    let result = System::with_tokio_rt(|| runtime(true).expect("runtime")).block_on(async move {
-        let mut running = harvester::start(&h, false, vec![candump(t, &h)])
-            .await
-            .expect("the lab starts");
-        script(&mut running).await
-    });
-    (String::from_utf8(trace.0.take()).expect("utf-8"), result)
-}
-
 /// With the receiver unplugged the sender is alone: every attempt is an ACK error, TEC + 8,
 /// until 128 (error passive); an error-passive transmitter's ACK errors do not count
 /// (exception to rule 3), so TXERR reads 128 however long it lasts, the chip is not bus off and
@@ -74,7 +53,7 @@ fn an_unacknowledged_sender_reads_txerr_128_then_counts_down_frame_by_frame() {
     let unplug = BusTime::from_millis(550);
     let plug = BusTime::from_millis(1500);
     let end = BusTime::from_millis(2500);
-    let (trace, (alone, after)) = drive(async move |running| {
+    let (trace, (alone, after)) = drive(lab(), async move |running| {
         let receiver = running.node("RECEIVER").expect("RECEIVER");
         running.run_until(unplug).await.expect("run");
         running
@@ -129,7 +108,7 @@ fn after_a_power_cycle_the_receiver_initialises_again_and_receives_again() {
     let cycle = BusTime::from_millis(550);
     let early = cycle + BusDuration::from_millis(50);
     let late = cycle + BusDuration::from_millis(150);
-    let (trace, (before, soon, after)) = drive(async move |running| {
+    let (trace, (before, soon, after)) = drive(lab(), async move |running| {
         running.run_until(cycle).await.expect("run");
         let before = hardware(running, "RECEIVER", cycle).await;
         running.power_cycle().await.expect("power cycle");

@@ -13,13 +13,9 @@
 //!   ID4–3 = 10, ID2–0 don't care, RTR 0 (data frames): ACR3 = 80h, AMR3 = 0011 1011 = 3Bh;
 //! - priority and frame type don't care: AMR0 = FFh, AMR1's upper five bits.
 
-use actix::prelude::*;
 use bus::time::{BusDuration, BusTime};
-use bus_runtime::hub::{GetSnapshot, RunUntil, runtime};
-use harvemu_e2e::{Shared, assemble, candump, default_harvester, parse_trace};
-use std::path::Path;
-use std::sync::Arc;
-use supervisor::harvester;
+use bus_runtime::hub::{GetSnapshot, RunUntil};
+use harvemu_e2e::{assemble, default_harvester, drive, firmware_spec, iram, parse_trace};
 
 /// The node: the filter above, then an idle loop; the handler adds one to 40h + n for a frame
 /// from Dn (ID2–0 are bits 5–3 of the fifth byte of the receive buffer) and to R5 for every
@@ -97,28 +93,21 @@ fn firmware_in_the_monitors_place_receives_the_flow_sensors_frames() {
     let hex = assemble(SOURCE);
     let text = "Firmware(name: \"F5\", image: \"f5.hex\", entry: None, cpu: I80C51(clock_hz: 12000000), \
                 controllers: [Sja1000(base: 0xD400, xtal_hz: 16000000, irq: Some(Int0))])";
-    let read = move |_: &Path| Ok(("f5.hex".to_string(), hex.clone()));
-    let spec = nodes::firmware::load("f5.ron", Path::new("f5.ron"), text, &read).expect("the node file");
     let mut h = default_harvester();
     h.config.monitor.enabled = false;
-    h.firmware.push(Arc::new(spec));
+    h.firmware.push(firmware_spec("f5.ron", text, "f5.hex", &hex));
     let relay = h.relay();
-    let trace = Shared::default();
-    let t = trace.clone();
     let end = BusTime::from_secs(8);
-    let (snap, state) = System::with_tokio_rt(|| runtime(true).expect("runtime")).block_on(async move {
-        let running = harvester::start(&h, false, vec![candump(t, &h)])
-            .await
-            .expect("start");
+    let (trace, (snap, state)) = drive(h, async move |running| {
         running.hub.send(RunUntil(end)).await.expect("hub").expect("run");
         let snap = running.hub.send(GetSnapshot).await.expect("snapshot");
         (snap, running.hardware(end).await)
     });
-    let frames = parse_trace(&String::from_utf8(trace.0.take()).expect("utf-8"));
+    let frames = parse_trace(&trace);
     assert_eq!(snap.stats.error_frames, 0);
     let (name, hw) = &state[0];
     assert_eq!(name, "F5");
-    let iram = |a: usize| u8::from_str_radix(&hw.cpu.iram[2 * a..2 * a + 2], 16).expect("hex");
+    let iram = |a: usize| iram(hw, a, 1)[0];
     // Frames that ended after the chip joined the bus, a few hundred microseconds after the
     // time relay powered the node up.
     let joined = relay + BusDuration::from_millis(1);

@@ -6,13 +6,9 @@
 //! `firmware_seed_lab.rs`), the frame's bit count at 30 kbit/s and the restart policy (3 restarts
 //! within 60 s, 100 ms after each crash).
 
-use actix::prelude::*;
 use bus::time::{BusDuration, BusTime};
-use bus_runtime::hub::runtime;
-use harvemu_e2e::{Shared, assemble, candump, parse_trace, root};
-use std::path::Path;
-use std::sync::Arc;
-use supervisor::harvester::{self, Harvester, SupervisorEvent};
+use harvemu_e2e::{assemble, drive, firmware_spec, parse_trace, root};
+use supervisor::harvester::{Harvester, SupervisorEvent};
 
 /// Reset to the end of the sender's first write of TR, machine cycles of 1 µs.
 const CYCLES_TO_TR: u64 = 337;
@@ -29,19 +25,17 @@ const CYCLES_TO_CRASH: u64 = 100_169 + 1;
 const BACKOFF_MS: u64 = 100;
 
 /// The seed lab whose sender runs `hex`, with the default restart policy spelt out.
-fn lab(hex: String) -> Harvester {
+fn lab(hex: &str) -> Harvester {
     let mut h = Harvester::load(&root().join("configs/firmware/seed_lab.ron")).expect("the lab");
     let text = "Firmware(name: \"SENDER\", image: \"crash.hex\", entry: Some(0x4000), \
                 cpu: I80C51(clock_hz: 12000000), \
                 controllers: [Sja1000(base: 0xD300, xtal_hz: 6000000, irq: None)])";
-    let read = move |_: &Path| Ok(("crash.hex".to_string(), hex.clone()));
-    let spec = nodes::firmware::load("sender.ron", Path::new("sender.ron"), text, &read).expect("sender");
     let at = h
         .firmware
         .iter()
         .position(|f| f.name == "SENDER")
         .expect("SENDER");
-    h.firmware[at] = Arc::new(spec);
+    h.firmware[at] = firmware_spec("sender.ron", text, "crash.hex", hex);
     h.config.restart.max_restarts = 3;
     h.config.restart.window_s = 60.0;
     h.config.restart.backoff_ms = BACKOFF_MS;
@@ -60,19 +54,13 @@ fn crash_loop(
     let source = std::fs::read_to_string(root().join("configs/firmware/can_seed.asm")).expect("asm");
     let patched = source.replacen("        NOP                     ; breakpoint here", instead, 1);
     assert_ne!(patched, source, "the NOP is in the source");
-    let h = lab(assemble(&patched));
-    let trace = Shared::default();
-    let t = trace.clone();
     let end = BusTime::from_secs(2);
-    let (events, hw) = System::with_tokio_rt(|| runtime(true).expect("runtime")).block_on(async move {
-        let mut running = harvester::start(&h, false, vec![candump(t, &h)])
-            .await
-            .expect("start");
+    let (trace, (events, hw)) = drive(lab(&assemble(&patched)), async move |running| {
         running.run_until(end).await.expect("run");
         let hw = running.hardware(end).await;
         (running.events.clone(), hw)
     });
-    let frames = parse_trace(&String::from_utf8(trace.0.take()).expect("utf-8"));
+    let frames = parse_trace(&trace);
     let ends = frames.iter().map(|f| f.at.as_micros()).collect();
     let of_sender = events.into_iter().filter(|e| e.node == "SENDER").collect();
     (of_sender, ends, hw)

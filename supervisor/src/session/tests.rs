@@ -5,10 +5,19 @@ use super::*;
 use bus::candump::parse_frame;
 
 fn without_monitor(seed: u64) -> Session {
+    start_without_monitor(seed, false)
+}
+
+fn paced_without_monitor(seed: u64) -> Session {
+    start_without_monitor(seed, true)
+}
+
+fn start_without_monitor(seed: u64, paced: bool) -> Session {
     Session::start(&Options {
         without: vec!["F5".into()],
         seed: Some(seed),
         name: "F5".into(),
+        paced,
         ..Options::default()
     })
     .unwrap_or_else(|e| panic!("{e}"))
@@ -176,17 +185,6 @@ fn scenario_actions_reach_the_bus_and_their_faults_end_in_time() {
     let e = s.act("Disconnect(").unwrap_err().to_string();
     assert!(e.contains("the action:1:"), "{e}");
     assert!(s.act(r#"Crash("ZZ")"#).is_err());
-}
-
-fn paced_without_monitor(seed: u64) -> Session {
-    Session::start(&Options {
-        without: vec!["F5".into()],
-        seed: Some(seed),
-        name: "F5".into(),
-        paced: true,
-        ..Options::default()
-    })
-    .unwrap_or_else(|e| panic!("{e}"))
 }
 
 #[test]
