@@ -240,6 +240,9 @@ pub struct FaultConfinement {
     /// Recessive bits of the current run that do not yet make up a whole sequence (always below
     /// [`RECOVERY_SEQUENCE_BITS`]); 0 whenever the node is not bus off.
     recovery_run: u32,
+    /// The rules count nothing (a controller in listen-only mode: SJA1000 data sheet 6.4.3,
+    /// MOD.LOM, "the error counters are stopped at the current value").
+    frozen: bool,
 }
 
 impl Default for FaultConfinement {
@@ -263,7 +266,20 @@ impl FaultConfinement {
             warning_limit,
             recovery_seen: 0,
             recovery_run: 0,
+            frozen: false,
         }
+    }
+
+    /// Stops the counting rules (1 to 8) at the current values, or lets them count again. The
+    /// host's writes ([`FaultConfinement::set_counters`]), a reset and bus-off recovery still
+    /// act.
+    pub fn set_frozen(&mut self, frozen: bool) {
+        self.frozen = frozen;
+    }
+
+    /// True while the counting rules are stopped ([`FaultConfinement::set_frozen`]).
+    pub fn is_frozen(&self) -> bool {
+        self.frozen
     }
 
     /// The transmit error counter: 0–255 outside bus off, 256–263 while bus off.
@@ -471,8 +487,8 @@ impl FaultConfinement {
         })
     }
 
-    /// A controller reset: error active, both counters 0, recovery forgotten. The warning limit
-    /// is configuration and is kept.
+    /// A controller reset: error active, both counters 0, recovery forgotten, counting on. The
+    /// warning limit is configuration and is kept.
     pub fn reset(&mut self) -> Changes {
         self.observe(|fc| *fc = FaultConfinement::with_warning_limit(fc.warning_limit))
     }
@@ -486,7 +502,7 @@ impl FaultConfinement {
 
     /// Applies a counter update unless the node is bus off, where counting stops.
     fn counting(&mut self, update: impl FnOnce(&mut Self)) -> Changes {
-        if self.state() == ErrorState::BusOff {
+        if self.frozen || self.state() == ErrorState::BusOff {
             return Changes::NONE;
         }
         self.observe(update)

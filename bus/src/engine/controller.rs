@@ -129,6 +129,8 @@ pub(crate) struct Pending {
     pub frame: Frame,
     pub submitted: BusTime,
     pub token: u64,
+    /// One attempt only: dropped (as aborted) when that attempt fails or loses arbitration.
+    pub single_shot: bool,
 }
 
 /// Counters a controller keeps for reports.
@@ -179,6 +181,19 @@ pub struct Controller {
     pub(crate) tx: VecDeque<Pending>,
     pub(crate) connected: bool,
     pub(crate) acks: bool,
+    /// Listen-only (bus monitoring) mode: it drives nothing dominant (no frame, no ACK, no
+    /// error or overload flag) and its counters do not move.
+    pub(crate) listen_only: bool,
+    /// Self-test mode (the SJA1000's MOD.STM, Linux's PRESUME_ACK): its own frames need no
+    /// acknowledge.
+    pub(crate) presume_ack: bool,
+    /// Bus integration: it has joined the bus and waits for 11 consecutive recessive bits before
+    /// it takes part; the run of recessive bits it has seen began here.
+    pub(crate) integrating: Option<BusTime>,
+    /// The token of the frame of the last attempt it took part in as a transmitter, and when
+    /// that attempt was over for it: that frame, aborted while its attempt ran, is answered
+    /// from then (it ends its attempt first).
+    pub(crate) attempt: (u64, BusTime),
     /// The earliest time it may start a frame of its own: the end of its intermission, and of
     /// suspend transmission after it sent as an error-passive node.
     pub(crate) ready_at: BusTime,
@@ -205,6 +220,10 @@ impl Controller {
             overrun_flag: false,
             connected: true,
             acks: true,
+            listen_only: false,
+            presume_ack: false,
+            integrating: None,
+            attempt: (0, BusTime::ZERO),
             ready_at: BusTime::ZERO,
             mac: super::wire::Mac::default(),
             mac_at: BusTime::ZERO,
@@ -242,18 +261,41 @@ impl Controller {
     pub fn tx_len(&self) -> usize {
         self.tx.len()
     }
-    /// True while connected to the bus.
+    /// True while connected to the bus (it may still be integrating: [`Controller::is_integrating`]).
     pub fn is_connected(&self) -> bool {
         self.connected
     }
-    /// True while it acknowledges frames.
+    /// True while it acknowledges frames: it is set to, and not listen-only.
     pub fn acks(&self) -> bool {
-        self.acks
+        self.acks && !self.listen_only
+    }
+    /// True in listen-only mode.
+    pub fn is_listen_only(&self) -> bool {
+        self.listen_only
+    }
+    /// True in self-test mode (its frames need no acknowledge).
+    pub fn presumes_ack(&self) -> bool {
+        self.presume_ack
     }
 
     /// Takes part in bus traffic: connected and not bus off.
     pub(crate) fn on_bus(&self) -> bool {
-        self.connected && self.fault.state() != crate::fault::ErrorState::BusOff
+        self.connected && self.fault.state() != crate::fault::ErrorState::BusOff && self.integrating.is_none()
+    }
+
+    /// True while it waits to integrate into the bus (see [`Controller::integrating`]).
+    pub fn is_integrating(&self) -> bool {
+        self.integrating.is_some()
+    }
+
+    /// Its error flags are passive (recessive): it is error passive, or listen-only.
+    pub(crate) fn flags_passive(&self) -> bool {
+        self.listen_only || self.fault.state() == crate::fault::ErrorState::Passive
+    }
+
+    /// It may start a frame: on the bus, and not listen-only.
+    pub(crate) fn may_send(&self) -> bool {
+        self.on_bus() && !self.listen_only
     }
 
     /// Bus off and counting recessive bits towards recovery.

@@ -9,6 +9,7 @@
 //! suspend is carried to the next attempt, so a start of frame that comes while a controller is
 //! still in its error delimiter is a form error to it, as on a real bus.
 
+use super::controller::Pending;
 use super::wire::{self, Detected, Location, Mac, Phase, Sending};
 use super::{Bus, BusError, Event, NodeId};
 use crate::fault::{ErrorFlag, ErrorState, Role, TransmitError, TxErrorKind};
@@ -68,8 +69,12 @@ pub(crate) struct Plan {
 struct Tally {
     events: Vec<Event>,
     destroyed: Vec<Destroyed>,
-    /// Per controller: an ACK error whose count waits for its passive flag (exception 3a).
-    deferred_3a: Vec<bool>,
+    /// Per controller: an ACK error whose count waits for its passive flag (exception 3a), with
+    /// where its flag began; its bus error is told once counted.
+    deferred_3a: Vec<Option<(BusTime, Location)>>,
+    /// The kind of the first error detected since the last error flag began: the kind of the
+    /// next error frame.
+    error_kind: Option<BusError>,
     /// The frame's `Frame` event is out (identical frames sent together give one).
     sent_frame: bool,
     /// Per controller: it took the frame at its last but one EOF bit.
@@ -110,7 +115,7 @@ impl Bus {
             c.mac_at = c.mac_at.max(at);
             return;
         }
-        c.mac.passive = c.fault.state() == ErrorState::Passive;
+        c.mac.passive = c.flags_passive();
         c.mac.idle_through((at - c.mac_at) / bit);
         c.mac_at = at;
     }
@@ -136,7 +141,9 @@ impl Bus {
             });
         }
         for (i, c) in self.controllers.iter_mut().enumerate() {
-            c.mac.acks = c.acks;
+            c.mac.acks = c.acks();
+            c.mac.silent = c.listen_only;
+            c.mac.presume_ack = c.presume_ack;
             if !starters.contains(&i) {
                 // A unit stays transmitter of its message until the bus is idle (Bosch CAN 2.0,
                 // part B, 2): another node's start of frame begins a message it receives, even
@@ -156,24 +163,47 @@ impl Bus {
         let mut tally = Tally {
             events: Vec::new(),
             destroyed: Vec::new(),
-            deferred_3a: vec![false; n],
+            deferred_3a: vec![None; n],
+            error_kind: None,
             sent_frame: false,
             received: vec![false; n],
             sent: vec![false; n],
             completed: None,
         };
+        let tokens: Vec<(usize, u64)> = starters
+            .iter()
+            .filter_map(|&s| self.controllers[s].tx.front().map(|p| (s, p.token)))
+            .collect();
         let mut drives = vec![wire::REC; n];
         let mut k: u32 = 0;
+        let mut flagging = false;
+        let mut last_dominant = self.last_dominant;
         loop {
             let t = sof + u64::from(k) * bit;
             let next = t + bit;
+            // An error frame on the bus: error flags that begin while no other is being sent
+            // (overlapping flags are one error frame). A listen-only controller sends none.
+            let flags = self
+                .controllers
+                .iter()
+                .any(|c| c.on_bus() && !c.listen_only && matches!(c.mac.phase, Phase::ErrorFlag { .. }));
+            if flags {
+                if !flagging {
+                    self.stats.error(tally.error_kind.unwrap_or(BusError::Bit).name());
+                }
+                tally.error_kind = None;
+            }
+            flagging = flags;
             let mut level = wire::REC;
             for (i, c) in self.controllers.iter_mut().enumerate() {
-                c.mac.passive = c.fault.state() == ErrorState::Passive;
+                c.mac.passive = c.flags_passive();
                 drives[i] = c.mac.drive();
                 if c.on_bus() {
                     level &= drives[i];
                 }
+            }
+            if level == wire::DOM {
+                last_dominant = next;
             }
             for i in 0..n {
                 let c = &self.controllers[i];
@@ -193,6 +223,10 @@ impl Bus {
                     }
                     continue;
                 }
+                if c.integrating.is_some() {
+                    self.integrate_bit(i, sampled, next);
+                    continue;
+                }
                 let detected = self.controllers[i].mac.sample(drives[i], sampled);
                 self.react(i, detected, sof, next, &mut tally);
             }
@@ -206,6 +240,7 @@ impl Bus {
             }
         }
         let end = sof + u64::from(k) * bit;
+        self.last_dominant = self.last_dominant.max(last_dominant);
         // The bus is busy until the last controller is through its intermission.
         let mut busy_to = end;
         for c in &mut self.controllers {
@@ -218,7 +253,7 @@ impl Bus {
             }
             c.mac_at = end;
             let mut probe = c.mac;
-            probe.passive = c.fault.state() == ErrorState::Passive;
+            probe.passive = c.flags_passive();
             let to_bus_idle = probe.bits_until_bus_idle(64);
             let to_idle = probe.idle_through(64).unwrap_or(64);
             c.ready_at = c.ready_at.max(end + to_idle * bit);
@@ -244,7 +279,6 @@ impl Bus {
             self.place_unreceived(&frame, &on_bus, &received, &sent);
         }
         for d in &destroyed {
-            self.stats.error(d.error.name());
             let c = &self.controllers[d.node];
             events.push(Event::ErrorFrame {
                 start: sof,
@@ -258,6 +292,16 @@ impl Bus {
                 rec: c.fault.rec(),
             });
         }
+        // An attempt is over for its transmitters when the episode is; a single-shot frame that
+        // did not go out is dropped then.
+        let from = self.events.len();
+        for (s, token) in tokens {
+            self.controllers[s].attempt = (token, end);
+            if !sent[s] {
+                self.drop_single_shot(s, end, token);
+            }
+        }
+        events.extend(self.events.drain(from..));
         // Events come out in time order, and at one time as the closed form gives them: the
         // frame, its confirmations, then what receivers did with it.
         events.sort_by_key(|e| (e.at(), rank(e)));
@@ -284,6 +328,26 @@ impl Bus {
         }
     }
 
+    /// A controller integrating into the bus samples a bit: a dominant one starts its count of
+    /// recessive bits again; the 11th recessive one makes it take part from the next bit.
+    fn integrate_bit(&mut self, i: usize, sampled: bool, next: BusTime) {
+        let needed = self.bit * super::INTEGRATION_BITS;
+        let c = &mut self.controllers[i];
+        let Some(since) = c.integrating else { return };
+        if sampled == wire::DOM {
+            c.integrating = Some(next);
+        } else if since + needed <= next {
+            c.integrating = None;
+            c.mac = Mac {
+                acks: c.acks(),
+                silent: c.listen_only,
+                presume_ack: c.presume_ack,
+                ..Mac::default()
+            };
+            c.mac_at = next;
+        }
+    }
+
     /// A bus-off controller counts the bit towards recovery (rule 12).
     fn count_recovery(&mut self, i: usize, sampled: bool, next: BusTime, events: &mut Vec<Event>) {
         let before = self.controllers[i].fault.recovery_progress();
@@ -296,8 +360,12 @@ impl Bus {
             crate::fault::Changes::NONE
         };
         if c.fault.state() != ErrorState::BusOff {
+            // 128 × 11 recessive bits: integrated as well.
+            c.integrating = None;
             c.mac = Mac {
-                acks: c.acks,
+                acks: c.acks(),
+                silent: c.listen_only,
+                presume_ack: c.presume_ack,
                 ..Mac::default()
             };
             c.mac_at = next;
@@ -313,6 +381,7 @@ impl Bus {
             events,
             destroyed,
             deferred_3a,
+            error_kind,
             sent_frame,
             received,
             sent,
@@ -335,13 +404,27 @@ impl Bus {
             Detected::Error(found) => {
                 let c = &mut self.controllers[i];
                 let error = BusError::of(found.kind);
+                error_kind.get_or_insert(error);
                 let transmitting = c.mac.tx_role;
                 let changes = if transmitting {
                     c.counters.tx_errors += 1;
                     if found.kind == TxErrorKind::Ack && c.fault.state() == ErrorState::Passive {
-                        // Exception 3a is decided once the passive flag has been sent.
-                        deferred_3a[i] = true;
-                        crate::fault::Changes::NONE
+                        // Exception 3a is decided once the passive flag has been sent; the bus
+                        // error is told then, with the counters as counted.
+                        deferred_3a[i] = Some((next, found.location));
+                        if c.mac.sending.is_some()
+                            && let Some(p) = c.tx.front()
+                        {
+                            destroyed.push(Destroyed {
+                                node: i,
+                                frame: p.frame,
+                                flag: next,
+                                error,
+                                bit: (c.mac.pos.saturating_sub(1)).min(u32::from(u16::MAX)) as u16,
+                            });
+                            c.mac.sending = None;
+                        }
+                        return;
                     } else {
                         c.fault.transmit_error(TransmitError {
                             in_arbitration_on_recessive_stuff_bit: found.arbitration_stuff,
@@ -368,6 +451,7 @@ impl Bus {
                 self.counted(i, next, changes, events);
             }
             Detected::CrcError => {
+                error_kind.get_or_insert(BusError::Crc);
                 let c = &mut self.controllers[i];
                 c.counters.rx_errors += 1;
                 let changes = c.fault.receive_error();
@@ -375,6 +459,7 @@ impl Bus {
                 self.counted(i, next, changes, events);
             }
             Detected::FlagBitError => {
+                error_kind.get_or_insert(BusError::Bit);
                 let c = &mut self.controllers[i];
                 let changes = if c.mac.tx_role {
                     c.fault.transmit_flag_bit_error()
@@ -386,12 +471,13 @@ impl Bus {
                 self.counted(i, next, changes, events);
             }
             Detected::FlagDone { saw_dominant } => {
-                if std::mem::take(&mut deferred_3a[i]) {
+                if let Some((flag, location)) = deferred_3a[i].take() {
                     let c = &mut self.controllers[i];
                     let changes = c.fault.transmit_error(TransmitError {
                         dominant_during_passive_flag: saw_dominant,
                         ..TransmitError::new(TxErrorKind::Ack)
                     });
+                    self.bus_error(i, flag, BusError::Ack, true, location, events);
                     self.counted(i, next, changes, events);
                 }
             }
@@ -427,19 +513,34 @@ impl Bus {
                 let end = next + bit;
                 // The frame on the bus is its transmitter's, which stays transmitter through its
                 // own error flag (a passive flag after an ACK error leaves the frame intact).
-                let Some(frame) = self
+                let Some((t, p)) = self
                     .controllers
                     .iter()
-                    .find(|c| c.mac.tx_role && c.mac.transmitter)
-                    .and_then(|c| c.tx.front())
-                    .map(|p| p.frame)
+                    .enumerate()
+                    .find(|(_, c)| c.mac.tx_role && c.mac.transmitter)
+                    .and_then(|(t, c)| c.tx.front().map(|p| (t, *p)))
                 else {
                     return;
                 };
+                let frame = p.frame;
                 received[i] = true;
+                if !*sent_frame {
+                    // Valid for its receivers from here, whatever its transmitter then makes of
+                    // the frame's last bit: on the bus, and to every sink, now.
+                    *sent_frame = true;
+                    let on_bus = self.controllers.iter().map(|c| c.on_bus()).collect();
+                    *completed = Some((frame, on_bus));
+                    self.on_the_bus(t, p, sof, end, events);
+                }
                 let c = &mut self.controllers[i];
-                let recovering = c.fault.rec() > 0;
-                let changes = c.fault.receive_success();
+                // Rule 8 counts a reception only with the node's ACK sent.
+                let acked = c.acks();
+                let recovering = c.fault.rec() > 0 && acked;
+                let changes = if acked {
+                    c.fault.receive_success()
+                } else {
+                    crate::fault::Changes::NONE
+                };
                 if c.config.filter.accepts(&frame) {
                     if c.store(end, frame) {
                         self.stats.deliveries += 1;
@@ -465,7 +566,6 @@ impl Bus {
                 if c.config.filter.accepts(&p.frame) {
                     c.counters.rx_own += 1;
                 }
-                let latency = end - p.submitted;
                 let recovering = c.fault.tec() > 0;
                 let changes = c.fault.transmit_success();
                 events.push(Event::TxDone {
@@ -476,27 +576,11 @@ impl Bus {
                 });
                 if !*sent_frame {
                     *sent_frame = true;
-                    let frame = p.frame;
                     // Receivers took it at the bit before (EOF 6): who is on the bus now is who
                     // was when it became valid for them.
                     let on_bus = self.controllers.iter().map(|c| c.on_bus()).collect();
-                    *completed = Some((frame, on_bus));
-                    let bits = ((end - sof) / bit) as u32 + wire::INTERMISSION_BITS as u32;
-                    let class = (self.latency_class)(&frame);
-                    self.stats.frame(
-                        crate::filter::kernel_can_id(&frame),
-                        frame.data(),
-                        class,
-                        end,
-                        latency,
-                    );
-                    events.push(Event::Frame {
-                        start: sof,
-                        end,
-                        node,
-                        frame,
-                        bits,
-                    });
+                    *completed = Some((p.frame, on_bus));
+                    self.on_the_bus(i, p, sof, end, events);
                 }
                 self.note_into(node, end, changes, events);
                 if recovering {
@@ -504,6 +588,29 @@ impl Bus {
                 }
             }
         }
+    }
+
+    /// A frame went through, for the bus: its `Frame` event and its statistics, once per
+    /// attempt.
+    fn on_the_bus(&mut self, t: usize, p: Pending, sof: BusTime, end: BusTime, events: &mut Vec<Event>) {
+        let bit = self.bit;
+        let frame = p.frame;
+        let bits = ((end - sof) / bit) as u32 + wire::INTERMISSION_BITS as u32;
+        let class = (self.latency_class)(&frame);
+        self.stats.frame(
+            crate::filter::kernel_can_id(&frame),
+            frame.data(),
+            class,
+            end,
+            end - p.submitted,
+        );
+        events.push(Event::Frame {
+            start: sof,
+            end,
+            node: NodeId(t as u16),
+            frame,
+            bits,
+        });
     }
 
     /// One controller's error, as its SocketCAN interface would report it.
@@ -551,7 +658,9 @@ impl Bus {
                 });
             }
             c.mac = Mac {
-                acks: c.acks,
+                acks: c.acks(),
+                silent: c.listen_only,
+                presume_ack: c.presume_ack,
                 ..Mac::default()
             };
         }

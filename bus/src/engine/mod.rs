@@ -64,6 +64,8 @@ use episode::{Flip, Plan, Who};
 const INTERMISSION_BITS: u64 = wire::INTERMISSION_BITS as u64;
 /// Suspend transmission of an error-passive transmitter.
 const SUSPEND_BITS: u64 = wire::SUSPEND_BITS as u64;
+/// Bus integration: consecutive recessive bits a joining controller waits for (ISO 11898-1).
+pub const INTEGRATION_BITS: u64 = 11;
 
 /// How a bus is built.
 #[derive(Clone, Copy, Debug)]
@@ -346,6 +348,11 @@ pub struct Bus {
     carried: bool,
     /// Start of the last committed event: nothing may be submitted before it.
     committed: BusTime,
+    /// End of the last dominant bit committed on the bus: a controller joining later counts its
+    /// recessive run from here.
+    last_dominant: BusTime,
+    /// Some controller may still be integrating (false lets a clean frame skip looking).
+    joining: bool,
     controllers: Vec<Controller>,
     injector: Injector,
     stats: Stats,
@@ -373,6 +380,8 @@ impl Bus {
             disturbances: Vec::new(),
             carried: false,
             committed: BusTime::ZERO,
+            last_dominant: BusTime::ZERO,
+            joining: false,
             controllers: Vec::new(),
             injector: Injector::new(config.seed),
             latency_class: config.latency_class,
@@ -393,7 +402,8 @@ impl Bus {
     pub fn bit_time(&self) -> BusDuration {
         self.bit
     }
-    /// Adds a controller.
+    /// Adds a controller. It takes part at once, as on a bus that has been idle before: a
+    /// controller joining later integrates first ([`Bus::set_connected`]).
     pub fn attach(&mut self, config: ControllerConfig) -> NodeId {
         let id = NodeId(self.controllers.len() as u16);
         let mut c = Controller::new(config);
@@ -451,6 +461,19 @@ impl Bus {
     /// matching [`Event::TxDone`] or [`Event::TxAborted`] carries; `Ok(None)` when the transmit
     /// queue is full (counted as refused).
     pub fn submit(&mut self, node: NodeId, frame: Frame, at: BusTime) -> Result<Option<u64>, Error> {
+        self.submit_with(node, frame, at, false)
+    }
+
+    /// [`Bus::submit`], for one attempt only when `single_shot` (the SJA1000's TR with AT, Linux's
+    /// ONE_SHOT): an attempt that fails or loses arbitration drops the frame, answered with an
+    /// [`Event::TxAborted`] when that attempt is over; there is no retransmission.
+    pub fn submit_with(
+        &mut self,
+        node: NodeId,
+        frame: Frame,
+        at: BusTime,
+        single_shot: bool,
+    ) -> Result<Option<u64>, Error> {
         let at = if at < self.committed {
             self.late_submissions += 1;
             self.committed
@@ -467,6 +490,7 @@ impl Bus {
             frame,
             submitted: at,
             token,
+            single_shot,
         });
         self.next_token += 1;
         Ok(Some(token))
@@ -490,17 +514,56 @@ impl Bus {
         Ok(())
     }
 
-    /// Disconnects a node from the bus or connects it again at `at`.
+    /// Puts a node's controller in listen-only mode or takes it out: while in it, the node
+    /// drives nothing dominant (it neither acknowledges nor sends frames, error or overload
+    /// flags; its frames wait in its queue) and its error counters stay as they are, but it
+    /// still receives (SJA1000 data sheet 6.4.3, MOD.LOM; ISO 11898-1, bus monitoring mode).
+    /// Leaving the mode, at `at`, it joins the bus again: it integrates first.
+    pub fn set_listen_only(&mut self, node: NodeId, on: bool, at: BusTime) -> Result<(), Error> {
+        let c = self.get_mut(node)?;
+        let leaving = c.listen_only && !on;
+        c.listen_only = on;
+        c.fault.set_frozen(on);
+        if leaving {
+            self.join(node.index(), at);
+        }
+        Ok(())
+    }
+
+    /// Controller `i` joins the bus at `at`: before it takes part (sends, receives,
+    /// acknowledges, flags) it waits for 11 consecutive recessive bits, counted from `at` or from
+    /// the end of the last dominant bit of what was on the bus then (ISO 11898-1, bus
+    /// integration). The frame in progress when it joins is not received by it.
+    fn join(&mut self, i: usize, at: BusTime) {
+        let from = at.max(self.last_dominant);
+        self.joining = true;
+        let c = &mut self.controllers[i];
+        c.integrating = Some(from);
+        c.mac = wire::Mac::default();
+        c.mac_at = at;
+    }
+
+    /// Puts a node's controller in self-test mode or takes it out: its own frames then need no
+    /// acknowledge (SJA1000 data sheet 6.4.3, MOD.STM; Linux's CAN_CTRLMODE_PRESUME_ACK).
+    pub fn set_presume_ack(&mut self, node: NodeId, on: bool) -> Result<(), Error> {
+        self.get_mut(node)?.presume_ack = on;
+        Ok(())
+    }
+
+    /// Disconnects a node from the bus or connects it again at `at`. Connected again, it
+    /// integrates before it takes part ([`INTEGRATION_BITS`] recessive bits).
     pub fn set_connected(&mut self, node: NodeId, connected: bool, at: BusTime) -> Result<(), Error> {
         let c = self.get_mut(node)?;
-        if connected && !c.connected {
-            // It sees an idle bus from here on, and sends nothing before it is back.
+        let joins = connected && !c.connected;
+        if joins {
+            // A bus-off node counts its recovery from here on, and sends nothing before.
             c.recessive_since = c.recessive_since.max(at);
             c.ready_at = c.ready_at.max(at);
-            c.mac = wire::Mac::default();
-            c.mac_at = at;
         }
         c.connected = connected;
+        if joins {
+            self.join(node.index(), at);
+        }
         Ok(())
     }
 
@@ -508,12 +571,15 @@ impl Bus {
     pub fn reset_node(&mut self, node: NodeId, at: BusTime) -> Result<(), Error> {
         let c = self.get_mut(node)?;
         c.fault.reset();
+        c.listen_only = false;
+        c.presume_ack = false;
         c.tx.clear();
         c.clear_rx();
         c.recessive_since = at;
         c.ready_at = c.ready_at.max(at);
-        c.mac = wire::Mac::default();
-        c.mac_at = at;
+        if c.connected {
+            self.join(node.index(), at);
+        }
         self.events.push(Event::Restarted { node, at });
         self.sample(node, at);
         Ok(())
@@ -533,14 +599,22 @@ impl Bus {
         Ok(())
     }
 
-    /// Drops the frames a node's controller has not started sending (a transmission already
-    /// on the bus is committed and finishes): each becomes an [`Event::TxAborted`] at `at`.
+    /// Drops every frame in a node's queue: each becomes an [`Event::TxAborted`] at `at`. An
+    /// attempt already on the bus at `at` runs to its end (the engine commits attempts whole):
+    /// if it succeeded, its frame has left the queue and is answered with its
+    /// [`Event::TxDone`]; if it failed or lost arbitration, its frame is not retried, and the
+    /// answer comes when that attempt was over for the node.
     pub fn abort(&mut self, node: NodeId, at: BusTime) -> Result<(), Error> {
         let at = at.max(self.committed);
         let c = self.get_mut(node)?;
-        let dropped: Vec<Pending> = c.tx.drain(..).collect();
+        let (token, end) = c.attempt;
+        let mut dropped: Vec<(BusTime, Pending)> =
+            c.tx.drain(..)
+                .map(|p| (if p.token == token { at.max(end) } else { at }, p))
+                .collect();
         c.counters.tx_aborted += dropped.len() as u64;
-        for p in dropped {
+        dropped.sort_by_key(|(t, _)| *t);
+        for (at, p) in dropped {
             self.events.push(Event::TxAborted {
                 node,
                 at,
@@ -563,18 +637,59 @@ impl Bus {
         Ok(())
     }
 
+    /// True when events wait for [`Bus::take_events`].
+    pub fn has_events(&self) -> bool {
+        !self.events.is_empty()
+    }
+
     /// Takes the events committed so far.
     pub fn take_events(&mut self) -> std::vec::Drain<'_, Event> {
         self.events.drain(..)
     }
 
-    /// When a frame would next start, if nothing else were submitted.
+    /// When a frame would next start, if nothing else were submitted. A controller still
+    /// integrating starts no earlier than its 11th recessive bit is over.
     fn next_sof(&self) -> Option<BusTime> {
+        if !self.joining {
+            // Nobody integrating (nearly always): the frames waiting in controllers that may send.
+            return self
+                .controllers
+                .iter()
+                .filter(|c| c.may_send())
+                .filter_map(|c| c.tx.front().map(|p| p.submitted.max(c.ready_at)))
+                .min();
+        }
+        let integration = self.bit * INTEGRATION_BITS;
         self.controllers
             .iter()
-            .filter(|c| c.on_bus())
-            .filter_map(|c| c.tx.front().map(|p| p.submitted.max(c.ready_at)))
+            .filter(|c| c.connected && !c.listen_only && c.fault.state() != ErrorState::BusOff)
+            .filter_map(|c| {
+                let integrated = c.integrating.map_or(BusTime::ZERO, |t| t + integration);
+                c.tx.front().map(|p| p.submitted.max(c.ready_at).max(integrated))
+            })
             .min()
+    }
+
+    /// Controllers whose 11 recessive bits are over by `sof` take part from here.
+    fn integrate_by(&mut self, sof: BusTime) {
+        if !self.joining {
+            return;
+        }
+        let integration = self.bit * INTEGRATION_BITS;
+        let mut still = false;
+        for c in &mut self.controllers {
+            if let Some(t) = c.integrating {
+                if t + integration <= sof {
+                    c.integrating = None;
+                    c.mac = wire::Mac::default();
+                    c.mac_at = sof;
+                    c.ready_at = c.ready_at.max(t + integration);
+                } else {
+                    still = true;
+                }
+            }
+        }
+        self.joining = still;
     }
 
     /// When the next bus-off node would recover, if no frame came first.
@@ -656,11 +771,30 @@ impl Bus {
             return;
         }
         c.recovery_requested = false;
-        // Back on the bus from here: an idle bus, and nothing sent before the recovery.
+        // Back on the bus from here: an idle bus, and nothing sent before the recovery. The
+        // 128 × 11 recessive bits integrate it as well.
+        c.integrating = None;
         c.ready_at = c.ready_at.max(at);
         c.mac = wire::Mac::default();
         c.mac_at = at;
         self.note(node, at, changes);
+    }
+
+    /// After an attempt of controller `i` that did not send its frame: a single-shot frame is
+    /// dropped, answered with [`Event::TxAborted`] at `at`.
+    pub(crate) fn drop_single_shot(&mut self, i: usize, at: BusTime, token: u64) {
+        let c = &mut self.controllers[i];
+        if !c.tx.front().is_some_and(|p| p.single_shot && p.token == token) {
+            return;
+        }
+        let Some(p) = c.tx.pop_front() else { return };
+        c.counters.tx_aborted += 1;
+        self.events.push(Event::TxAborted {
+            node: NodeId(i as u16),
+            at,
+            token: p.token,
+            frame: p.frame,
+        });
     }
 
     /// Tells of a controller's recovery progress since `before` sequences, when it reports it.
@@ -741,13 +875,14 @@ impl Bus {
 
     fn attempt(&mut self, sof: BusTime) {
         self.committed = self.committed.max(sof);
+        self.integrate_by(sof);
         let bit = self.bit;
         // Contenders: nodes ready to start within the same bit time.
         let mut winner: Option<(crate::ArbitrationKey, usize)> = None;
         let mut starters = std::mem::take(&mut self.transmitters);
         starters.clear();
         for (i, c) in self.controllers.iter().enumerate() {
-            if !c.on_bus() {
+            if !c.may_send() {
                 continue;
             }
             let Some(p) = c.tx.front() else { continue };
@@ -797,14 +932,22 @@ impl Bus {
             other.arbitration() == key && other != frame
         });
         let sends_it = |c: &Controller| c.tx.front().is_some_and(|p| p.frame == frame);
-        let acked = self
+        let ackers = self
             .controllers
             .iter()
             .enumerate()
-            .any(|(i, c)| c.acks && c.on_bus() && !(starters.contains(&i) && sends_it(c)));
+            .any(|(i, c)| c.acks() && c.on_bus() && !(starters.contains(&i) && sends_it(c)));
+        let acked = ackers
+            || starters
+                .iter()
+                .map(|&i| &self.controllers[i])
+                .filter(|c| sends_it(c))
+                .all(|c| c.presume_ack);
         if decision.is_none() && !disturbed && !clash && acked && all_idle {
             // Starters sending another frame lose arbitration; the rest go out together.
             let mut lost_at = Vec::new();
+            // Each loser with the token of the frame it tried.
+            let mut losers: Vec<(usize, u64)> = Vec::new();
             let mut k = 0;
             while k < starters.len() {
                 let c = &mut self.controllers[starters[k]];
@@ -812,10 +955,11 @@ impl Bus {
                     k += 1;
                 } else if !self.arbitration_events {
                     c.counters.arbitration_lost += 1;
-                    starters.swap_remove(k);
+                    losers.push((starters.swap_remove(k), c.tx.front().map_or(0, |p| p.token)));
                 } else {
                     c.counters.arbitration_lost += 1;
                     let own = c.tx.front().map(|p| p.frame);
+                    let token = c.tx.front().map_or(0, |p| p.token);
                     let lost = own
                         .and_then(|f| bits::arbitration_lost_at(&f, &frame))
                         .unwrap_or(0);
@@ -826,7 +970,7 @@ impl Bus {
                         at: sof + u64::from(wire + 1) * bit,
                         bit: lost,
                     });
-                    starters.swap_remove(k);
+                    losers.push((starters.swap_remove(k), token));
                 }
             }
             lost_at.sort_by_key(Event::at);
@@ -838,7 +982,12 @@ impl Bus {
                 }
                 self.carried = false;
             }
-            self.succeed(sof, w, &starters, frame, total_bits);
+            self.succeed(sof, w, &starters, frame, total_bits, ackers);
+            let end = sof + (u64::from(total_bits) - INTERMISSION_BITS) * bit;
+            for (i, token) in losers {
+                self.controllers[i].attempt = (token, end);
+                self.drop_single_shot(i, end, token);
+            }
         } else {
             let mut plan = Plan {
                 flips: Vec::new(),
@@ -880,13 +1029,40 @@ impl Bus {
         self.transmitters = starters;
     }
 
-    fn succeed(&mut self, sof: BusTime, w: usize, transmitters: &[usize], frame: Frame, total_bits: u32) {
+    fn succeed(
+        &mut self,
+        sof: BusTime,
+        w: usize,
+        transmitters: &[usize],
+        frame: Frame,
+        total_bits: u32,
+        acked: bool,
+    ) {
         let bit = self.bit;
         let end = sof + (u64::from(total_bits) - INTERMISSION_BITS) * bit;
         let idle = sof + u64::from(total_bits) * bit;
         // After the ACK slot (dominant) everything up to the next SOF is recessive.
         let ack_slot_end = end - (7 + 1) * bit;
         self.break_recessive_runs(sof, ack_slot_end);
+        // The last dominant bit: the ACK slot, or without an acknowledge (a self-test
+        // transmitter alone) the last dominant bit of the stuffed part.
+        let last_dominant = if acked {
+            ack_slot_end
+        } else {
+            let stuffed = bits::encode(&frame).stuffed;
+            let last = (0..stuffed.len())
+                .rev()
+                .find(|&k| stuffed.get(k) == Some(wire::DOM));
+            sof + (last.map_or(0, |k| k as u64) + 1) * bit
+        };
+        self.last_dominant = self.last_dominant.max(last_dominant);
+        if self.joining {
+            for c in &mut self.controllers {
+                if let Some(t) = c.integrating.as_mut() {
+                    *t = (*t).max(last_dominant);
+                }
+            }
+        }
         let suspend_end = idle + SUSPEND_BITS * bit;
         self.stats.advance_to(end);
         self.stats.busy(sof, idle, total_bits);
@@ -906,6 +1082,7 @@ impl Bus {
             c.mac_at = idle;
             c.ready_at = c.ready_at.max(idle);
             let Some(p) = c.tx.pop_front() else { continue };
+            c.attempt = (p.token, end);
             c.counters.tx_frames += 1;
 
             if c.config.filter.accepts(&frame) {
@@ -944,8 +1121,13 @@ impl Bus {
                 }
                 continue;
             }
-            let recovering = c.fault.rec() > 0;
-            let changes = c.fault.receive_success();
+            // Rule 8 counts a reception only with the node's ACK sent.
+            let recovering = c.fault.rec() > 0 && c.acks();
+            let changes = if c.acks() {
+                c.fault.receive_success()
+            } else {
+                Changes::NONE
+            };
             if c.config.filter.accepts(&frame) {
                 if c.store(end, frame) {
                     self.stats.deliveries += 1;

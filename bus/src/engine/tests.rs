@@ -395,9 +395,10 @@ fn disconnected_nodes_neither_send_nor_receive() {
     b.set_connected(gone, true, BusTime::from_nanos(10_000_000))
         .unwrap();
     let events = run(&mut b, 20_000_000);
+    // Back on an idle bus, it integrates first: 11 recessive bits of 4 µs.
     assert_eq!(
         frames(&events).iter().map(|f| (f.0, f.2)).collect::<Vec<_>>(),
-        [(10_000_000, gone)]
+        [(10_000_000 + 11 * 4_000, gone)]
     );
 }
 
@@ -618,11 +619,14 @@ fn receive_books_place_every_frame() {
     send(&mut b, &mut t, to_rx, 4); // missed
     send(&mut b, &mut t, other, 1); // not addressed to it: not missed either
     b.set_connected(rx, true, BusTime::from_nanos(t)).unwrap();
+    // It takes part once it has seen 11 recessive bits (44 µs): give it 100 µs.
+    t += 100_000;
     send(&mut b, &mut t, to_rx, 2); // stored
     let (read, _) = b.drain_rx(rx, BusTime::from_nanos(t)).unwrap();
     assert_eq!(read.len(), 5);
     send(&mut b, &mut t, to_rx, 1); // stored, then cleared by the reset
     b.reset_node(rx, BusTime::from_nanos(t)).unwrap();
+    t += 100_000;
     send(&mut b, &mut t, to_rx, 1); // stored, still there
     // The sender's own frames are not received, but its filter (All) accepts them.
     let c = *b.controller(rx).unwrap().counters();

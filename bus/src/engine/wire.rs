@@ -383,6 +383,12 @@ pub(crate) struct Mac {
     pub dec: Decoder,
     /// It takes part in acknowledging.
     pub acks: bool,
+    /// Listen-only: it drives nothing dominant. Its error flags are passive ones (ISO 11898-1's
+    /// bus monitoring mode sends only recessive bits), and an overload condition makes it wait
+    /// for the bus to be recessive as after a flag.
+    pub silent: bool,
+    /// Its own frames need no acknowledge (self-test mode): a recessive ACK slot is no error.
+    pub presume_ack: bool,
     /// Overload frames it still sends after this frame (a receiver that is not ready).
     pub overloads: u8,
     /// Stuffed bits of the current frame so far.
@@ -400,6 +406,8 @@ impl Default for Mac {
             tx_role: false,
             dec: Decoder::default(),
             acks: true,
+            silent: false,
+            presume_ack: false,
             overloads: 0,
             pos: 0,
             passive: false,
@@ -443,6 +451,9 @@ impl Mac {
 
     /// The level it drives for the next bit.
     pub fn drive(&self) -> bool {
+        if self.silent {
+            return REC;
+        }
         match self.phase {
             Phase::Frame => match (&self.sending, self.dec.tail) {
                 (Some(s), None) => s.stuffed.get(self.pos as usize).unwrap_or(REC),
@@ -485,6 +496,15 @@ impl Mac {
 
     /// Takes the level it sampled for the bit it drove `sent` on.
     pub fn sample(&mut self, sent: bool, bit: bool) -> Detected {
+        if self.silent && matches!(self.phase, Phase::OverloadFlag { .. }) {
+            // A silent controller sends no overload flag: it waits for a recessive bit, as
+            // after a flag, and counts nothing meanwhile.
+            self.phase = Phase::AfterFlag {
+                error: false,
+                active: false,
+                dominant: 0,
+            };
+        }
         match self.phase {
             Phase::Idle => {
                 if bit == DOM {
@@ -664,7 +684,7 @@ impl Mac {
             let index = self.dec.next_index();
             let in_arbitration = tail.is_none() && (1..=s.arbitration_end).contains(&index);
             if tail == Some(tail::ACK) {
-                if bit == REC {
+                if bit == REC && !self.presume_ack {
                     return self.signal_error(Found {
                         kind: crate::fault::TxErrorKind::Ack,
                         location: Location::Ack,
