@@ -37,4 +37,19 @@ pub enum Error {
         /// What is wrong.
         reason: String,
     },
+    /// A trace record came after one stamped later had already been handed to the sinks, by
+    /// more than the reorder window ([`crate::trace::Reorder`]): it cannot be written in time
+    /// order. Not the input's fault: the hub produced it later than the engine's contract
+    /// allows, a bug of harvemu's own.
+    #[error(
+        "internal error: a trace record at {at} s came after one at {released} s was written, later than the trace's reorder window of {window} allows"
+    )]
+    TraceOrder {
+        /// Bus time of the record that came too late.
+        at: crate::time::BusTime,
+        /// Bus time of the last record already handed on.
+        released: crate::time::BusTime,
+        /// The reorder window.
+        window: crate::time::BusDuration,
+    },
 }

@@ -25,6 +25,9 @@ use crate::time::{BusTime, Epoch, Stamp};
 use core::fmt::Write;
 use std::io;
 
+mod order;
+pub use order::{Reorder, WINDOW_BITS};
+
 /// Error classes (can_id bits) and data bytes of linux/can/error.h.
 pub mod err {
     /// Lost arbitration.
@@ -262,7 +265,8 @@ impl<'a> Record<'a> {
     }
 }
 
-/// Where the hub's trace goes: a file format, a count, a view. Records arrive in time order.
+/// Where the hub's trace goes: a file format, a count, a view. Records arrive in time order, equal
+/// times in the order the bus gave them: the hub passes them through a [`Reorder`] first.
 ///
 /// A sink whose `record` or `flush` fails is given nothing more; the hub keeps the first error
 /// to report it (`Snapshot::trace_error` in `bus-runtime`).

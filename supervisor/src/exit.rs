@@ -84,6 +84,13 @@ mod tests {
         // Neither the input's fault nor an output's: not 1, which says an expectation failed.
         assert_eq!(err(Error::Mailbox(actix::MailboxError::Closed)), 70);
         assert_eq!(err(bus_runtime::Error::HubStopped.into()), 70);
+        // A trace record later than the reorder window (docs/TRACES.md, "Time order").
+        let late = bus::Error::TraceOrder {
+            at: bus::time::BusTime::from_micros(1),
+            released: bus::time::BusTime::from_micros(2),
+            window: bus::time::BusDuration::from_millis(80),
+        };
+        assert_eq!(err(bus_runtime::Error::Bus(late).into()), 70);
         assert_eq!(err(Error::NoNode("F9".into())), 70);
         assert_eq!(err(Error::System(missing())), 70);
         let io: crate::Result<Ended> = Err(output());

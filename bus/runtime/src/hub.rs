@@ -20,6 +20,17 @@
 //! fast as they answer; the runtime's clock is not consulted at all, so a run costs no timers and
 //! is deterministic. Runtimes made by [`runtime`] tell hubs made on their thread which to be.
 //!
+//! # Trace
+//!
+//! The engine's events become trace records ([`bus::trace::Record`]) for the sinks, through a
+//! reorder window first ([`bus::trace::Reorder`], [`bus::trace::WINDOW_BITS`] bit times): the
+//! engine commits a frame or error frame whole at its start, so its records can lie ahead of
+//! what a node's command (a controller reset, counters written) or a fault injection makes the
+//! bus say at the hub's present. Sinks get records in time order, equal times as they came, a
+//! window behind the newest, and the rest when the trace ends ([`FlushTrace`], or the hub
+//! stopping). A record later than the window allows is not written: it is
+//! [`bus::Error::TraceOrder`], which every [`RunUntil`] answers with from then on.
+//!
 //! # Wakes
 //!
 //! A node is woken at its deadline (`poll_timeout`), and a reaction time after a frame reaches its
@@ -48,7 +59,7 @@ use bus::fault::ErrorState;
 use bus::node::{ControllerEvent, Report};
 use bus::pacing::{Overruns, Pace, Pacer};
 use bus::time::{BusDuration, BusTime, Epoch};
-use bus::trace::{Record, Sink};
+use bus::trace::{Kind, Record, Reorder, Sink, Source};
 use std::time::Duration;
 use tokio::sync::oneshot;
 
@@ -205,9 +216,18 @@ pub struct Hub {
     /// The id of the deadline the wall timer is armed for; others are stale.
     armed: u64,
     stop_at: Option<BusTime>,
-    on_stop: Vec<oneshot::Sender<BusTime>>,
+    on_stop: Vec<oneshot::Sender<Result<BusTime, bus::Error>>>,
     /// Where the trace goes; a sink that failed is dropped.
     sinks: Vec<Box<dyn Sink>>,
+    /// The trace's records on their way to the sinks, put in time order: the bus commits whole
+    /// frames ahead of time, and what nodes' commands make it say comes at their present, which
+    /// may be earlier ([`Reorder`]). Each record is its source (the bus, or a controller) and
+    /// what it holds; names are looked up as it goes out.
+    order: Reorder<(Option<NodeId>, Kind)>,
+    /// A record came too late to be put in order: every run answers with this from then on.
+    order_error: Option<bus::Error>,
+    /// [`FlushTrace`] asked for the end of the trace: the next stop hands every record on.
+    trace_ends: bool,
     /// The first error of a sink.
     trace_error: Option<String>,
     scratch: Vec<Event>,
@@ -248,8 +268,12 @@ struct Observer {
 impl Hub {
     /// A hub with no nodes; each of `sinks` receives the trace's records ([`bus::trace`]).
     pub fn new(config: HubConfig, sinks: Vec<Box<dyn Sink>>) -> Result<Hub, Error> {
+        let bus = Bus::new(config.bus)?;
         Ok(Hub {
-            bus: Bus::new(config.bus)?,
+            order: Reorder::for_bit_time(bus.bit_time()),
+            order_error: None,
+            trace_ends: false,
+            bus,
             iface: config.iface,
             epoch: config.epoch,
             pacer: Pacer::new(config.slack, config.overrun_threshold),
@@ -361,6 +385,11 @@ impl Hub {
         }
         // A wall-timer deadline set before is stale from here on.
         self.armed += 1;
+        // What the nodes' commands made the bus say (an abort's answer, counters written) goes
+        // out before the bus moves on: nothing else would carry it to its node.
+        if self.bus.has_events() {
+            self.dispatch();
+        }
         // Nodes become due only by being woken (recomputed then) or by new inputs (which
         // `dispatch` reports), so the earliest due time is kept up to date, not rescanned.
         let mut due = self.next_due();
@@ -405,16 +434,17 @@ impl Hub {
         let mut scratch = std::mem::take(&mut self.scratch);
         scratch.extend(self.bus.take_events());
         for event in scratch.drain(..) {
-            if !self.sinks.is_empty() {
-                let controllers = self.bus.controllers();
-                let name = |n: NodeId| {
-                    controllers
-                        .get(n.index())
-                        .map_or("?", |c| c.config().name.as_str())
+            // Into the reorder window; names are looked up as records go out (`hand_over`).
+            if !self.sinks.is_empty()
+                && let Some(record) = Record::of_event(&self.iface, |_| "", &event)
+            {
+                let node = match record.source {
+                    Source::Bus => None,
+                    Source::Controller { node, .. } => Some(node),
                 };
-                if let Some(record) = Record::of_event(&self.iface, name, &event) {
-                    let error = &mut self.trace_error;
-                    self.sinks.retain_mut(|s| kept(s.record(&record), error));
+                if let Err(e) = self.order.push(record.at, (node, record.kind)) {
+                    tracing::error!(error = %e, "a trace record out of order");
+                    self.order_error.get_or_insert(e);
                 }
             }
             if let Event::Frame { end, node, frame, .. } = event {
@@ -487,7 +517,47 @@ impl Hub {
             }
         }
         self.scratch = scratch;
+        self.hand_over(false);
         due
+    }
+
+    /// Hands the trace's records that are due to the sinks, in time order: those a reorder
+    /// window older than the newest, or every one when `all` (the end of the trace).
+    fn hand_over(&mut self, all: bool) {
+        if self.sinks.is_empty() {
+            return;
+        }
+        let controllers = self.bus.controllers();
+        let name = |n: NodeId| {
+            controllers
+                .get(n.index())
+                .map_or("?", |c| c.config().name.as_str())
+        };
+        loop {
+            let next = if all {
+                self.order.pop_any()
+            } else {
+                self.order.pop()
+            };
+            let Some((at, (node, kind))) = next else {
+                return;
+            };
+            let source = match node {
+                None => Source::Bus,
+                Some(node) => Source::Controller {
+                    node,
+                    name: name(node),
+                },
+            };
+            let record = Record {
+                at,
+                bus: &self.iface,
+                source,
+                kind,
+            };
+            let error = &mut self.trace_error;
+            self.sinks.retain_mut(|s| kept(s.record(&record), error));
+        }
     }
 
     /// Wakes every node due at `at`; the bus waits until all of them have answered. Returns false
@@ -603,7 +673,7 @@ impl Hub {
             }
         }
         for frame in report.transmit {
-            self.submit_for(first, frame, now);
+            self.submit_for(first, frame, now, false);
         }
         // A deadline the logic left in the past would wake it at the same instant for ever.
         self.slots[first].next_timeout = report.next_timeout.map(|t| {
@@ -622,8 +692,8 @@ impl Hub {
     }
 
     /// Queues a frame of slot `i`'s logic; a full queue is told back as refused.
-    fn submit_for(&mut self, i: usize, frame: Frame, now: BusTime) {
-        match self.bus.submit(NodeId(i as u16), frame, now) {
+    fn submit_for(&mut self, i: usize, frame: Frame, now: BusTime, single_shot: bool) {
+        match self.bus.submit_with(NodeId(i as u16), frame, now, single_shot) {
             Ok(Some(_)) => {}
             Ok(None) => self.slots[i].input(now, Some(ControllerEvent::Refused(frame)), false),
             Err(e) => tracing::error!(error = %e, "submit failed"),
@@ -666,11 +736,16 @@ impl Hub {
     fn finish(&mut self, at: BusTime) {
         self.now = self.now.max(at);
         self.bus.advance_stats(at);
+        // The end of the trace; or a run about to fail for a record out of order, which should
+        // leave everything else in its trace.
+        if std::mem::take(&mut self.trace_ends) || self.order_error.is_some() {
+            self.hand_over(true);
+        }
         self.flush_sinks();
         self.paused = true;
         self.stop_at = None;
         for tx in self.on_stop.drain(..) {
-            let _ = tx.send(at);
+            let _ = tx.send(self.order_error.clone().map_or(Ok(at), Err));
         }
     }
 }
@@ -712,7 +787,19 @@ impl Actor for Hub {
     }
 
     fn stopped(&mut self, _ctx: &mut Context<Self>) {
+        self.hand_over(true);
         self.flush_sinks();
+    }
+}
+
+impl Drop for Hub {
+    /// A hub dropped without being stopped (its system went away first) still hands on the
+    /// records it held.
+    fn drop(&mut self) {
+        if !self.order.is_empty() {
+            self.hand_over(true);
+            self.flush_sinks();
+        }
     }
 }
 
@@ -821,7 +908,9 @@ impl Hub {
 
 /// Runs the bus until bus time `0` and answers with the time reached: that time, or the moment a
 /// node crashed or asked to stop ([`bus::node::NodeLogic::stop_here`]), if one did on the way
-/// (so that a supervisor, or a program waiting for a frame, can act at once).
+/// (so that a supervisor, or a program waiting for a frame, can act at once). Once a trace
+/// record has come too late to be written in time order ([`bus::Error::TraceOrder`], a bug),
+/// every run answers with that error.
 #[derive(Message)]
 #[rtype(result = "Result<BusTime, Error>")]
 pub struct RunUntil(pub BusTime);
@@ -834,14 +923,16 @@ impl Handler<RunUntil> for Hub {
         self.stop_at = Some(self.stop_at.map_or(msg.0, |s| s.min(msg.0)));
         self.paused = false;
         self.pump(ctx);
-        Box::pin(async move { rx.await.map_err(|_| Error::HubStopped) })
+        Box::pin(async move { rx.await.map_err(|_| Error::HubStopped)?.map_err(Error::from) })
     }
 }
 
-/// Brings the trace up to date: the bus stops at the present bus time (a run in progress ends
-/// there, and its [`RunUntil`] answers with it) and every sink is flushed. Answers with that
-/// time. A caller sends it before it reads the end of the trace: a file to finish, a count, a
-/// snapshot's `trace_error`.
+/// Ends the trace: the bus stops at the present bus time (a run in progress ends there, and its
+/// [`RunUntil`] answers with it), every record still held for time order goes to the sinks,
+/// and every sink is flushed. Answers with that time. A caller sends it before it reads the end
+/// of the trace: a file to finish, a count, a snapshot's `trace_error`. A bus run on after it
+/// must not give a record older than those (the reorder window is empty then): that is the
+/// error of [`RunUntil`].
 #[derive(Message)]
 #[rtype(result = "Result<BusTime, Error>")]
 pub struct FlushTrace;
@@ -849,7 +940,9 @@ pub struct FlushTrace;
 impl Handler<FlushTrace> for Hub {
     type Result = ResponseFuture<Result<BusTime, Error>>;
     fn handle(&mut self, _: FlushTrace, ctx: &mut Context<Self>) -> Self::Result {
-        // Stopping at the present flushes (`finish`), once the nodes woken, if any, have answered.
+        // Stopping at the present hands on and flushes (`finish`), once the nodes woken, if any,
+        // have answered.
+        self.trace_ends = true;
         let present = self.now.max(self.bus.committed());
         self.handle(RunUntil(present), ctx)
     }
@@ -968,7 +1061,8 @@ pub struct Submit {
 impl Handler<Submit> for Hub {
     type Result = Result<bool, Error>;
     fn handle(&mut self, msg: Submit, ctx: &mut Context<Self>) -> Self::Result {
-        let at = self.present().max(self.bus.committed());
+        // Not before the hub's present: what the nodes' commands did there is in the trace.
+        let at = self.present().max(self.bus.committed()).max(self.now);
         let queued = self.bus.submit(msg.node, msg.frame, at)?.is_some();
         self.pump(ctx);
         Ok(queued)

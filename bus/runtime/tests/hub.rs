@@ -9,7 +9,9 @@ use bus::node::NodeLogic;
 use bus::time::{BusTime, Epoch};
 use bus::trace::{CandumpWriter, Sink};
 use bus::{Frame, bits};
-use bus_runtime::hub::{Attach, Control, GetSnapshot, Hub, HubConfig, RunUntil, runtime};
+use bus_runtime::hub::{
+    Attach, Control, FlushTrace, GetSnapshot, Hub, HubConfig, RunUntil, SubmitAt, runtime,
+};
 use bus_runtime::node::NodeActor;
 use common::Periodic;
 use std::cell::RefCell;
@@ -548,4 +550,105 @@ fn a_node_that_asks_stops_the_run_where_it_received_a_frame() {
         let snap = hub.send(GetSnapshot).await.unwrap();
         assert_eq!(snap.now, second);
     });
+}
+
+/// Attaches a controller with no logic behind it (driven from outside, or silent).
+async fn attach_bare(hub: &Addr<Hub>, name: &str) -> bus::engine::NodeId {
+    hub.send(Attach {
+        controller: ControllerConfig::named(name),
+        node: None,
+        reaction: Duration::ZERO,
+    })
+    .await
+    .unwrap()
+}
+
+/// The engine commits a frame whole at its start; a controller reset at the hub's present,
+/// while that frame is still on the bus, is written before the frame's end (docs/TRACES.md,
+/// "Time order"), and the trace never goes back.
+#[test]
+fn a_reset_while_a_frame_is_on_the_bus_is_written_before_that_frame_ends() {
+    let marker = "0601F5D0#200D0002FFBFFF00";
+    let trace = Shared::default();
+    let t = trace.clone();
+    in_virtual_time(async move {
+        let hub = Hub::new(HubConfig::new(false), candump(t)).unwrap().start();
+        attach(&hub, "a", Box::new(Periodic::new(marker, 100, 250)), 0).await;
+        let b = attach_bare(&hub, "b").await;
+        // a's first frame starts at 250 µs and ends after 500 µs: the engine has it already.
+        hub.send(RunUntil(BusTime::from_micros(500)))
+            .await
+            .unwrap()
+            .unwrap();
+        hub.send(Control::Reset(b)).await.unwrap().unwrap();
+        hub.send(RunUntil(BusTime::from_millis(250)))
+            .await
+            .unwrap()
+            .unwrap();
+        hub.send(FlushTrace).await.unwrap().unwrap();
+    });
+    let end = 250_000 + (bits::frame_bits(&parse_frame(marker).unwrap()) as u64 - 3) * 4000;
+    assert!(end > 500_000);
+    let lines = lines(&trace);
+    assert_eq!(
+        lines[..2],
+        [
+            format!("({}) harv0.b 20000304#0040000000000000", stamp(500_000)),
+            format!("({}) harv0 {marker}", stamp(end)),
+        ]
+    );
+    // Three frames (at 0.25, 100.25 and 200.25 ms), each written once.
+    assert_eq!(lines.len(), 4, "{lines:#?}");
+    let time = |l: &String| l.split(')').next().unwrap().to_string();
+    assert!(lines.windows(2).all(|w| time(&w[0]) <= time(&w[1])), "{lines:#?}");
+}
+
+/// A record that comes later than the reorder window allows (here: a frame submitted in the
+/// past of a hub that already wrote a later record, which [`SubmitAt`]'s sender must never do)
+/// is not written out of order: the run answers with the error, and the trace stays in order.
+#[test]
+fn a_record_later_than_the_window_is_an_error_never_a_line_out_of_order() {
+    let trace = Shared::default();
+    let t = trace.clone();
+    in_virtual_time(async move {
+        let hub = Hub::new(HubConfig::new(false), candump(t)).unwrap().start();
+        let x = attach_bare(&hub, "x").await;
+        let b = attach_bare(&hub, "b").await;
+        hub.send(RunUntil(BusTime::from_millis(1)))
+            .await
+            .unwrap()
+            .unwrap();
+        hub.send(Control::Reset(b)).await.unwrap().unwrap();
+        hub.send(RunUntil(BusTime::from_millis(100)))
+            .await
+            .unwrap()
+            .unwrap();
+        // 100 ms is more than the window (80 ms at 250 kbit/s) past 1 ms: that reset is written.
+        hub.send(Control::Reset(b)).await.unwrap().unwrap();
+        let frame = parse_frame("123#01").unwrap();
+        let at = BusTime::from_micros(500);
+        assert!(hub.send(SubmitAt { node: x, frame, at }).await.unwrap().unwrap());
+        let e = hub
+            .send(RunUntil(BusTime::from_millis(200)))
+            .await
+            .unwrap()
+            .unwrap_err();
+        assert!(
+            matches!(
+                e,
+                bus_runtime::Error::Bus(bus::Error::TraceOrder { released, .. })
+                    if released == BusTime::from_millis(1)
+            ),
+            "{e}"
+        );
+        assert!(e.to_string().contains("internal error"), "{e}");
+        assert!(hub.send(FlushTrace).await.unwrap().is_err());
+    });
+    assert_eq!(
+        lines(&trace),
+        [
+            format!("({}) harv0.b 20000304#0040000000000000", stamp(1_000_000)),
+            format!("({}) harv0.b 20000304#0040000000000000", stamp(100_000_000)),
+        ]
+    );
 }

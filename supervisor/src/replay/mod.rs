@@ -313,7 +313,7 @@ pub fn run(args: &Args) -> crate::Result<Ended> {
         if let Some(s) = interrupted {
             eprintln!("\nharvemu: interrupted by {}", s.describe());
         }
-        let _ = running.hub.send(FlushTrace).await;
+        running.hub.send(FlushTrace).await??;
         let snap = running.hub.send(GetSnapshot).await?;
         eprintln!("{}", crate::run::summary(&snap, &running));
         eprintln!(
