@@ -66,10 +66,18 @@ pub enum ControllerEvent {
 pub enum ControllerCommand {
     /// Queue this frame, as [`NodeLogic::poll_transmit`] does.
     Transmit(Frame),
-    /// Join the bus (a controller leaving reset mode); `listen_only` acknowledges nothing.
+    /// Queue this frame for one attempt only (single shot): an attempt that fails or loses
+    /// arbitration drops it, answered with [`ControllerEvent::Aborted`]. A frame the chip also
+    /// receives itself (self reception) is the chip's to store when [`ControllerEvent::Sent`]
+    /// comes: the bus does not deliver a controller's own frame to it.
+    TransmitOnce(Frame),
+    /// Join the bus (a controller leaving reset mode).
     Online {
-        /// Listen-only mode: it sends neither frames nor acknowledgements.
+        /// Listen-only mode: it drives nothing dominant (no frame, no acknowledgement, no error
+        /// or overload flag) and its error counters stay as they are; it still receives.
         listen_only: bool,
+        /// Self-test mode: its own frames need no acknowledge.
+        self_test: bool,
     },
     /// Leave the bus (reset mode): it neither sends nor receives, and frames not yet started
     /// are dropped.
@@ -151,6 +159,12 @@ pub trait NodeLogic {
     /// it stops at a crash, and runs on when asked again. Read once after every wake.
     fn stop_here(&mut self) -> bool {
         false
+    }
+    /// The run ends at `at` (not before the logic's last input): nothing reaches it after
+    /// that. A logic that writes something out as it goes brings it up to `at` (a firmware
+    /// node's instruction trace, which only its wakes move on). By default, nothing.
+    fn run_ends(&mut self, at: BusTime) {
+        let _ = at;
     }
     /// Takes a fault injected from outside (a scenario's timeline), from `now` on. A logic that
     /// cannot take this fault refuses it, and says why: by default every fault is refused.

@@ -180,12 +180,15 @@ impl Sja1000 {
         if self.counters_written {
             self.counters_written = false;
             if self.tec == 255 {
-                // The CPU-driven bus-off: as if forced by bus errors; reset mode stays set.
+                // The CPU-driven bus-off (data sheet 6.4.12): as if forced by bus errors; reset
+                // mode stays set. The bus side is told the node is bus off (TEC 256), so that
+                // the next clearing of RM starts the recovery sequence there.
                 self.bus_off = true;
                 self.state = ErrorState::BusOff;
                 self.tec = 127;
                 self.rec = 0;
                 self.update_status();
+                self.actions.push(Action::SetCounters { tec: 256, rec: 0 });
                 return;
             }
             if !self.bus_off {

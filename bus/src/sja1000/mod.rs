@@ -148,7 +148,8 @@ pub enum Action {
     },
     /// CMR.AT: drop the pending frame if its transmission has not started.
     Abort,
-    /// The CPU wrote TXERR or RXERR in reset mode: the node's counters are now these.
+    /// The CPU wrote TXERR or RXERR in reset mode: the node's counters are now these. A TEC of
+    /// 256 is the bus-off that leaving reset mode with TXERR 255 performs (data sheet 6.4.12).
     SetCounters {
         /// Transmit error counter.
         tec: u16,

@@ -23,14 +23,23 @@ impl Hub {
         let node = NodeId(i as u16);
         let result = match command {
             ControllerCommand::Transmit(frame) => {
-                self.submit_for(i, frame, now);
+                self.submit_for(i, frame, now, false);
                 Ok(())
             }
-            ControllerCommand::Online { listen_only } => {
+            ControllerCommand::TransmitOnce(frame) => {
+                self.submit_for(i, frame, now, true);
+                Ok(())
+            }
+            ControllerCommand::Online {
+                listen_only,
+                self_test,
+            } => {
                 self.slots[i].switches.listen_only = listen_only;
                 let tuned = self.slots[i].switches.mistuned.is_none();
                 self.bus
                     .set_connected(node, true, now)
+                    .and_then(|()| self.bus.set_listen_only(node, listen_only, now))
+                    .and_then(|()| self.bus.set_presume_ack(node, self_test))
                     .and_then(|()| self.bus.set_ack(node, tuned && !listen_only))
             }
             ControllerCommand::Offline => self
