@@ -9,7 +9,7 @@ use crate::sja1000::{Action, BusSide};
 use crate::{ExtendedId, Frame, Id, StandardId};
 
 /// CAN clock periods per CAN timer tick before the CANTCON prescaler (see docs/AT89C51CC03.md).
-const TIMER_DIVIDER: u64 = 6;
+pub(super) const TIMER_DIVIDER: u64 = 6;
 
 impl CanController {
     /// Takes what the bus did for this controller. Call [`set_time`](CanController::set_time)
@@ -17,9 +17,15 @@ impl CanController {
     pub fn on_event(&mut self, event: BusSide) {
         match event {
             BusSide::Received(frame) => self.received(&frame),
+            // The held frame was sent, even if the CPU asked to drop it meanwhile (an attempt
+            // on the wire runs to its end): TXOK on its channel. The communication is over, so
+            // its CANEN bit is cleared, unless the CPU configured the channel again since.
             BusSide::Transmitted => {
-                if let Some(c) = self.pending.take() {
-                    self.en &= !(1 << c);
+                if let Some(c) = self.release() {
+                    if !std::mem::take(&mut self.rearmed) {
+                        self.en &= !(1 << c);
+                        self.replies &= !(1 << c);
+                    }
                     let stamp = self.timer;
                     let ch = &mut self.channels[c];
                     ch.stch |= stch::TXOK;
@@ -27,10 +33,13 @@ impl CanController {
                     self.schedule();
                 }
             }
+            // The held frame was dropped: on request (ABRQ or CONCH = 00 cleared the channel's
+            // CANEN bit already; ENA cleared leaves the channel enabled, to send after ENA), or
+            // by the bus going bus off (the channel stays enabled). The model sets no flag (the
+            // data sheet names none). The bus holds nothing now: the next channel may go.
             BusSide::Aborted => {
-                // The channel's enable was cleared by whoever asked for the abort (ABRQ, or a
-                // CONCH write); the model sets no flag (the data sheet names none).
-                if self.pending.take().is_some() {
+                if self.release().is_some() {
+                    self.rearmed = false;
                     self.schedule();
                 }
             }
@@ -52,13 +61,21 @@ impl CanController {
         }
     }
 
+    /// The bus no longer holds a frame of this controller: the channel it held.
+    fn release(&mut self) -> Option<usize> {
+        self.dropping = false;
+        self.pending.take()
+    }
+
     /// The time now, in CAN clock periods since power-on. The CAN timer counts while the
     /// controller is enabled, one tick every 6 · (CANTCON + 1) periods; passing 0xFFFF to 0
     /// sets OVRTIM. Times earlier than the last one are ignored.
     pub fn set_time(&mut self, can_clock_periods: u64) {
         let elapsed = can_clock_periods.saturating_sub(self.now);
         self.now = self.now.max(can_clock_periods);
-        if !self.enabled || elapsed == 0 {
+        // With no time elapsed the ticks are still worked out: a smaller CANTCON written since
+        // may leave a whole tick in the fraction.
+        if !self.enabled {
             return;
         }
         let period = TIMER_DIVIDER * (u64::from(self.tcon) + 1);
@@ -72,13 +89,14 @@ impl CanController {
         self.timer = (sum & 0xFFFF) as u16;
     }
 
-    /// Offers the lowest-numbered channel enabled for transmission to the bus, when the
-    /// controller is enabled and the bus holds none of its frames.
+    /// Offers the lowest-numbered enabled producer (a channel launched for transmission, or one
+    /// waiting to send an automatic reply) to the bus, when the controller is enabled and the
+    /// bus holds none of its frames.
     pub(super) fn schedule(&mut self) {
         if !self.enabled || self.pending.is_some() || self.gcon & super::gcon::AUTBAUD != 0 {
             return;
         }
-        let next = (0..CHANNELS).find(|&c| self.en & (1 << c) != 0 && self.channels[c].mode() == conch::TX);
+        let next = (0..CHANNELS).find(|&c| self.en & (1 << c) != 0 && self.produces(c));
         let Some(c) = next else {
             return;
         };
@@ -92,12 +110,16 @@ impl CanController {
                 });
             }
             // Unreachable with the masks used, but never panic: leave the channel unsent.
-            None => self.en &= !(1 << c),
+            None => {
+                self.en &= !(1 << c);
+                self.replies &= !(1 << c);
+            }
         }
     }
 
     /// The frame a channel describes: identifier from CANIDT by CONCH.IDE, RTR from RTRTAG,
-    /// DLC from CONCH (above 8 sends 8 bytes and DLC 8), data from CANMSG.
+    /// DLC from CONCH (above 8 sends 8 bytes and DLC 8), data from CANMSG. A channel sending its
+    /// automatic reply has RTRTAG cleared already: a data frame.
     fn channel_frame(&self, c: usize) -> Option<Frame> {
         let ch = &self.channels[c];
         let image = u32::from_be_bytes(ch.idt);
@@ -107,7 +129,7 @@ impl CanController {
             StandardId::new((image >> 21) as u16)?.into()
         };
         let dlc = usize::from(ch.conch & conch::DLC).min(8);
-        let frame = if ch.idt[3] & 0x04 != 0 {
+        let frame = if ch.rtr_tag() {
             Frame::new_remote(id, dlc)
         } else {
             Frame::new_data(id, &ch.msg[..dlc])
@@ -118,31 +140,36 @@ impl CanController {
     /// Whether a channel would take `frame` now: the controller is enabled and a channel enabled
     /// for reception accepts it. A frame no channel takes changes nothing in the controller.
     pub fn takes(&self, frame: &Frame) -> bool {
-        self.enabled
-            && (0..CHANNELS).any(|c| {
-                let ch = &self.channels[c];
-                self.en & (1 << c) != 0
-                    && matches!(ch.mode(), conch::RX | conch::RX_BUFFER)
-                    && ch.filter().accepts(frame)
-            })
+        self.enabled && self.hit(frame).is_some()
+    }
+
+    /// The lowest-numbered enabled receiving channel whose filter accepts `frame`.
+    fn hit(&self, frame: &Frame) -> Option<usize> {
+        (0..CHANNELS).find(|&c| {
+            let ch = &self.channels[c];
+            self.en & (1 << c) != 0 && self.receives(c) && ch.filter().accepts(frame)
+        })
     }
 
     /// A frame received correctly: the lowest-numbered enabled receiving channel whose filter
     /// accepts it stores it. A buffer channel that was the last of the buffer sets OVRBUF.
+    ///
+    /// Automatic reply (AT90CAN32/64/128 data sheet, Atmel 7679, "Automatic Reply" and the
+    /// "MOb Configuration" table; the AT89C51CC03 data sheet's CANCONCH table gives RPLV
+    /// alone): a channel enabled for reception (CONCH 10) with RPLV and RTRTAG set that takes a
+    /// remote frame stores its identifier, IDE and DLC, clears RTRTAG and RPLV and sets no flag;
+    /// it stays enabled and sends its buffer as a data frame with them, and TXOK comes when that
+    /// reply is sent.
     fn received(&mut self, frame: &Frame) {
-        if !self.takes(frame) {
+        if !self.enabled {
             return;
         }
-        let hit = (0..CHANNELS).find(|&c| {
-            let ch = &self.channels[c];
-            self.en & (1 << c) != 0
-                && matches!(ch.mode(), conch::RX | conch::RX_BUFFER)
-                && ch.filter().accepts(frame)
-        });
-        let Some(c) = hit else {
+        let Some(c) = self.hit(frame) else {
             return;
         };
-        self.en &= !(1 << c);
+        let ch = &self.channels[c];
+        let reply =
+            frame.is_remote() && ch.mode() == conch::RX && ch.conch & conch::RPLV != 0 && ch.rtr_tag();
         let stamp = self.timer;
         let ch = &mut self.channels[c];
         let expected = ch.conch & conch::DLC;
@@ -151,6 +178,15 @@ impl CanController {
         if expected != frame.dlc() {
             ch.stch |= stch::DLCW;
         }
+        if reply {
+            ch.conch &= !conch::RPLV;
+            // The identifier as received, RTRTAG cleared: the reply is a data frame.
+            ch.idt = crate::filter::canidt_bytes(frame.id(), false);
+            self.replies |= 1 << c;
+            self.schedule();
+            return;
+        }
+        self.en &= !(1 << c);
         ch.stch |= stch::RXOK;
         // The identifier as received replaces the tag (bits the mask ignores included); the
         // reserved bits read 0 as the bus sends them dominant.

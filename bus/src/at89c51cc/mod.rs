@@ -11,9 +11,13 @@
 //! - The controller speaks the SJA1000's [`Action`] and [`BusSide`]: `Online` when CANGCON.ENA
 //!   is set (with `filter: None`: each message object filters for itself), `Offline` when it is
 //!   cleared or on a general reset, `Transmit` for the lowest-numbered channel enabled for
-//!   transmission, `Abort` for CANGCON.ABRQ or a pending channel disabled by the CPU,
-//!   `SetCounters` on a general reset. The bus hands it every frame received correctly while it
-//!   is enabled; the channels decide what to keep.
+//!   transmission or waiting to send an automatic reply, `Abort` for CANGCON.ABRQ or a pending
+//!   channel disabled by the CPU, `SetCounters` on a general reset. The bus hands it every frame
+//!   received correctly while it is enabled; the channels decide what to keep.
+//! - The bus holds at most one frame of the controller, from its `Transmit` until the bus
+//!   answers `Transmitted` or `Aborted`, whatever the CPU does meanwhile (an `Abort` or
+//!   `Offline` is answered too: `Aborted` for a frame dropped, `Transmitted` for an attempt that
+//!   was on the wire and succeeded). Only then is the next channel offered.
 //! - Bus-off recovery is automatic (the bus counts 128 × 11 recessive bits by itself,
 //!   `engine::Recovery::Automatic`): the controller never sends `StartRecovery`.
 //! - [`CanController::interrupt`] is the CAN interrupt request (CANGIT.CANIT) to the core's CAN
@@ -21,6 +25,8 @@
 //!   overflow (OVRTIM) to its own source (ETIM in IEN1).
 //! - Time enters through [`CanController::set_time`], in periods of the CAN clock; the CAN timer
 //!   (CANTIMH/L) and the time stamps (CANSTMPH/L) follow it.
+//!   [`CanController::next_timer_overflow`] tells when the timer sets OVRTIM next, so that a
+//!   caller can give the time then and raise the timer interrupt on time.
 //!
 //! Register behaviour follows the AT89C51CC03 data sheet (Atmel 4182) and the T89C51CC01 data
 //! sheet (Atmel 4129), whose CAN controllers are the same; `docs/AT89C51CC03.md` lists the
@@ -41,6 +47,9 @@ pub use crate::sja1000::{Action, BusSide};
 
 /// Number of message objects (channels 0 to 14).
 pub const CHANNELS: usize = 15;
+
+/// CANIDT4 bit 2: RTRTAG.
+const RTRTAG: u8 = 0x04;
 
 /// SFR addresses of the CAN controller (AT89C51CC03 data sheet, SFR mapping table; the same in
 /// Atmel's `at89c51cc03.h` register header).
@@ -209,7 +218,8 @@ pub mod conch {
     pub const RX: u8 = 0x80;
     /// Enable reception into the buffer.
     pub const RX_BUFFER: u8 = 0xC0;
-    /// Reply valid (automatic reply to a remote frame; stored only).
+    /// Reply valid: a channel enabled for reception with RPLV and RTRTAG set answers a matching
+    /// remote frame with a data frame of its own (automatic reply).
     pub const RPLV: u8 = 0x20;
     /// Extended identifier.
     pub const IDE: u8 = 0x10;
@@ -232,6 +242,11 @@ struct Channel {
 impl Channel {
     fn mode(&self) -> u8 {
         self.conch & conch::MASK
+    }
+
+    /// RTRTAG (CANIDT4 bit 2).
+    fn rtr_tag(&self) -> bool {
+        self.idt[3] & RTRTAG != 0
     }
 
     fn filter(&self) -> AtmelFilter {
@@ -260,14 +275,24 @@ pub struct CanController {
     ie: u16,
     /// CANEN1:CANEN2, channel 0 in bit 0: the channel waits to send or receive.
     en: u16,
+    /// Channels (bit 0 for channel 0) that took a remote frame with RPLV set and now wait to
+    /// send their reply: producers, no longer receivers, until the reply is sent or the
+    /// channel is written.
+    replies: u16,
     bt: [u8; 3],
     tec: u16,
     rec: u16,
     state: ErrorState,
     /// CANGSTA.ENFG: enabled and on the bus.
     enabled: bool,
-    /// The channel whose frame the bus holds.
+    /// The channel whose frame the bus holds: from the `Transmit` until the bus answers it
+    /// (`Transmitted` or `Aborted`), whatever the CPU does meanwhile.
     pending: Option<usize>,
+    /// The bus was asked to drop that frame (`Abort`, or `Offline`) and has not answered yet.
+    dropping: bool,
+    /// The CPU configured the held channel again (CONCH other than 00) after asking to drop its
+    /// frame: its CANEN bit belongs to the new configuration, which the answer leaves alone.
+    rearmed: bool,
     tcon: u8,
     timer: u16,
     /// CAN clock periods since the last timer tick.
@@ -292,12 +317,15 @@ impl CanController {
             gie: 0,
             ie: 0,
             en: 0,
+            replies: 0,
             bt: [0; 3],
             tec: 0,
             rec: 0,
             state: ErrorState::Active,
             enabled: false,
             pending: None,
+            dropping: false,
+            rearmed: false,
             tcon: 0,
             timer: 0,
             timer_frac: 0,
@@ -333,6 +361,24 @@ impl CanController {
         self.git & git::OVRTIM != 0
     }
 
+    /// While the controller is enabled, the time in CAN clock periods (as
+    /// [`set_time`](CanController::set_time) counts them) at which the CAN timer next passes
+    /// 0xFFFF to 0 and sets OVRTIM: `set_time` with this time or a later one sets it, an earlier
+    /// one does not (unless the CPU changes CANTCON or the enable in between). `None` while
+    /// disabled, when the timer stands still.
+    pub fn next_timer_overflow(&self) -> Option<u64> {
+        if !self.enabled {
+            return None;
+        }
+        let period = events::TIMER_DIVIDER * (u64::from(self.tcon) + 1);
+        let ticks = 0x1_0000 - u64::from(self.timer);
+        Some(
+            self.now
+                .saturating_sub(self.timer_frac)
+                .saturating_add(ticks * period),
+        )
+    }
+
     /// What the bus must do, in order, since the last call.
     pub fn take_actions(&mut self) -> impl Iterator<Item = Action> + use<> {
         std::mem::take(&mut self.actions).into_iter()
@@ -356,6 +402,18 @@ impl CanController {
             }
         }
         sit
+    }
+
+    /// Channel `c` is enabled for reception of data or remote frames (CONCH 10 or 11) and not
+    /// waiting to send a reply.
+    fn receives(&self, c: usize) -> bool {
+        matches!(self.channels[c].mode(), conch::RX | conch::RX_BUFFER) && self.replies & (1 << c) == 0
+    }
+
+    /// Channel `c` sends when enabled: launched for transmission (CONCH 01), or waiting to send
+    /// a reply.
+    fn produces(&self, c: usize) -> bool {
+        self.channels[c].mode() == conch::TX || self.replies & (1 << c) != 0
     }
 
     /// CANGIT.CANIT: a channel interrupt, the buffer-full flag with ENBUF, or a general error

@@ -152,18 +152,32 @@ impl CanController {
     }
 
     /// CANCONCH: a CONCH other than 00 enables the channel (sets its CANEN bit); 00 disables it,
-    /// dropping its frame if the bus holds it.
+    /// asking the bus to drop its frame if it holds it. Either ends a reply the channel waited
+    /// to send. The bus holds the frame until it answers (see `BusSide::Aborted`).
     fn write_conch(&mut self, c: usize, value: u8) {
         self.channels[c].conch = value;
-        if value & conch::MASK == conch::DISABLE {
+        self.replies &= !(1 << c);
+        let enable = value & conch::MASK != conch::DISABLE;
+        if self.pending == Some(c) && self.dropping {
+            self.rearmed = enable;
+        }
+        if enable {
+            self.en |= 1 << c;
+        } else {
             self.en &= !(1 << c);
             if self.pending == Some(c) {
-                self.actions.push(Action::Abort);
+                self.drop_pending();
             }
-        } else {
-            self.en |= 1 << c;
         }
         self.schedule();
+    }
+
+    /// Asks the bus to drop the frame it holds (once: a second request would find nothing more).
+    fn drop_pending(&mut self) {
+        if self.pending.is_some() && !self.dropping {
+            self.dropping = true;
+            self.actions.push(Action::Abort);
+        }
     }
 
     fn write_gcon(&mut self, value: u8) {
@@ -176,9 +190,9 @@ impl CanController {
         self.gcon = value & !(gcon::OVRQ | gcon::GRES);
         if value & gcon::ABRQ != 0 && was & gcon::ABRQ == 0 {
             self.en = 0;
-            if self.pending.is_some() {
-                self.actions.push(Action::Abort);
-            }
+            self.rearmed = false;
+            self.replies = 0;
+            self.drop_pending();
         }
         match (was & gcon::ENA != 0, value & gcon::ENA != 0) {
             (false, true) => self.enable(),
@@ -197,12 +211,14 @@ impl CanController {
         self.schedule();
     }
 
-    /// ENA cleared: the controller leaves the bus; the frame the bus holds is dropped, its
-    /// channel stays enabled and is sent again once ENA is set.
+    /// ENA cleared: the controller leaves the bus (`Offline`, which drops the frame the bus
+    /// holds unless its attempt is on the wire and succeeds). Until the bus answers, the frame is
+    /// still held; if it was dropped, its channel stays enabled and is sent again once ENA is
+    /// set; if it was sent, TXOK.
     fn disable(&mut self) {
         if self.enabled {
             self.enabled = false;
-            self.pending = None;
+            self.dropping |= self.pending.is_some();
             self.actions.push(Action::Offline);
         }
     }
@@ -213,11 +229,15 @@ impl CanController {
         self.disable();
         let channels = self.channels;
         let (clock, now) = (self.clock_hz, self.now);
+        // A frame the bus still holds is answered later: the answer is that frame's.
+        let (pending, dropping) = (self.pending, self.dropping);
         let counters = self.tec != 0 || self.rec != 0;
         let actions = std::mem::take(&mut self.actions);
         *self = CanController::new(clock);
         self.channels = channels;
         self.now = now;
+        self.pending = pending;
+        self.dropping = dropping;
         self.actions = actions;
         if counters {
             self.actions.push(Action::SetCounters { tec: 0, rec: 0 });

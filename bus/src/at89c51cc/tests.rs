@@ -1,8 +1,8 @@
 //! Expectations computed by hand from the AT89C51CC03 / T89C51CC01 data sheets.
 
 use super::*;
-use crate::Frame;
 use crate::engine::BusError;
+use crate::{Frame, Id, StandardId};
 
 /// F_CAN of a 12 MHz crystal in X1 mode.
 const F_CAN: u64 = 6_000_000;
@@ -365,4 +365,309 @@ fn bit_timing_250_kbit_at_12_mhz_x1() {
     assert!(t.samples_correctly(250_000.0 * 1.004));
     assert!(!t.samples_correctly(250_000.0 * 1.005));
     assert!(!t.samples_correctly(500_000.0));
+}
+
+/// Standard identifier `id` left-aligned in CANIDT1..4 (ID10..3 in CANIDT1, ID2..0 in CANIDT2
+/// 7:5), with RTRTAG (CANIDT4 bit 2) when `rtr`.
+fn std_idt(id: u16, rtr: bool) -> [u8; 4] {
+    [(id >> 3) as u8, (id << 5) as u8, 0, if rtr { 0x04 } else { 0 }]
+}
+
+fn tx(frame: Frame) -> Action {
+    Action::Transmit {
+        frame,
+        self_reception: false,
+        single_shot: false,
+    }
+}
+
+/// Writes `bytes` into channel `ch`'s buffer from index 0.
+fn fill(c: &mut CanController, ch: u8, bytes: &[u8]) {
+    page(c, ch);
+    for &b in bytes {
+        w(c, sfr::CANMSG, b);
+    }
+}
+
+// The bus holds at most one frame of the controller, from its `Transmit` until it answers:
+// `Transmitted`, or `Aborted` when it dropped the frame (docs/CAN.md, "Controller modes": an
+// abort drops a frame not yet started at once; an attempt on the wire runs to its end, and is
+// answered `Transmitted` if it succeeded). The AT89C51CC03 data sheet (CANGCON table, ABRQ):
+// pending communications are disabled at once, the one under way ends normally and sets its
+// status flags.
+
+#[test]
+fn an_abort_answered_transmitted_sets_txok_and_frees_the_bus() {
+    let mut c = enabled();
+    channel(&mut c, 0, std_idt(0x100, false), [0; 4], conch::TX);
+    channel(&mut c, 1, std_idt(0x200, false), [0; 4], conch::TX);
+    assert_eq!(drain(&mut c), [tx(Frame::base(0x100, &[]).unwrap())]);
+    page(&mut c, 0);
+    w(&mut c, sfr::CANCONCH, 0x00);
+    assert_eq!(drain(&mut c), [Action::Abort]);
+    // Channel 0 is disabled at once, but its frame is on the wire until the bus answers.
+    assert_eq!(r(&mut c, sfr::CANEN2), 0x02);
+    assert_eq!(r(&mut c, sfr::CANGSTA), gsta::ENFG | gsta::TBSY);
+    c.on_event(BusSide::Transmitted);
+    assert_eq!(
+        r(&mut c, sfr::CANSTCH),
+        stch::TXOK,
+        "the attempt under way ends normally"
+    );
+    assert_eq!(drain(&mut c), [tx(Frame::base(0x200, &[]).unwrap())]);
+    c.on_event(BusSide::Transmitted);
+    page(&mut c, 1);
+    assert_eq!(r(&mut c, sfr::CANSTCH), stch::TXOK);
+    assert_eq!(r(&mut c, sfr::CANEN2), 0);
+}
+
+#[test]
+fn an_abort_answered_aborted_offers_the_next_channel() {
+    let mut c = enabled();
+    channel(&mut c, 0, std_idt(0x100, false), [0; 4], conch::TX);
+    drain(&mut c);
+    // ABRQ clears every CANEN bit; channel 1, enabled after ABRQ is cleared, waits for the bus
+    // to let go of channel 0's frame.
+    w(&mut c, sfr::CANGCON, gcon::ENA | gcon::ABRQ);
+    assert_eq!(drain(&mut c), [Action::Abort]);
+    w(&mut c, sfr::CANGCON, gcon::ENA);
+    channel(&mut c, 1, std_idt(0x200, false), [0; 4], conch::TX);
+    assert!(drain(&mut c).is_empty());
+    c.on_event(BusSide::Aborted);
+    assert_eq!(drain(&mut c), [tx(Frame::base(0x200, &[]).unwrap())]);
+    page(&mut c, 0);
+    assert_eq!(r(&mut c, sfr::CANSTCH), 0, "an abort sets no flag");
+}
+
+#[test]
+fn a_channel_written_again_during_its_abort_keeps_its_new_request() {
+    let mut c = enabled();
+    fill(&mut c, 0, &[0x01]);
+    channel(&mut c, 0, std_idt(0x100, false), [0; 4], conch::TX | 1);
+    drain(&mut c);
+    w(&mut c, sfr::CANCONCH, 0x00);
+    assert_eq!(drain(&mut c), [Action::Abort]);
+    // The firmware loads a new byte and launches the channel again before the bus answers.
+    fill(&mut c, 0, &[0x02]);
+    w(&mut c, sfr::CANCONCH, conch::TX | 1);
+    assert!(drain(&mut c).is_empty(), "the bus still holds the first frame");
+    // The first frame was on the wire and went out: TXOK for it; the new request stands.
+    c.on_event(BusSide::Transmitted);
+    assert_eq!(r(&mut c, sfr::CANSTCH), stch::TXOK);
+    assert_eq!(r(&mut c, sfr::CANEN2), 0x01);
+    assert_eq!(drain(&mut c), [tx(Frame::base(0x100, &[0x02]).unwrap())]);
+}
+
+#[test]
+fn ena_cleared_the_bus_still_answers_for_the_frame_it_held() {
+    // Dropped: the channel stays enabled and is offered again once the bus answered and ENA is
+    // set, once only.
+    let mut c = enabled();
+    channel(&mut c, 0, std_idt(0x100, false), [0; 4], conch::TX);
+    let frame = tx(Frame::base(0x100, &[]).unwrap());
+    assert_eq!(drain(&mut c), [frame]);
+    w(&mut c, sfr::CANGCON, 0);
+    w(&mut c, sfr::CANGCON, gcon::ENA);
+    let online = Action::Online {
+        listen_only: false,
+        self_test: false,
+        filter: None,
+    };
+    assert_eq!(drain(&mut c), [Action::Offline, online]);
+    c.on_event(BusSide::Aborted);
+    assert_eq!(drain(&mut c), [frame]);
+    c.on_event(BusSide::Transmitted);
+    page(&mut c, 0);
+    assert_eq!(r(&mut c, sfr::CANSTCH), stch::TXOK);
+    assert!(drain(&mut c).is_empty());
+
+    // Sent: the attempt on the wire when ENA was cleared succeeded. TXOK, and the frame is not
+    // sent a second time.
+    let mut c = enabled();
+    channel(&mut c, 0, std_idt(0x100, false), [0; 4], conch::TX);
+    drain(&mut c);
+    w(&mut c, sfr::CANGCON, 0);
+    c.on_event(BusSide::Transmitted);
+    assert_eq!(r(&mut c, sfr::CANSTCH), stch::TXOK);
+    assert_eq!(r(&mut c, sfr::CANEN2), 0);
+    w(&mut c, sfr::CANGCON, gcon::ENA);
+    assert_eq!(drain(&mut c), [Action::Offline, online]);
+}
+
+#[test]
+fn a_general_reset_leaves_the_bus_answer_to_the_frame_it_held() {
+    let mut c = enabled();
+    channel(&mut c, 0, std_idt(0x100, false), [0; 4], conch::TX);
+    drain(&mut c);
+    w(&mut c, sfr::CANGCON, gcon::GRES);
+    assert_eq!(drain(&mut c), [Action::Offline]);
+    // Enabled again with channel 1 launched before the bus answered for channel 0's frame.
+    w(&mut c, sfr::CANGCON, gcon::ENA);
+    channel(&mut c, 1, std_idt(0x200, false), [0; 4], conch::TX);
+    assert_eq!(drain(&mut c).len(), 1, "Online only: the bus still holds a frame");
+    c.on_event(BusSide::Aborted);
+    assert_eq!(drain(&mut c), [tx(Frame::base(0x200, &[]).unwrap())]);
+    c.on_event(BusSide::Transmitted);
+    page(&mut c, 1);
+    assert_eq!(r(&mut c, sfr::CANSTCH), stch::TXOK);
+    page(&mut c, 0);
+    assert_eq!(r(&mut c, sfr::CANSTCH), 0);
+}
+
+/// Channel 3 set for automatic reply to remote frames of 0x123: RTRTAG and every mask bit set
+/// (RTRMSK and IDEMSK included: a remote frame with a standard identifier only), CONCH 10
+/// (reception) with RPLV and DLC `dlc`; its buffer holds 11h..18h.
+fn reply_channel(c: &mut CanController, dlc: u8) {
+    fill(c, 3, &[0x11, 0x12, 0x13, 0x14, 0x15, 0x16, 0x17, 0x18]);
+    channel(c, 3, std_idt(0x123, true), FULL, conch::RX | conch::RPLV | dlc);
+}
+
+#[test]
+fn automatic_reply_answers_a_matching_remote_frame() {
+    let mut c = enabled();
+    w(&mut c, sfr::CANGIE, gie::ENRX | gie::ENTX);
+    w(&mut c, sfr::CANIE2, 0x08);
+    reply_channel(&mut c, 2);
+    assert!(drain(&mut c).is_empty());
+    // A data frame with the identifier does not match RTRTAG (RTRMSK set): not taken.
+    let data = Frame::base(0x123, &[9, 9]).unwrap();
+    assert!(!c.takes(&data));
+    let remote = Frame::new_remote(Id::Standard(StandardId::new(0x123).unwrap()), 2).unwrap();
+    assert!(c.takes(&remote));
+    c.on_event(BusSide::Received(remote));
+    // The reply: a data frame with the remote frame's identifier and DLC, from the buffer.
+    assert_eq!(drain(&mut c), [tx(Frame::base(0x123, &[0x11, 0x12]).unwrap())]);
+    page(&mut c, 3);
+    // No flag yet; RPLV and RTRTAG cleared; the channel stays enabled, now a producer, and
+    // takes no frame meanwhile.
+    assert_eq!(r(&mut c, sfr::CANSTCH), 0);
+    assert_eq!(r(&mut c, sfr::CANCONCH), conch::RX | 2);
+    assert_eq!(r(&mut c, sfr::CANIDT4), 0x00);
+    assert_eq!(r(&mut c, sfr::CANEN2), 0x08);
+    assert!(!c.interrupt());
+    assert!(!c.takes(&remote));
+    c.on_event(BusSide::Transmitted);
+    assert_eq!(r(&mut c, sfr::CANSTCH), stch::TXOK);
+    assert_eq!(r(&mut c, sfr::CANEN2), 0);
+    assert_eq!(r(&mut c, sfr::CANSIT2), 0x08);
+    assert!(c.interrupt());
+}
+
+#[test]
+fn automatic_reply_takes_the_remote_frames_dlc_and_waits_its_turn() {
+    let mut c = enabled();
+    // Channel 0 holds the bus with a frame of its own.
+    channel(&mut c, 0, std_idt(0x050, false), [0; 4], conch::TX);
+    drain(&mut c);
+    reply_channel(&mut c, 2);
+    let remote = Frame::new_remote(Id::Standard(StandardId::new(0x123).unwrap()), 4).unwrap();
+    c.on_event(BusSide::Received(remote));
+    assert!(drain(&mut c).is_empty(), "one frame at a time");
+    page(&mut c, 3);
+    // DLC 4 received where 2 was expected: DLCW, and CANCONCH takes the received DLC.
+    assert_eq!(r(&mut c, sfr::CANSTCH), stch::DLCW);
+    assert_eq!(r(&mut c, sfr::CANCONCH), conch::RX | 4);
+    c.on_event(BusSide::Transmitted);
+    let reply = Frame::base(0x123, &[0x11, 0x12, 0x13, 0x14]).unwrap();
+    assert_eq!(drain(&mut c), [tx(reply)]);
+}
+
+#[test]
+fn without_rplv_or_rtrtag_a_remote_frame_is_received_and_not_answered() {
+    let remote = Frame::new_remote(Id::Standard(StandardId::new(0x123).unwrap()), 2).unwrap();
+    // RPLV clear: a plain reception of the remote frame.
+    let mut c = enabled();
+    fill(&mut c, 3, &[0x11, 0x12]);
+    channel(&mut c, 3, std_idt(0x123, true), FULL, conch::RX | 2);
+    c.on_event(BusSide::Received(remote));
+    assert!(drain(&mut c).is_empty());
+    page(&mut c, 3);
+    assert_eq!(r(&mut c, sfr::CANSTCH), stch::RXOK);
+    assert_eq!(r(&mut c, sfr::CANIDT4), 0x04, "RTRTAG as received");
+    assert_eq!(r(&mut c, sfr::CANEN2), 0);
+    // RPLV set but RTRTAG clear, the RTR bit not compared (RTRMSK 0): the remote frame is
+    // received, not answered.
+    let mut c = enabled();
+    channel(
+        &mut c,
+        3,
+        std_idt(0x123, false),
+        [0xFF, 0xFF, 0xFF, 0x01],
+        conch::RX | conch::RPLV | 2,
+    );
+    c.on_event(BusSide::Received(remote));
+    assert!(drain(&mut c).is_empty());
+    page(&mut c, 3);
+    assert_eq!(r(&mut c, sfr::CANSTCH), stch::RXOK);
+    // Buffer mode (CONCH 11) does not reply either.
+    let mut c = enabled();
+    channel(
+        &mut c,
+        3,
+        std_idt(0x123, true),
+        FULL,
+        conch::RX_BUFFER | conch::RPLV | 2,
+    );
+    c.on_event(BusSide::Received(remote));
+    assert!(drain(&mut c).is_empty());
+    page(&mut c, 3);
+    assert_eq!(r(&mut c, sfr::CANSTCH), stch::RXOK);
+}
+
+#[test]
+fn a_reply_not_yet_sent_ends_with_a_conch_write() {
+    let mut c = enabled();
+    channel(&mut c, 0, std_idt(0x050, false), [0; 4], conch::TX);
+    drain(&mut c);
+    reply_channel(&mut c, 2);
+    let remote = Frame::new_remote(Id::Standard(StandardId::new(0x123).unwrap()), 2).unwrap();
+    c.on_event(BusSide::Received(remote));
+    page(&mut c, 3);
+    w(&mut c, sfr::CANCONCH, 0x00);
+    assert_eq!(r(&mut c, sfr::CANEN2), 0x01);
+    c.on_event(BusSide::Transmitted);
+    assert!(drain(&mut c).is_empty(), "no reply once the channel was disabled");
+}
+
+#[test]
+fn next_timer_overflow_is_when_set_time_sets_ovrtim() {
+    let mut c = CanController::new(F_CAN);
+    w(&mut c, sfr::CANTCON, 9); // one tick every 6 · 10 = 60 CAN clocks
+    assert_eq!(c.next_timer_overflow(), None, "disabled: the timer stands still");
+    c.set_time(100);
+    w(&mut c, sfr::CANGCON, gcon::ENA);
+    // Enabled at 100 with the timer at 0: 65 536 ticks of 60 periods.
+    let first = 100 + 65_536 * 60;
+    assert_eq!(c.next_timer_overflow(), Some(first));
+    c.set_time(1_000); // 15 ticks and 0 left over, still the same overflow
+    assert_eq!(c.next_timer_overflow(), Some(first));
+    c.set_time(first - 1);
+    assert!(!c.timer_interrupt());
+    assert_eq!((r(&mut c, sfr::CANTIMH), r(&mut c, sfr::CANTIML)), (0xFF, 0xFF));
+    c.set_time(first);
+    assert!(c.timer_interrupt());
+    assert_eq!(c.next_timer_overflow(), Some(first + 65_536 * 60));
+    w(&mut c, sfr::CANGCON, 0);
+    assert_eq!(c.next_timer_overflow(), None);
+}
+
+#[test]
+fn flags_are_cleared_by_writing_zero() {
+    // AT89C51CC03 data sheet, "CAN Controller" interrupts and the CANGIT and CANSTCH tables:
+    // the software clears the flags (as Atmel's 8051 CAN library does, by writing 0); writing 1
+    // clears nothing (that is the AVR parts' CANGIT rule, not this one's).
+    let mut c = enabled();
+    c.set_time(6 * 0x1_0000); // CANTCON 0: the overflow
+    channel(&mut c, 0, std_idt(0x100, false), [0; 4], conch::TX);
+    c.on_event(BusSide::Transmitted);
+    assert_eq!(r(&mut c, sfr::CANGIT), git::OVRTIM);
+    w(&mut c, sfr::CANGIT, git::OVRTIM);
+    assert!(c.timer_interrupt(), "writing 1 keeps OVRTIM");
+    w(&mut c, sfr::CANGIT, !git::OVRTIM);
+    assert!(!c.timer_interrupt(), "writing 0 clears OVRTIM");
+    page(&mut c, 0);
+    w(&mut c, sfr::CANSTCH, stch::TXOK);
+    assert_eq!(r(&mut c, sfr::CANSTCH), stch::TXOK, "writing 1 keeps TXOK");
+    w(&mut c, sfr::CANSTCH, 0);
+    assert_eq!(r(&mut c, sfr::CANSTCH), 0, "writing 0 clears TXOK");
 }

@@ -281,8 +281,36 @@ impl Machine {
         self.cpu.same_state(&other.cpu) && self.board == other.board
     }
 
+    /// The oscillator clock at which the on-chip controller's CAN timer next overflows while
+    /// that would raise its timer request (OVRTIM clear): from that clock on the CPU must see
+    /// OVRTIM. F_CAN = F_OSC / 2: CAN clock period `p` begins at oscillator clock `2p`. `None`
+    /// with no on-chip controller, while it is disabled, or while OVRTIM is already set (an
+    /// overflow then changes nothing the CPU sees without reading a CAN register, and a read
+    /// brings the timer up to date itself).
+    pub fn timer_due(&self) -> Option<u64> {
+        self.board.chips.iter().find_map(|c| match c {
+            Chip::OnChip(can) if !can.timer_interrupt() => {
+                can.next_timer_overflow().map(|p| p.saturating_mul(2))
+            }
+            _ => None,
+        })
+    }
+
+    /// Tells the on-chip controller the time when its CAN timer overflow is due, so that its
+    /// request is up before the next instruction starts.
+    fn catch_up_timer(&mut self) {
+        let clocks = self.cpu.clocks();
+        if self.timer_due().is_some_and(|due| clocks >= due)
+            && let Some((i, can)) = self.board.on_chip()
+        {
+            can.set_time(clocks / 2);
+            self.board.refresh(i);
+        }
+    }
+
     /// Moves the clock count on by `clocks` without executing anything: only for a machine in a
-    /// loop whose whole state repeats (see [`Machine::same_state`]).
+    /// loop whose whole state repeats (see [`Machine::same_state`]), and not past
+    /// [`Machine::timer_due`].
     pub fn skip_clocks(&mut self, clocks: u64) {
         let cycles = clocks / self.cpu.clocks_per_cycle();
         self.cpu.skip_cycles(cycles);
@@ -332,22 +360,29 @@ impl Machine {
     }
 
     /// Runs until the clock count reaches `until` or a chip asks the bus for something (then
-    /// [`Machine::take_actions`] has it). Interrupt pins follow the chips as the CPU goes.
+    /// [`Machine::take_actions`] has it). Interrupt pins follow the chips as the CPU goes, and
+    /// the CPU sees the CAN timer overflow from the first instruction boundary at or after it
+    /// ([`Machine::timer_due`]), as when the controller is told the time before every
+    /// instruction.
     pub fn run(&mut self, until: u64) -> Result<(), mcs51::Error> {
+        self.catch_up_timer();
         while self.cpu.clocks() < until {
+            let due = self.timer_due().filter(|&d| d > self.cpu.clocks() && d < until);
+            let to = due.unwrap_or(until);
             let per = self.cpu.clocks_per_cycle();
-            let target = self.cpu.cycles() + (until - self.cpu.clocks()).div_ceil(per);
+            let target = self.cpu.cycles() + (to - self.cpu.clocks()).div_ceil(per);
             let end = self.cpu.run(&mut self.board, target)?;
             if let RunEnd::XdataWrite { addr, value } = end {
                 self.log(Some((addr, value)));
             }
+            self.catch_up_timer();
             if self.board.stop {
                 self.sync_pins();
             }
             if !self.board.actions.is_empty() {
                 return Ok(());
             }
-            if end == RunEnd::Reached {
+            if end == RunEnd::Reached && due.is_none() {
                 break;
             }
         }
@@ -356,7 +391,9 @@ impl Machine {
 
     /// Executes one instruction (or enters an interrupt), as [`Machine::run`] would.
     pub fn step(&mut self) -> Result<mcs51::Step, mcs51::Error> {
+        self.catch_up_timer();
         let step = self.cpu.step(&mut self.board)?;
+        self.catch_up_timer();
         if let Some(mcs51::XAccess::Write { addr, value }) = step.xdata {
             self.log(Some((addr, value)));
         }

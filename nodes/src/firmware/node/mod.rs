@@ -13,8 +13,10 @@
 //! writes none of its registers, changes nothing and sends nothing back.
 //!
 //! A loop whose whole state (CPU, internal RAM, SFRs, the chips) comes back after `P` clocks
-//! changes nothing until an input arrives: such a node asks for no wake at all, and an input
-//! at clock `n` finds it where `n − c₀` mod `P` clocks into the loop puts it.
+//! changes nothing until an input arrives or the on-chip controller's CAN timer overflows
+//! (OVRTIM): such a node asks to be woken at that overflow only (no wake at all without one),
+//! and an input at clock `n` finds it where `n − c₀` mod `P` clocks into the loop puts it
+//! (whole turns are skipped up to the overflow, the rest is run).
 //!
 //! Several chips: each is a controller of its own on the bus, controller `k` being chip `k` of
 //! the node file. An input of controller `k` reaches chip `k` at its moment, and each chip's
@@ -249,7 +251,9 @@ impl FirmwareNode {
         let (mut machine, path) = match self.stop {
             _ if n <= self.now.clocks() => (self.now.clone(), Path::Here),
             Stop::Parked(period) if n >= reached && period > 0 => {
-                let loops = (n - reached) / period;
+                // Whole turns up to the CAN timer's overflow at most: from there it runs.
+                let skip_to = self.ahead.timer_due().map_or(n, |due| due.min(n));
+                let loops = skip_to.saturating_sub(reached) / period;
                 let mut m = self.ahead.clone();
                 m.skip_clocks(loops * period);
                 (m, Path::Skipped)
@@ -327,17 +331,37 @@ impl FirmwareNode {
         for Request { chip, action, tuned } in actions {
             let mut push = |c| self.commands.push_back((chip, c));
             match action {
-                Action::Online { listen_only, .. } => {
+                Action::Online {
+                    listen_only,
+                    self_test,
+                    ..
+                } => {
                     push(ControllerCommand::Tuned(tuned));
-                    push(ControllerCommand::Online { listen_only });
+                    push(ControllerCommand::Online {
+                        listen_only,
+                        self_test,
+                    });
                 }
-                Action::StartRecovery { listen_only, .. } => {
+                Action::StartRecovery {
+                    listen_only,
+                    self_test,
+                } => {
                     push(ControllerCommand::Tuned(tuned));
-                    push(ControllerCommand::Online { listen_only });
+                    push(ControllerCommand::Online {
+                        listen_only,
+                        self_test,
+                    });
                     push(ControllerCommand::Recover);
                 }
                 Action::Offline => push(ControllerCommand::Offline),
-                Action::Transmit { frame, .. } => push(ControllerCommand::Transmit(frame)),
+                // Self reception is the chip's: it stores its own frame when told it was sent.
+                Action::Transmit {
+                    frame, single_shot, ..
+                } => push(if single_shot {
+                    ControllerCommand::TransmitOnce(frame)
+                } else {
+                    ControllerCommand::Transmit(frame)
+                }),
                 Action::Abort => push(ControllerCommand::Abort),
                 Action::SetCounters { tec, rec } => push(ControllerCommand::SetCounters { tec, rec }),
             }
@@ -396,6 +420,17 @@ impl FirmwareNode {
             && self.trace.is_none()
             && self.ahead.board.can_writes == self.now.board.can_writes
             && self.now.ignores(frame)
+    }
+}
+
+impl FirmwareNode {
+    /// A loop that changes nothing does change when the on-chip controller's CAN timer
+    /// overflows (OVRTIM, the CAN timer interrupt): the node is woken then.
+    fn timer_wake(&self) -> Option<BusTime> {
+        if self.failed.is_some() {
+            return None;
+        }
+        self.ahead.timer_due().map(|clock| self.time_of(clock))
     }
 }
 
@@ -499,7 +534,13 @@ impl NodeLogic for FirmwareNode {
 
     fn poll_timeout(&self) -> Option<BusTime> {
         let ahead = match self.stop {
-            Stop::Parked(_) => None,
+            // A traced node is woken now and then even in a loop that changes nothing, so that
+            // its trace keeps up with the run.
+            Stop::Parked(_) if self.trace_open() => {
+                let traced = self.time_of(self.now.clocks().saturating_add(self.horizon));
+                Some(self.timer_wake().map_or(traced, |t| t.min(traced)))
+            }
+            Stop::Parked(_) => self.timer_wake(),
             _ => Some(self.time_of(self.ahead.clocks())),
         };
         let sample = self.wiring.as_ref().map(|_| self.next_sample);
@@ -515,6 +556,14 @@ impl NodeLogic for FirmwareNode {
 
     fn failed(&self) -> Option<String> {
         self.failed.clone()
+    }
+
+    /// A traced node brings its trace to the end of the run: the instructions since its last
+    /// wake. An untraced node has nothing to write, and stays as its last input left it.
+    fn run_ends(&mut self, at: BusTime) {
+        if self.trace.is_some() {
+            self.advance_to(self.clock_at(at));
+        }
     }
 
     fn hardware(&self, at: BusTime) -> Option<HardwareState> {
