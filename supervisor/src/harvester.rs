@@ -642,6 +642,23 @@ impl Running {
         states
     }
 
+    /// Tells the node an instruction trace follows ([`Running::cpu_trace`]) that the run ends at
+    /// `at`, so that its trace reaches the end: a node is traced as its wakes move it on, and
+    /// one idling in a loop is woken seldom.
+    pub async fn end_cpu_trace(&self, at: BusTime) {
+        let Some(trace) = &self.cpu_trace else {
+            return;
+        };
+        for m in self.members.iter().filter(|m| m.name == trace.node) {
+            let _ = m
+                .actor
+                .send(bus_runtime::node::Apply(Box::new(move |logic| {
+                    logic.run_ends(at)
+                })))
+                .await;
+        }
+    }
+
     /// The harvester (or network) it runs.
     pub fn harvester(&self) -> &Harvester {
         &self.harvester

@@ -229,3 +229,49 @@ done:\tsjmp done
 ";
     check(src, Variant::I8051);
 }
+
+/// PUSH SP and POP SP. The manual's PUSH increments SP and then copies the operand, so
+/// `PUSH SP` with SP = 40h stores the incremented SP, 41h, at 41h and leaves SP = 41h. Its POP
+/// reads (SP), decrements SP, then writes the operand, and its own example says that after
+/// `POP SP` with SP = 32h and 20h at 32h "the Stack Pointer was decremented to 2FH before being
+/// loaded with the value popped (20H)": SP = 20h, the decrement lost (not 1Fh, as the
+/// Operation lines `(direct) <- ((SP)); (SP) <- (SP) - 1` read in order would give). s51
+/// agrees on both. The POP part is the manual's example: SP = 32h, 20h 23h 01h at 30h–32h,
+/// POP DPH, POP DPL, POP SP: DPTR = 0123h, SP = 20h. `PUSH SP` at 7Eh fills the 80C51's last
+/// byte.
+#[test]
+fn push_sp_and_pop_sp() {
+    let src = "\t.org 0
+\tmov sp,#40h
+\tpush sp
+\tmov 60h,sp
+\tpush sp
+\tmov 61h,sp
+\tmov sp,#7Eh
+\tpush sp
+\tmov 62h,sp
+\tmov 30h,#20h
+\tmov 31h,#23h
+\tmov 32h,#01h
+\tmov sp,#32h
+\tpop dph
+\tpop dpl
+\tmov 63h,sp
+\tpop sp
+\tmov 64h,sp
+\tmov 50h,#0
+\tmov sp,#50h
+\tpop sp
+\tmov 65h,sp
+\tmov sp,#07h
+done:\tsjmp done
+";
+    for variant in [Variant::I8051, Variant::I8052] {
+        let ours = check(src, variant);
+        assert_eq!(ours.iram[0x41], 0x41, "PUSH SP stores the incremented SP");
+        assert_eq!(ours.iram[0x42], 0x42);
+        assert_eq!(ours.iram[0x7F], 0x7F);
+        assert_eq!(&ours.iram[0x60..0x66], &[0x41, 0x42, 0x7F, 0x30, 0x20, 0x00]);
+        assert_eq!((ours.sfr[0x03], ours.sfr[0x02]), (0x01, 0x23), "DPTR = 0123h");
+    }
+}

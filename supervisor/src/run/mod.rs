@@ -233,7 +233,8 @@ pub fn run(args: &Args) -> crate::Result<Ended> {
             }
         }
         let interrupted = interrupted.or(crate::stop::received());
-        let _ = running.hub.send(FlushTrace).await;
+        running.end_cpu_trace(running.now()).await;
+        running.hub.send(FlushTrace).await??;
         let snap = running.hub.send(GetSnapshot).await?;
         console.finish(&Summary::of(&snap, &running), interrupted);
         if let Some(b) = &bridge {

@@ -88,13 +88,19 @@ impl Cpu {
         self.set_direct(x, byte, if v { old | mask } else { old & !mask });
     }
     pub(crate) fn push(&mut self, v: u8) -> Result<(), Error> {
+        let at = self.push_slot()?;
+        self.iram[at] = v;
+        Ok(())
+    }
+    /// The first half of a push: SP <- SP + 1 (a fault past the top of internal RAM); returns
+    /// the new SP as the address to write.
+    pub(super) fn push_slot(&mut self) -> Result<usize, Error> {
         let sp = self.sfr[(SP - 0x80) as usize];
         if sp >= self.ram_top {
             return Err(self.fail(Error::StackOverflow { pc: self.op_pc, sp }));
         }
         self.sfr[(SP - 0x80) as usize] = sp + 1;
-        self.iram[sp as usize + 1] = v;
-        Ok(())
+        Ok(sp as usize + 1)
     }
     pub(super) fn pop(&mut self) -> u8 {
         let sp = self.sfr[(SP - 0x80) as usize];

@@ -324,10 +324,14 @@ impl Cpu {
                 self.cjne(x, v);
             }
             0xC0 => {
+                // SP <- SP + 1, then ((SP)) <- (direct): `PUSH SP` stores the incremented SP.
                 let d = self.fetch();
+                let at = self.push_slot()?;
                 let v = self.direct(x, d);
-                self.push(v)?;
+                self.iram[at] = v;
             }
+            // ((SP)) is read and SP decremented before the write, so `POP SP` leaves SP at the
+            // value popped (the manual's example).
             0xD0 => {
                 let d = self.fetch();
                 let v = self.pop();

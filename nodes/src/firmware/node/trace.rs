@@ -17,9 +17,22 @@ pub struct CpuTrace {
 impl FirmwareNode {
     /// Traces the instructions it executes from now on within `trace`'s window: bus time, cycle
     /// count, address, bytes, the instruction and its machine cycles, one line each, and
-    /// interrupt entries. Only the path the node takes is traced, once.
+    /// interrupt entries. Only the path the node takes is traced, once. The trace moves on as
+    /// the node's wakes do: while the window is open the node is woken even in a loop that
+    /// changes nothing, and [`NodeLogic::run_ends`](bus::node::NodeLogic::run_ends) brings it to
+    /// the end of the run (the last instruction that starts before it).
     pub fn trace_cpu(&mut self, trace: CpuTrace) {
         self.trace = Some(trace);
+    }
+
+    /// Whether a trace is on and its window not yet behind `now`: the node then asks to be
+    /// woken even while it idles in a loop that changes nothing.
+    pub(super) fn trace_open(&self) -> bool {
+        self.failed.is_none()
+            && self
+                .trace
+                .as_ref()
+                .is_some_and(|t| self.now.clocks() <= self.clock_at(t.to))
     }
 
     /// The last clock before `n` to trace instruction by instruction, when the trace window
