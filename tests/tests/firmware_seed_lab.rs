@@ -52,18 +52,20 @@ fn the_receiver_stores_the_senders_frame_at_30h() {
     // The program's own copy of the data, made at start-up, is at 20H-27H on both benches.
     assert_eq!(run.iram(0, 0x20, 8), DATA, "sender 20H-27H");
     let frames = parse_trace(&run.trace);
-    // Frames end 4.003 ms in and then every 99.916 ms: ten by 1 s, and the eleventh, which
-    // started before 1 s, is in the trace too.
+    // The first frame ends 8.093 ms in, after one failed attempt (see
+    // `the_first_frame_ends_at_the_senders_start_up_plus_its_length_on_the_bus`); the next ones
+    // 4.003 ms + k × 99.916 ms: ten by 1 s, and the eleventh, which started before 1 s, is in
+    // the trace too.
     assert_eq!(frames.len(), 11, "{}", run.trace);
     for f in &frames {
         assert_eq!(f.frame.raw_id(), 0x5DF);
         assert!(!f.frame.is_extended() && !f.frame.is_remote());
         assert_eq!(f.frame.data(), DATA);
     }
-    // One frame per pass of the loop: the bus is idle when each request comes, so the frames
-    // end exactly one loop apart.
+    // One frame per pass of the loop: the bus is idle when each request comes, so from the
+    // second on the frames end exactly one loop apart.
     let period = BusDuration::from_micros(LOOP_CYCLES);
-    for pair in frames.windows(2) {
+    for pair in frames[1..].windows(2) {
         assert_eq!(pair[1].at.since(pair[0].at), period, "{}", run.trace);
     }
     // Both chips ended error active with clean counters, in PeliCAN mode.
@@ -173,20 +175,50 @@ const CYCLES_TO_TR: u64 = 337;
 /// ACK delimiter and 7 bits of end of frame make 110.
 const FRAME_BITS: u64 = 110;
 
+/// Machine cycles from reset to the end of the `MOVX` that clears reset mode (MOD = 08h) in the
+/// first INITCAN, the sender's chip joining the bus: 2 + 5 + 88 − 2 (INITCAN's `RET` comes
+/// after it) = 93. The receiver's chip joins at the same place in the second INITCAN: the first
+/// ends at 95, and 95 + 5 + 88 − 2 = 186.
+const SENDER_JOINS: u64 = 93;
+const RECEIVER_JOINS: u64 = 186;
+
+/// The sender's first frame, with bus integration (ISO 11898-1, docs/CAN.md section 4): a chip
+/// leaving reset mode takes part only after 11 recessive bits.
+///
+/// - The sender's chip joins at 93 µs and has its 11 bits (366.7 µs) at 459.7 µs, after its TR
+///   (337 µs): the first attempt starts at 93 µs + 11 bits.
+/// - The receiver's chip joins at 186 µs and would have its 11 bits at 552.7 µs: the first
+///   attempt's start of frame breaks its count, so it neither receives nor acknowledges that
+///   attempt. The sender has an ACK error: the stuffed part is 100 bits, the ACK slot bit 101,
+///   its active flag bits 102 to 107, its delimiter 108 to 115, intermission 116 to 118.
+/// - The receiver's count starts again after the flag's last dominant bit (108) and ends at 119,
+///   the second attempt's start of frame, which it takes part in: acknowledged, the frame ends
+///   110 bits later. So the first frame ends at 93 µs + (11 + 119 + 110) bits = 8.093 ms.
+/// - The later requests (337 µs + k × 99.916 ms) find the bus idle and both chips on it: those
+///   frames end 110 bits after their TR.
 #[test]
 fn the_first_frame_ends_at_the_senders_start_up_plus_its_length_on_the_bus() {
     let hex = shipped_hex();
     let run = run_firmware(&benches(&hex, &hex, 6_000_000), 1);
-    // The bus is idle and the sender's chip joined it at its first INITCAN (cycle 93), so the
-    // frame starts at the TR write; a bit at 30 kbit/s is 1/30 000 s, 115 200 000 bus-clock
-    // ticks (3.456e12 / 30 000), so 110 bits are 3.667 ms.
+    // A bit at 30 kbit/s is 1/30 000 s, 115 200 000 bus-clock ticks (3.456e12 / 30 000).
     let bit = BusDuration::from_ticks(3_456_000_000_000 / 30_000);
-    let first = BusTime::ZERO + BusDuration::from_micros(CYCLES_TO_TR) + bit * FRAME_BITS;
+    // The receiver is still integrating when the first attempt starts.
+    let start = BusDuration::from_micros(SENDER_JOINS) + bit * 11;
+    assert!(BusDuration::from_micros(RECEIVER_JOINS) + bit * 11 > start);
+    let first = BusTime::ZERO + BusDuration::from_micros(SENDER_JOINS) + bit * (11 + 119 + FRAME_BITS);
     assert_eq!(run.ends.first(), Some(&first), "{}", run.trace);
-    // Every frame is as long: each ends one loop after the one before.
+    // The sender's error line, at its flag's first bit: 93 µs + 113 bits = 3859.7 µs.
+    assert!(
+        run.trace
+            .starts_with("(1704067200.003859) harv0.SENDER 200002A8#"),
+        "{}",
+        run.trace
+    );
+    // Every later frame is as long: each ends one loop after the one before.
+    let second = BusTime::ZERO + BusDuration::from_micros(CYCLES_TO_TR) + bit * FRAME_BITS;
     let period = BusDuration::from_micros(LOOP_CYCLES);
-    for (k, end) in run.ends.iter().enumerate() {
-        assert_eq!(*end, first + period * k as u64, "frame {k}");
+    for (k, end) in run.ends.iter().enumerate().skip(1) {
+        assert_eq!(*end, second + period * k as u64, "frame {k}");
     }
 }
 
