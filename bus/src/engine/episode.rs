@@ -412,18 +412,7 @@ impl Bus {
                         // Exception 3a is decided once the passive flag has been sent; the bus
                         // error is told then, with the counters as counted.
                         deferred_3a[i] = Some((next, found.location));
-                        if c.mac.sending.is_some()
-                            && let Some(p) = c.tx.front()
-                        {
-                            destroyed.push(Destroyed {
-                                node: i,
-                                frame: p.frame,
-                                flag: next,
-                                error,
-                                bit: (c.mac.pos.saturating_sub(1)).min(u32::from(u16::MAX)) as u16,
-                            });
-                            c.mac.sending = None;
-                        }
+                        destroyed.extend(lose_attempt(i, c, next, error));
                         return;
                     } else {
                         c.fault.transmit_error(TransmitError {
@@ -435,18 +424,7 @@ impl Bus {
                     c.counters.rx_errors += 1;
                     c.fault.receive_error()
                 };
-                if c.mac.sending.is_some()
-                    && let Some(p) = c.tx.front()
-                {
-                    destroyed.push(Destroyed {
-                        node: i,
-                        frame: p.frame,
-                        flag: next,
-                        error,
-                        bit: (c.mac.pos.saturating_sub(1)).min(u32::from(u16::MAX)) as u16,
-                    });
-                    c.mac.sending = None;
-                }
+                destroyed.extend(lose_attempt(i, c, next, error));
                 self.bus_error(i, next, error, transmitting, found.location, events);
                 self.counted(i, next, changes, events);
             }
@@ -678,6 +656,22 @@ impl Bus {
         self.note_events(node, at, changes);
         events.extend(self.events.drain(from..));
     }
+}
+
+/// Controller `i`, sending, lost its attempt to an error flagged from `flag`: it sends no more
+/// of it, and the attempt is one for an `ErrorFrame` event.
+fn lose_attempt(i: usize, c: &mut super::Controller, flag: BusTime, error: BusError) -> Option<Destroyed> {
+    c.mac.sending?;
+    let p = c.tx.front()?;
+    let lost = Destroyed {
+        node: i,
+        frame: p.frame,
+        flag,
+        error,
+        bit: (c.mac.pos.saturating_sub(1)).min(u32::from(u16::MAX)) as u16,
+    };
+    c.mac.sending = None;
+    Some(lost)
 }
 
 /// Order among events at the same time.
