@@ -6,7 +6,7 @@
 //! or error frame that follows it, or a bus-off recovery). Committing is final: the caller must
 //! not submit a frame stamped earlier than an event it has already committed (the engine moves
 //! such late submissions to the present and counts them). Results come out as [`Event`]s, in
-//! time order, from [`Bus::take_events`]; received frames wait in each controller's receive FIFO
+//! time order (host calls aside, see below), from [`Bus::take_events`]; received frames wait in each controller's receive FIFO
 //! until the node drains it with [`Bus::drain_rx`].
 //!
 //! What is modelled, bit-exactly at the configured bit rate, following the Bosch CAN 2.0
@@ -37,8 +37,12 @@
 //! complete; the flag's kind (active or passive) follows the state before the error is counted; a
 //! controller whose TEC reaches 256 is bus off at once and sends no flag (a bus-off node has no
 //! influence on the bus), dropping the frame it was sending; a disconnected node neither sends
-//! nor receives, and keeps its queue. Events come out in time order, and bus time in them never
-//! goes backwards.
+//! nor receives, and keeps its queue. The events of each committed event come out in time order.
+//! What a host call makes the engine say (a reset, counters written, an abort's answer) is
+//! stamped at that call's time (an abort's answer for a frame whose attempt is on the bus: when
+//! that attempt is over), which is never before the start of the last committed event but may be
+//! before that event's end: a consumer that needs one order across both puts them in
+//! order within one committed event's length (`bus::trace::Reorder` does so for traces).
 
 mod controller;
 mod episode;
