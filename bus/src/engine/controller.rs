@@ -283,7 +283,8 @@ impl Controller {
         self.connected && self.fault.state() != crate::fault::ErrorState::BusOff && self.integrating.is_none()
     }
 
-    /// True while it waits to integrate into the bus (see [`Controller::integrating`]).
+    /// True while it waits to integrate into the bus: it has joined and not yet seen 11
+    /// consecutive recessive bits.
     pub fn is_integrating(&self) -> bool {
         self.integrating.is_some()
     }
