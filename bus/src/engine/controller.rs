@@ -289,6 +289,16 @@ impl Controller {
         self.integrating.is_some()
     }
 
+    /// Its protocol state machine at rest (the bus idle to it), with its modes.
+    pub(crate) fn idle_mac(&self) -> super::wire::Mac {
+        super::wire::Mac {
+            acks: self.acks(),
+            silent: self.listen_only,
+            presume_ack: self.presume_ack,
+            ..super::wire::Mac::default()
+        }
+    }
+
     /// Its error flags are passive (recessive): it is error passive, or listen-only.
     pub(crate) fn flags_passive(&self) -> bool {
         self.listen_only || self.fault.state() == crate::fault::ErrorState::Passive

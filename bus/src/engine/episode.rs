@@ -10,7 +10,7 @@
 //! still in its error delimiter is a form error to it, as on a real bus.
 
 use super::controller::Pending;
-use super::wire::{self, Detected, Location, Mac, Phase, Sending};
+use super::wire::{self, Detected, Location, Phase, Sending};
 use super::{Bus, BusError, Event, NodeId};
 use crate::fault::{ErrorFlag, ErrorState, Role, TransmitError, TxErrorKind};
 use crate::filter::AcceptanceFilter;
@@ -338,12 +338,7 @@ impl Bus {
             c.integrating = Some(next);
         } else if since + needed <= next {
             c.integrating = None;
-            c.mac = Mac {
-                acks: c.acks(),
-                silent: c.listen_only,
-                presume_ack: c.presume_ack,
-                ..Mac::default()
-            };
+            c.mac = c.idle_mac();
             c.mac_at = next;
         }
     }
@@ -362,12 +357,7 @@ impl Bus {
         if c.fault.state() != ErrorState::BusOff {
             // 128 × 11 recessive bits: integrated as well.
             c.integrating = None;
-            c.mac = Mac {
-                acks: c.acks(),
-                silent: c.listen_only,
-                presume_ack: c.presume_ack,
-                ..Mac::default()
-            };
+            c.mac = c.idle_mac();
             c.mac_at = next;
             c.ready_at = c.ready_at.max(next);
         }
@@ -635,12 +625,7 @@ impl Bus {
                     frame: p.frame,
                 });
             }
-            c.mac = Mac {
-                acks: c.acks(),
-                silent: c.listen_only,
-                presume_ack: c.presume_ack,
-                ..Mac::default()
-            };
+            c.mac = c.idle_mac();
         }
     }
 
