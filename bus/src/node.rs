@@ -58,6 +58,9 @@ pub enum ControllerEvent {
     /// Bus off and recovering on its host's request, it has counted this many of the 128
     /// sequences of 11 recessive bits (only to a logic that asks for every event).
     RecoveryProgress(u8),
+    /// Asleep ([`ControllerCommand::Sleep`]), it saw bus activity and woke; it does not receive
+    /// the frame that woke it.
+    Woken,
 }
 
 /// What a node asks of its controller, for a logic that models its controller's registers
@@ -93,6 +96,9 @@ pub enum ControllerCommand {
     },
     /// Start counting the recessive bits that end bus off (the host cleared reset mode).
     Recover,
+    /// Sleep mode on (off the bus until bus activity wakes it: [`ControllerEvent::Woken`]) or
+    /// off (the host woke it: it joins the bus again).
+    Sleep(bool),
     /// Whether its bit timing lets it sample the bus's frames: a controller that cannot
     /// destroys what it cannot read with error flags and acknowledges nothing.
     Tuned(bool),

@@ -1,7 +1,8 @@
 //! The controller modes real drivers use, at the engine: single shot (the SJA1000's TR with AT,
 //! Linux's CAN_CTRLMODE_ONE_SHOT), self test (MOD.STM, PRESUME_ACK), listen only (MOD.LOM,
-//! LISTENONLY), abort, rule 8's ACK condition, what counts as an error frame, the counters an
-//! error line carries and the frame a receiver takes although its transmitter flags an error.
+//! LISTENONLY), abort, sleep (MOD.SM), rule 8's ACK condition, what counts as an error frame,
+//! the counters an error line carries and the frame a receiver takes although its transmitter
+//! flags an error.
 //!
 //! The bench and the frame `F` (012#80) are those of `conformance.rs`, whose module docs lay `F`
 //! out bit by bit: stuffed part 0..45, CRC delimiter 46, ACK slot 47, ACK delimiter 48, EOF
@@ -275,4 +276,52 @@ fn a_frame_taken_by_its_receivers_is_on_the_bus() {
     assert_eq!(delivered(&ev), [(r0, 1064 + 56)]);
     assert_eq!(frames(&ev), [(tx, 1064)]);
     assert_eq!(done(&ev), []);
+}
+
+fn woken(ev: &[Event]) -> Vec<(NodeId, u64)> {
+    ev.iter()
+        .filter_map(|e| match *e {
+            Event::Woken { node, at } => Some((node, bits_at(at))),
+            _ => None,
+        })
+        .collect()
+}
+
+/// Sleep: the only receiver is asleep, so nobody acknowledges F: tx's ACK error is flagged at
+/// 48..53. F's start of frame (bit 0) wakes the sleeper at the end of that bit (1); it does not
+/// receive F, and counts 11 recessive bits from the end of the last dominant bit, tx's flag
+/// (54): error delimiter 54..61 and intermission 62..64 make 11, so it takes part in tx's retry
+/// at 65, acknowledges it and receives it at its end (65 + 56 = 121); tx's TEC goes 8 then 7.
+#[test]
+fn bus_activity_wakes_a_sleeping_controller_which_misses_that_frame() {
+    let mut n = net(1);
+    let r = n.rx[0];
+    n.b.set_asleep(r, true, BusTime::ZERO).unwrap();
+    assert!(n.b.controller(r).unwrap().is_asleep());
+    let ev = n.step();
+    assert_eq!(bus_errors(&ev), [(n.tx, 48, BusError::Ack)]);
+    assert_eq!(woken(&ev), [(r, 1)]);
+    assert_eq!(delivered(&ev), []);
+    assert!(!n.b.controller(r).unwrap().is_asleep());
+    let ev = n.step();
+    assert_eq!(frames(&ev), [(n.tx, 65)]);
+    assert_eq!(delivered(&ev), [(r, 121)]);
+    assert_eq!((n.tec(n.tx), n.rec(r)), (7, 0));
+}
+
+/// A sleeping controller sends nothing, even with a frame queued; woken by its host at bit 100,
+/// it integrates first (11 recessive bits on an idle bus) and starts its frame at 111.
+#[test]
+fn a_sleeping_controller_sends_after_its_host_wakes_it() {
+    let mut b = Bus::new(BusConfig::default()).unwrap();
+    let s = b.attach(ControllerConfig::named("s"));
+    let _other = b.attach(ControllerConfig::named("o"));
+    b.set_asleep(s, true, BusTime::ZERO).unwrap();
+    b.submit(s, f(), BusTime::ZERO).unwrap();
+    assert!(!b.step(), "asleep, it does not send");
+    b.set_asleep(s, false, at(100)).unwrap();
+    assert!(b.step());
+    let ev: Vec<Event> = b.take_events().collect();
+    assert_eq!(frames(&ev), [(s, 111)]);
+    assert_eq!(woken(&ev), [], "a host wake is no bus wake");
 }

@@ -1,7 +1,8 @@
 //! Every transmission mode Linux's `sja1000.c` drives, run by small 80C51 programs through the
 //! SJA1000's registers: single shot (CMR = TR | AT, CAN_CTRLMODE_ONE_SHOT), self reception
 //! (CMR = SRR, LOOPBACK), self test (MOD.STM, PRESUME_ACK), listen only (MOD.LOM, LISTENONLY),
-//! abort (CMR.AT), and the bus-off that a TXERR of 255 forces, with the recovery after it.
+//! abort (CMR.AT), sleep (MOD.SM) and the bus-off that a TXERR of 255 forces, with the recovery
+//! after it.
 //!
 //! Each program sets its chip up in PeliCAN mode on the lab's 30 kbit/s bus (6 MHz crystal,
 //! BTR0 = 03h, BTR1 = FFh: 25 quanta of 4/3 µs), accepting every frame, every interrupt flag
@@ -354,4 +355,44 @@ fn abort_frees_the_buffer_and_the_next_request_works() {
     assert_eq!(later.txerr, aborted.txerr, "{:?}", r.snaps);
     assert_eq!((again.sr, again.ir & 0x02), (0x04, 0x02), "{:?}", r.snaps);
     assert_eq!(again.txerr, aborted.txerr + 8, "{:?}", r.snaps);
+}
+
+/// Sleep (MOD.SM) with a sender: the sleeping chip is off the bus, so the sender's first attempt
+/// has nobody to acknowledge it (an ACK error, TXERR 8). Its start of frame wakes the sleeper:
+/// MOD.SM reads 0 and IR = WUI (10h), but the chip does not receive that frame: it integrates
+/// first, 11 recessive bits after the sender's 6-bit error flag (error delimiter 8 + intermission
+/// 3), which is exactly when the sender retries (data sheet 6.4.3: the waking message is lost
+/// until 11 recessive bits). So the retry is acknowledged by the woken chip (the sender's TXERR
+/// 8 − 1 = 7, SR 0Ch) and received by it once (RMC 1, RBS, RXERR 0). The trace has the frame
+/// once.
+#[test]
+fn sleeping_chip_is_off_the_bus_and_bus_activity_wakes_it() {
+    let mut sleeper = Program::new(0xD3, 0x00);
+    sleeper.delay(1).write(0x00, 0x10).snap();
+    sleeper.wait(0x00, 0x10, false).snap().delay(20).snap();
+    let mut sender = Program::new(0xD4, 0x00);
+    sender
+        .delay(5)
+        .frame()
+        .write(0x01, 0x01)
+        .wait(0x02, 0x08, true)
+        .snap();
+    let r = run(&[sleeper.bench("SLEEPER"), sender.bench("SENDER")], 60, 3);
+    let (asleep, woken, later) = (r.snaps[0], r.snaps[1], r.snaps[2]);
+    assert_eq!((asleep.mode, asleep.ir), (0x10, 0x00), "{:?}", r.snaps);
+    assert_eq!(
+        (woken.mode, woken.ir, woken.rmc, woken.rxerr),
+        (0x00, 0x10, 0, 0),
+        "{:?}",
+        r.snaps
+    );
+    assert_eq!(
+        (later.rmc, later.sr & 0x01, later.rxerr),
+        (1, 0x01, 0),
+        "{:?}",
+        r.snaps
+    );
+    let s = r.others[0];
+    assert_eq!((s.sr, s.txerr), (0x0C, 7), "the sender: {:?}", r.others);
+    assert_eq!(r.frames, ["123#5A"]);
 }

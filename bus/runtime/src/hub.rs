@@ -479,6 +479,7 @@ impl Hub {
             let (node, at, input, wakes) = match event {
                 Event::Delivered { node, at } => (node, at, None, true),
                 Event::Overrun { node, at } => (node, at, Some(ControllerEvent::Overrun), true),
+                Event::Woken { node, at } => (node, at, Some(ControllerEvent::Woken), true),
                 Event::State { node, at, to, .. } => (node, at, Some(ControllerEvent::State(to)), true),
                 Event::TxDone { node, at, frame, .. } => {
                     (node, at, Some(ControllerEvent::Sent(frame)), every(node))

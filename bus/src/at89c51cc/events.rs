@@ -43,8 +43,9 @@ impl CanController {
                     self.schedule();
                 }
             }
-            // The controller has no arbitration-lost register; the frame stays pending.
-            BusSide::ArbitrationLost { .. } => {}
+            // The controller has no arbitration-lost register; the frame stays pending. The model
+            // has no sleep mode, so it is never woken.
+            BusSide::ArbitrationLost { .. } | BusSide::Woken => {}
             BusSide::BusError {
                 error, transmitting, ..
             } => self.bus_error(error, transmitting),

@@ -180,6 +180,8 @@ pub struct Controller {
     pub(crate) overrun_flag: bool,
     pub(crate) tx: VecDeque<Pending>,
     pub(crate) connected: bool,
+    /// Sleep mode: off the bus (`connected` false) until the next bus activity wakes it.
+    pub(crate) asleep: bool,
     pub(crate) acks: bool,
     /// Listen-only (bus monitoring) mode: it drives nothing dominant (no frame, no ACK, no
     /// error or overload flag) and its counters do not move.
@@ -219,6 +221,7 @@ impl Controller {
             rx_bytes: 0,
             overrun_flag: false,
             connected: true,
+            asleep: false,
             acks: true,
             listen_only: false,
             presume_ack: false,
@@ -264,6 +267,10 @@ impl Controller {
     /// True while connected to the bus (it may still be integrating: [`Controller::is_integrating`]).
     pub fn is_connected(&self) -> bool {
         self.connected
+    }
+    /// True in sleep mode: off the bus until bus activity or its host wakes it.
+    pub fn is_asleep(&self) -> bool {
+        self.asleep
     }
     /// True while it acknowledges frames: it is set to, and not listen-only.
     pub fn acks(&self) -> bool {

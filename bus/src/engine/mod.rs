@@ -17,8 +17,9 @@
 //! error), automatic retransmission, suspend transmission after anything an error-passive node
 //! sent, bus off and recovery after 128 × 11 recessive bits, acceptance filters, the SJA1000's
 //! 64-byte receive FIFO with counted overruns, the controller modes drivers use (listen-only,
-//! self test, single shot, abort) and bus integration: a controller that joins the bus takes
-//! part only after 11 consecutive recessive bits.
+//! self test, single shot, abort, sleep: off the bus until the next start of frame wakes it) and
+//! bus integration: a controller that joins the bus takes part only after 11 consecutive
+//! recessive bits.
 //!
 //! An attempt that goes through cleanly (one frame or identical ones, acknowledged, nothing
 //! injected, every controller idle) is committed in closed form. Any other attempt runs bit by
@@ -286,6 +287,14 @@ pub enum Event {
         /// Sequences counted, 1 to 127.
         sequences: u8,
     },
+    /// A sleeping controller saw bus activity (the start of a frame) and left sleep mode: it
+    /// integrates before it takes part, so it does not receive the frame that woke it.
+    Woken {
+        /// The node.
+        node: NodeId,
+        /// The end of the first dominant bit it saw.
+        at: BusTime,
+    },
     /// A node's controller was reset (a node restart or a power cycle).
     Restarted {
         /// The node.
@@ -321,6 +330,7 @@ impl Event {
             | Event::TxAborted { at, .. }
             | Event::State { at, .. }
             | Event::Restarted { at, .. }
+            | Event::Woken { at, .. }
             | Event::Warning { at, .. }
             | Event::BusError { at, .. }
             | Event::ArbitrationLost { at, .. }
@@ -359,6 +369,8 @@ pub struct Bus {
     last_dominant: BusTime,
     /// Some controller may still be integrating (false lets a clean frame skip looking).
     joining: bool,
+    /// Some controller may be asleep (false lets a frame skip looking for one to wake).
+    sleeping: bool,
     controllers: Vec<Controller>,
     injector: Injector,
     stats: Stats,
@@ -388,6 +400,7 @@ impl Bus {
             committed: BusTime::ZERO,
             last_dominant: BusTime::ZERO,
             joining: false,
+            sleeping: false,
             controllers: Vec::new(),
             injector: Injector::new(config.seed),
             latency_class: config.latency_class,
@@ -559,7 +572,15 @@ impl Bus {
     /// Disconnects a node from the bus or connects it again at `at`. Connected again, it
     /// integrates before it takes part ([`INTEGRATION_BITS`] recessive bits).
     pub fn set_connected(&mut self, node: NodeId, connected: bool, at: BusTime) -> Result<(), Error> {
-        let c = self.get_mut(node)?;
+        self.get_mut(node)?;
+        self.connect(node.index(), connected, at);
+        Ok(())
+    }
+
+    /// [`Bus::set_connected`] for controller `i`, which exists.
+    fn connect(&mut self, i: usize, connected: bool, at: BusTime) {
+        let c = &mut self.controllers[i];
+        c.asleep = false;
         let joins = connected && !c.connected;
         if joins {
             // A bus-off node counts its recovery from here on, and sends nothing before.
@@ -568,15 +589,61 @@ impl Bus {
         }
         c.connected = connected;
         if joins {
-            self.join(node.index(), at);
+            self.join(i, at);
+        }
+    }
+
+    /// Puts a node's controller to sleep or wakes it, at `at`. Asleep it is off the bus: it
+    /// drives nothing, receives nothing, its counters stay and its queued frames wait. The next
+    /// start of frame on the bus wakes it ([`Event::Woken`] at the end of that first dominant
+    /// bit); woken so or by its host, it integrates before it takes part (SJA1000 data sheet
+    /// 6.4.3, MOD.SM: the frame that wakes the chip is not received). A controller that is not
+    /// connected does not go to sleep.
+    pub fn set_asleep(&mut self, node: NodeId, asleep: bool, at: BusTime) -> Result<(), Error> {
+        let c = self.get_mut(node)?;
+        if asleep && c.connected {
+            c.connected = false;
+            c.asleep = true;
+            self.sleeping = true;
+        } else if !asleep && c.asleep {
+            self.connect(node.index(), true, at);
         }
         Ok(())
+    }
+
+    /// Bus activity from `sof` on wakes the sleeping controllers: each says so now, and joins
+    /// the bus once the attempt starting at `sof` is committed (`wake_up`).
+    fn woken_by(&mut self, sof: BusTime) -> Vec<usize> {
+        if !self.sleeping {
+            return Vec::new();
+        }
+        self.sleeping = false;
+        let at = sof + self.bit;
+        let woken: Vec<usize> = (0..self.controllers.len())
+            .filter(|&i| self.controllers[i].asleep)
+            .collect();
+        for &i in &woken {
+            self.events.push(Event::Woken {
+                node: NodeId(i as u16),
+                at,
+            });
+        }
+        woken
+    }
+
+    /// The controllers woken at `sof` join the bus, counting recessive bits from the last
+    /// dominant bit of what was committed from `sof` on.
+    fn wake_up(&mut self, woken: Vec<usize>, sof: BusTime) {
+        for i in woken {
+            self.connect(i, true, sof + self.bit);
+        }
     }
 
     /// Resets a node's controller (power cycle): counters zero, error active, queues emptied.
     pub fn reset_node(&mut self, node: NodeId, at: BusTime) -> Result<(), Error> {
         let c = self.get_mut(node)?;
         c.fault.reset();
+        c.asleep = false;
         c.listen_only = false;
         c.presume_ack = false;
         c.tx.clear();
@@ -905,6 +972,7 @@ impl Bus {
             self.transmitters = starters;
             return;
         };
+        let woken = self.woken_by(sof);
         let frame = self.controllers[w].tx[0].frame;
         // After a clean frame every controller is idle: only an episode leaves states to carry.
         let mut all_idle = true;
@@ -1032,6 +1100,7 @@ impl Bus {
             self.episode(sof, &starters, plan);
             self.carried = true;
         }
+        self.wake_up(woken, sof);
         self.transmitters = starters;
     }
 

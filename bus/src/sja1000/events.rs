@@ -65,6 +65,14 @@ impl Sja1000 {
                 }
             }
             BusSide::Counters { tec, rec, state } => self.counters(tec, rec, state),
+            // Bus activity wakes the chip (data sheet 6.4.3, MOD.SM); the bus does not give it the
+            // frame that did.
+            BusSide::Woken => {
+                if self.sleep {
+                    self.sleep = false;
+                    self.raise(ir::WUI);
+                }
+            }
             BusSide::RecoveryDone => {
                 if self.recovering {
                     self.recovering = false;
@@ -80,12 +88,6 @@ impl Sja1000 {
 
     fn received(&mut self, frame: &Frame) {
         if self.reset || self.recovering {
-            return;
-        }
-        if self.sleep {
-            // Bus activity wakes the chip; it cannot take this frame (data sheet 6.3.4, GTS).
-            self.sleep = false;
-            self.raise(ir::WUI);
             return;
         }
         if self.mode() == Mode::BasicCan && frame.is_extended() {
@@ -236,10 +238,12 @@ impl Sja1000 {
                 self.raise(ir::WUI);
             } else {
                 self.sleep = true;
+                self.actions.push(Action::Sleep(true));
             }
         } else if !on && self.sleep {
             self.sleep = false;
             self.raise(ir::WUI);
+            self.actions.push(Action::Sleep(false));
         }
     }
 

@@ -148,6 +148,9 @@ pub enum Action {
     },
     /// CMR.AT: drop the pending frame if its transmission has not started.
     Abort,
+    /// Sleep mode entered (true: off the bus until bus activity, answered with
+    /// [`BusSide::Woken`]) or left by the CPU (false: take part again after 11 recessive bits).
+    Sleep(bool),
     /// The CPU wrote TXERR or RXERR in reset mode: the node's counters are now these. A TEC of
     /// 256 is the bus-off that leaving reset mode with TXERR 255 performs (data sheet 6.4.12).
     SetCounters {
@@ -202,6 +205,8 @@ pub enum BusSide {
     },
     /// Bus-off recovery is complete.
     RecoveryDone,
+    /// Asleep, the chip saw bus activity and woke (the frame that woke it is not received).
+    Woken,
 }
 
 /// The ECC segment code (ECC bits 4:0, data sheet 6.4.9, Table 21) of an error at `location`.

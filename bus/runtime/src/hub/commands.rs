@@ -53,6 +53,7 @@ impl Hub {
                 r
             }
             ControllerCommand::Recover => self.bus.request_recovery(node, now),
+            ControllerCommand::Sleep(on) => self.bus.set_asleep(node, on, now),
             ControllerCommand::Tuned(tuned) => {
                 self.tune(i, tuned);
                 let listen_only = self.slots[i].switches.listen_only;

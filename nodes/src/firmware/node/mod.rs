@@ -363,6 +363,7 @@ impl FirmwareNode {
                     ControllerCommand::Transmit(frame)
                 }),
                 Action::Abort => push(ControllerCommand::Abort),
+                Action::Sleep(on) => push(ControllerCommand::Sleep(on)),
                 Action::SetCounters { tec, rec } => push(ControllerCommand::SetCounters { tec, rec }),
             }
         }
@@ -520,6 +521,7 @@ impl NodeLogic for FirmwareNode {
             }),
             // The chip keeps its own receive FIFO and counts its own overruns.
             ControllerEvent::Overrun => {}
+            ControllerEvent::Woken => side.push(BusSide::Woken),
         }
         self.input(now, chip, &side);
     }
