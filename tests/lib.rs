@@ -337,7 +337,7 @@ pub fn run_firmware_specs(
                 .await
                 .expect("crashes")
                 .into_iter()
-                .map(|(id, why)| (bench_of(id), why))
+                .map(|(id, why)| (bench_of(id), why.to_string()))
                 .collect();
             crashed.dedup_by_key(|(bench, _)| *bench);
             let snapshot = hub.send(GetSnapshot).await.expect("snapshot");

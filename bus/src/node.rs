@@ -259,6 +259,36 @@ pub enum SensorFault {
 #[error("{0}")]
 pub struct Refused(pub String);
 
+/// Why a node's logic stopped taking part.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum CrashCause {
+    /// Fault injection asked for it (a scenario's `Crash`).
+    Injected,
+    /// The logic panicked; the panic's message.
+    Panic(String),
+    /// The logic stopped for good ([`NodeLogic::failed`]: a firmware's CPU fault), with why.
+    Failed(String),
+    /// The node's actor was gone before it answered a wake.
+    ActorGone,
+}
+
+impl std::fmt::Display for CrashCause {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            CrashCause::Injected => f.write_str("injected crash"),
+            CrashCause::Panic(message) | CrashCause::Failed(message) => f.write_str(message),
+            CrashCause::ActorGone => f.write_str("node actor gone"),
+        }
+    }
+}
+
+/// Written as its text, as reports and JSON outputs show it.
+impl serde::Serialize for CrashCause {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
+}
+
 /// A node's answer to a wake.
 #[derive(Debug, Default, PartialEq)]
 pub struct Report {
@@ -269,8 +299,8 @@ pub struct Report {
     pub transmit: Vec<Frame>,
     /// Next deadline.
     pub next_timeout: Option<BusTime>,
-    /// Set when the logic panicked: the message, and the node takes no further part.
-    pub crashed: Option<String>,
+    /// Set when the logic crashed: why; the node takes no further part.
+    pub crashed: Option<CrashCause>,
     /// [`NodeLogic::frames_can_wait`], as of this wake.
     pub frames_can_wait: bool,
     /// [`NodeLogic::wants_every_event`], as of this wake.
@@ -352,7 +382,7 @@ pub fn drive_counted(
         commands,
         transmit,
         next_timeout: logic.poll_timeout(),
-        crashed: logic.failed(),
+        crashed: logic.failed().map(CrashCause::Failed),
         frames_can_wait: logic.frames_can_wait(),
         every_event: logic.wants_every_event(),
         frames_handled: *handled,

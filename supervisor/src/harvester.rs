@@ -6,6 +6,7 @@ use actix::prelude::*;
 use bus::bits::BitRate;
 use bus::engine::{BusConfig, ControllerConfig, Filter, NodeId};
 use bus::filter::SocketCanFilterSet;
+use bus::node::CrashCause;
 use bus::time::{BusDuration, BusTime};
 use bus::trace::Sink;
 use bus_runtime::hub::{AttachControllers, GetCrashed, Hub, HubConfig, Replace, RunUntil};
@@ -417,8 +418,56 @@ pub struct SupervisorEvent {
     pub at: BusTime,
     /// The node ("*" for the whole machine).
     pub node: String,
-    /// What happened: `crashed: ...`, `restarted`, `gave up ...`, `power cycle`.
-    pub what: String,
+    /// What happened.
+    pub what: Happened,
+}
+
+/// What the supervisor saw or did; `Display` gives the text outputs show.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Happened {
+    /// The node's logic crashed: `crashed: why`.
+    Crashed(CrashCause),
+    /// The supervisor restarted it.
+    Restarted,
+    /// It crashed more often than the restart policy allows, and stays down.
+    GaveUp {
+        /// Restarts within the window.
+        restarts: usize,
+        /// The policy's window, seconds.
+        window_s: f64,
+    },
+    /// The whole machine was switched off and on.
+    PowerCycle,
+    /// A crash was asked for while the node was down already.
+    NotCrashedDown,
+}
+
+impl Happened {
+    /// A crash that fault injection did not ask for.
+    pub fn is_own_crash(&self) -> bool {
+        matches!(self, Happened::Crashed(c) if *c != CrashCause::Injected)
+    }
+}
+
+impl std::fmt::Display for Happened {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Happened::Crashed(why) => write!(f, "crashed: {why}"),
+            Happened::Restarted => f.write_str("restarted"),
+            Happened::GaveUp { restarts, window_s } => {
+                write!(f, "gave up after {restarts} restarts in {window_s} s")
+            }
+            Happened::PowerCycle => f.write_str("power cycle"),
+            Happened::NotCrashedDown => f.write_str("not crashed: it is down"),
+        }
+    }
+}
+
+/// Written as its text, as outputs show it.
+impl serde::Serialize for Happened {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
 }
 
 /// What a node is rebuilt from.
@@ -726,9 +775,8 @@ impl Running {
                 .events
                 .iter()
                 .rev()
-                .find(|e| e.node == m.name && e.what.starts_with("crashed: "));
-            let injected = format!("crashed: {}", bus_runtime::node::INJECTED_CRASH);
-            if last_crash.is_some_and(|e| e.what != injected) {
+                .find(|e| e.node == m.name && matches!(e.what, Happened::Crashed(_)));
+            if last_crash.is_some_and(|e| e.what.is_own_crash()) {
                 down.push(m.name.clone());
             }
         }
@@ -752,21 +800,19 @@ impl Running {
                 self.events.push(SupervisorEvent {
                     at: now,
                     node: m.name.clone(),
-                    what: format!("crashed: {why}"),
+                    what: Happened::Crashed(why),
                 });
                 let window = BusDuration::from_nanos((policy.window_s * 1e9) as u64);
                 m.restarts.retain(|t| now - *t < window);
                 if m.restarts.len() as u32 >= policy.max_restarts {
                     m.down = true;
-                    let what = format!(
-                        "gave up after {} restarts in {} s",
-                        m.restarts.len(),
-                        policy.window_s
-                    );
                     self.events.push(SupervisorEvent {
                         at: now,
                         node: m.name.clone(),
-                        what,
+                        what: Happened::GaveUp {
+                            restarts: m.restarts.len(),
+                            window_s: policy.window_s,
+                        },
                     });
                 } else {
                     m.restart_at = Some(now + BusDuration::from_millis(policy.backoff_ms));
@@ -779,7 +825,7 @@ impl Running {
                 self.events.push(SupervisorEvent {
                     at: now,
                     node: self.members[i].name.clone(),
-                    what: "restarted".into(),
+                    what: Happened::Restarted,
                 });
             }
         }
@@ -829,7 +875,7 @@ impl Running {
             self.events.push(SupervisorEvent {
                 at: self.now,
                 node: name.into(),
-                what: "not crashed: it is down".into(),
+                what: Happened::NotCrashedDown,
             });
             return Ok(());
         }
@@ -844,7 +890,7 @@ impl Running {
         self.events.push(SupervisorEvent {
             at: now,
             node: "*".into(),
-            what: "power cycle".into(),
+            what: Happened::PowerCycle,
         });
         let relay = now + BusDuration::from_millis(self.harvester.config.time_relay_ms);
         for i in 0..self.members.len() {

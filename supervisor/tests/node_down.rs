@@ -61,7 +61,7 @@ fn a_node_down_by_itself_is_exit_4_and_an_injected_crash_is_not() {
     });
     let gave_up: Vec<&str> = events
         .iter()
-        .filter(|e| e.what.starts_with("gave up"))
+        .filter(|e| matches!(e.what, harvester::Happened::GaveUp { .. }))
         .map(|e| e.node.as_str())
         .collect();
     assert_eq!(gave_up, ["D3", "D4"], "both stay down: {events:?}");

@@ -359,7 +359,7 @@ fn the_series_has_one_sample_per_second_and_sees_counters_rise_and_decay() {
 #[test]
 fn characters_xml_cannot_carry_become_replacement_characters_in_junit_and_the_report() {
     use bus::time::BusTime;
-    use supervisor::harvester::SupervisorEvent;
+    use supervisor::harvester::{Happened, SupervisorEvent};
     use supervisor::scenario::series::{ClassLatency, NodeCounters};
     use supervisor::scenario::{Outcome, Scenario, Series, Verdict, junit};
     // Validation refuses them in the scenario's own text; everything else (node names from
@@ -409,7 +409,7 @@ fn characters_xml_cannot_carry_become_replacement_characters_in_junit_and_the_re
         events: vec![SupervisorEvent {
             at: BusTime::from_nanos(500_000_000),
             node: bad.into(),
-            what: bad.into(),
+            what: Happened::Crashed(bus::node::CrashCause::Panic(bad.into())),
         }],
         wall_seconds: 0.1,
         interrupted: false,

@@ -3,9 +3,11 @@
 //! read back independently, holds every frame.
 
 use bus::fault::ErrorState;
+use bus::node::CrashCause;
 use clap::Parser;
 use harvemu_e2e::{Shared, candump, default_harvester, parse_trace, root};
 use std::collections::{BTreeMap, BTreeSet};
+use supervisor::harvester::Happened;
 use supervisor::scenario::{self, Action, RandomFault, Target, random};
 use supervisor::{exit, soak};
 
@@ -73,14 +75,20 @@ fn a_short_soak_with_dense_random_faults_balances_its_books() {
     let crashes: Vec<_> = outcome
         .events
         .iter()
-        .filter(|e| e.what.starts_with("crashed"))
+        .filter(|e| matches!(e.what, Happened::Crashed(_)))
         .collect();
     assert!(
-        crashes.iter().all(|e| e.what == "crashed: injected crash"),
+        crashes
+            .iter()
+            .all(|e| e.what == Happened::Crashed(CrashCause::Injected)),
         "{crashes:?}"
     );
     assert_eq!(crashes.len(), steps(RandomFault::Crash));
-    let restarts = outcome.events.iter().filter(|e| e.what == "restarted").count();
+    let restarts = outcome
+        .events
+        .iter()
+        .filter(|e| e.what == Happened::Restarted)
+        .count();
     assert_eq!(restarts, crashes.len());
 
     // Every kind was drawn, and every action was carried out.

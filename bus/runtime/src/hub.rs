@@ -56,7 +56,7 @@ use actix::prelude::*;
 use bus::Frame;
 use bus::engine::{Bus, BusConfig, ControllerConfig, ControllerCounters, Event, NodeId, Rule, RuleId, Stats};
 use bus::fault::ErrorState;
-use bus::node::{ControllerEvent, Report};
+use bus::node::{ControllerEvent, CrashCause, Report};
 use bus::pacing::{Overruns, Pace, Pacer};
 use bus::time::{BusDuration, BusTime, Epoch};
 use bus::trace::{Kind, Record, Reorder, Sink, Source};
@@ -134,7 +134,7 @@ struct Slot {
     /// What became of the frames taken from the FIFO (plain counters: no cost per frame).
     handover: Handover,
     hung: bool,
-    crashed: Option<String>,
+    crashed: Option<CrashCause>,
     /// The logic hears of every controller event as it happens ([`Report::every_event`]).
     every_event: bool,
     /// What its logic set on its controller (register-level nodes).
@@ -638,7 +638,7 @@ impl Hub {
         let first = self.slots[i].first;
         if let Some(message) = report.crashed {
             if self.slots[i].crashed.is_none() {
-                if message == crate::node::INJECTED_CRASH {
+                if message == CrashCause::Injected {
                     // Asked for by a scenario: expected, so not a warning on the operator's screen.
                     tracing::info!(node = %self.slots[i].name, %message, "node crashed");
                 } else {
@@ -1113,7 +1113,7 @@ pub struct NodeSnapshot {
     /// Hung by fault injection.
     pub hung: bool,
     /// Why it crashed, if it did.
-    pub crashed: Option<String>,
+    pub crashed: Option<CrashCause>,
 }
 
 /// The hub's state for reports and tests.
@@ -1164,7 +1164,7 @@ impl Handler<GetEpoch> for Hub {
 /// Asks which nodes have crashed, and why: cheap enough to ask often (a [`Snapshot`] copies the
 /// statistics).
 #[derive(Message)]
-#[rtype(result = "Vec<(NodeId, String)>")]
+#[rtype(result = "Vec<(NodeId, CrashCause)>")]
 pub struct GetCrashed;
 
 impl Handler<GetCrashed> for Hub {

@@ -5,7 +5,7 @@
 
 use actix::prelude::*;
 use bus::engine::Received;
-use bus::node::{ControllerEvent, NodeLogic, Report, drive_counted};
+use bus::node::{ControllerEvent, CrashCause, NodeLogic, Report, drive_counted};
 use bus::time::BusTime;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::sync::Arc;
@@ -81,7 +81,7 @@ impl Drop for Reply {
                 slot: self.slot,
                 round: self.round,
                 report: Report {
-                    crashed: Some("node actor gone".to_string()),
+                    crashed: Some(CrashCause::ActorGone),
                     ..Report::default()
                 },
             });
@@ -129,7 +129,7 @@ impl Handler<Wake> for NodeActor {
             tracing::info!(node = %self.name, "injected crash");
             ctx.stop();
             return reply.send(Report {
-                crashed: Some(INJECTED_CRASH.to_string()),
+                crashed: Some(CrashCause::Injected),
                 ..Report::default()
             });
         }
@@ -143,7 +143,7 @@ impl Handler<Wake> for NodeActor {
                 tracing::error!(node = %self.name, %message, "node logic panicked");
                 ctx.stop();
                 Report {
-                    crashed: Some(message),
+                    crashed: Some(CrashCause::Panic(message)),
                     frames_handled: handled,
                     ..Report::default()
                 }
@@ -160,9 +160,6 @@ pub fn panic_message(panic: &(dyn std::any::Any + Send)) -> Option<String> {
         .map(|s| s.to_string())
         .or_else(|| panic.downcast_ref::<String>().cloned())
 }
-
-/// What a node reports when it crashed because it was told to ([`Crash`]).
-pub const INJECTED_CRASH: &str = "injected crash";
 
 /// Makes the node's logic crash at its next wake (fault injection).
 #[derive(Message)]

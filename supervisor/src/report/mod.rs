@@ -135,7 +135,7 @@ fn events(out: &mut String, o: &Outcome) {
             "<tr><td class=\"num\">{}</td><td>{}</td><td>{}</td></tr>",
             e.at,
             escape(&e.node),
-            escape(&e.what)
+            escape(&e.what.to_string())
         );
     }
     out.push_str("</tbody>\n</table>\n");
@@ -193,7 +193,7 @@ fn latency_table(out: &mut String, s: &Series) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::harvester::SupervisorEvent;
+    use crate::harvester::{Happened, SupervisorEvent};
     use crate::scenario::Verdict;
     use bus::time::BusTime;
 
@@ -234,7 +234,7 @@ mod tests {
             events: vec![SupervisorEvent {
                 at: BusTime::from_nanos(400_000_000),
                 node: "D3".into(),
-                what: "crashed: <boom> & gone".into(),
+                what: Happened::Crashed(bus::node::CrashCause::Panic("<boom> & gone".into())),
             }],
             wall_seconds: 0.1,
             interrupted: true,

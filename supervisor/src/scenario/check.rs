@@ -3,7 +3,7 @@
 use super::books::Books;
 use super::states::{Seen, Timeline};
 use super::{Expect, Scenario};
-use crate::harvester::Running;
+use crate::harvester::{Happened, Running};
 use bus::fault::ErrorState;
 use bus::time::{BusDuration, BusTime};
 use bus_runtime::hub::Snapshot;
@@ -220,7 +220,7 @@ fn one(e: &Expect, r: &Running, snap: &Snapshot, books: &Books) -> Verdict {
             let n = r
                 .events
                 .iter()
-                .filter(|ev| &ev.node == node && ev.what == "restarted")
+                .filter(|ev| &ev.node == node && ev.what == Happened::Restarted)
                 .count();
             let at = r.events.iter().rev().find(|ev| &ev.node == node).map(|ev| ev.at);
             verdict(e, n == *count, at, format!("{n} restart(s)"))
@@ -393,12 +393,8 @@ fn one(e: &Expect, r: &Running, snap: &Snapshot, books: &Books) -> Verdict {
             }
         }
         Expect::NoCrashes => {
-            let injected = format!("crashed: {}", bus_runtime::node::INJECTED_CRASH);
-            let own: Vec<&crate::harvester::SupervisorEvent> = r
-                .events
-                .iter()
-                .filter(|ev| ev.what.starts_with("crashed: ") && ev.what != injected)
-                .collect();
+            let own: Vec<&crate::harvester::SupervisorEvent> =
+                r.events.iter().filter(|ev| ev.what.is_own_crash()).collect();
             match own.first() {
                 None => verdict(e, true, None, "no crash but the timeline's".into()),
                 Some(first) => verdict(

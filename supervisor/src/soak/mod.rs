@@ -12,6 +12,7 @@ pub mod memory;
 use crate::Error;
 use crate::configs;
 use crate::exit::Ended;
+use crate::harvester::Happened;
 use crate::scenario::{self, random};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::collections::BTreeMap;
@@ -135,12 +136,12 @@ fn report(l: &scenario::Loaded, o: &scenario::Outcome, rss: &memory::Samples, ho
         "faults: {total} ({}); {applied} timeline actions carried out\n",
         kinds.join(", ")
     );
-    let count = |prefix: &str| o.events.iter().filter(|e| e.what.starts_with(prefix)).count();
+    let count = |which: fn(&Happened) -> bool| o.events.iter().filter(|e| which(&e.what)).count();
     out += &format!(
         "supervisor: {} crash(es), {} restart(s), {} gave up\n",
-        count("crashed"),
-        count("restarted"),
-        count("gave up")
+        count(|h| matches!(h, Happened::Crashed(_))),
+        count(|h| *h == Happened::Restarted),
+        count(|h| matches!(h, Happened::GaveUp { .. }))
     );
     let virtual_s = o.snapshot.as_ref().map_or(0.0, |n| n.now.as_secs_f64());
     out += &format!(

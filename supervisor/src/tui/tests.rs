@@ -92,7 +92,7 @@ fn view_of(snapshot: &Snapshot, display: Option<&Display>, rates: &RateMeter) ->
 fn node_states_show_passive_and_bus_off_with_their_counters() {
     let (mut bus, _) = bus_with_sender();
     let mut crashed = node("D3", ErrorState::Active, 0, 0);
-    crashed.crashed = Some("panicked".into());
+    crashed.crashed = Some(bus::node::CrashCause::Panic("panicked".into()));
     let nodes = vec![
         node("F5", ErrorState::Active, 0, 0),
         node("B3", ErrorState::Passive, 136, 9),
