@@ -577,9 +577,13 @@ impl Hub {
             if self.slots[i].due() != Some(at) {
                 continue;
             }
+            // Every slot has its controller (attached together): an error here is a bug, told.
             let drained = match self.bus.drain_rx(NodeId(i as u16), at) {
                 Ok((frames, _overrun)) => frames,
-                Err(_) => Vec::new(),
+                Err(e) => {
+                    tracing::error!(node = %self.slots[i].name, error = %e, "receive FIFO not read");
+                    Vec::new()
+                }
             };
             let still_arriving = self.bus.rx_front(NodeId(i as u16));
             let slot = &mut self.slots[i];
