@@ -257,9 +257,7 @@ pub fn run_firmware_specs(
     end: BusTime,
     fault: Option<BitErrorsOf>,
 ) -> FirmwareRun {
-    use bus::engine::{
-        BitPosition, BusConfig, ControllerConfig, Filter, NodeId, Recovery, Rule, Schedule, Target,
-    };
+    use bus::engine::{BitPosition, BusConfig, ControllerConfig, NodeId, Recovery, Rule, Schedule, Target};
     use bus_runtime::hub::{AttachControllers, Control, GetCrashed, GetSnapshot, Hub, HubConfig};
     use bus_runtime::node::{Apply, NodeActor};
     use nodes::firmware::FirmwareNode;
@@ -290,7 +288,7 @@ pub fn run_firmware_specs(
                 let controllers = (0..spec.chips.len().max(1))
                     .map(|k| ControllerConfig {
                         recovery: Recovery::OnRequest,
-                        ..ControllerConfig::named(spec.controller_name(k)).with_filter(Filter::All)
+                        ..ControllerConfig::handing_over(spec.controller_name(k))
                     })
                     .collect();
                 let attached = hub

@@ -365,7 +365,7 @@ fn controllers(name: &str, spec: &Spec) -> crate::Result<Vec<ControllerConfig>> 
                 } else {
                     bus::engine::Recovery::OnRequest
                 },
-                ..ControllerConfig::named(f.controller_name(k)).with_filter(Filter::All)
+                ..ControllerConfig::handing_over(f.controller_name(k))
             };
             if f.chips.is_empty() {
                 return Ok(vec![chip(0, false)]);

@@ -54,7 +54,10 @@ pub struct ControllerConfig {
     pub name: String,
     /// Acceptance filter.
     pub filter: Filter,
-    /// Receive FIFO size in bytes (the SJA1000 has 64).
+    /// Receive FIFO size in bytes: the SJA1000's 64 for a controller the engine stands for (a
+    /// scripted node's). A register-level node's chip model keeps its own FIFO
+    /// ([`crate::sja1000`], [`crate::at89c51cc`]), so its controller here only hands frames
+    /// over, with no limit: [`ControllerConfig::handing_over`].
     pub rx_fifo_bytes: usize,
     /// Frames the transmit queue holds before submissions are refused.
     pub tx_queue_len: usize,
@@ -102,16 +105,24 @@ impl ControllerConfig {
         self.filter = filter;
         self
     }
+    /// The controller of a register-level node (firmware with a chip model): it takes every
+    /// frame (the chip filters) and hands frames over to the chip without a FIFO limit of its
+    /// own (the chip's FIFO is the one that overruns).
+    pub fn handing_over(name: impl Into<String>) -> ControllerConfig {
+        ControllerConfig {
+            rx_fifo_bytes: usize::MAX,
+            ..ControllerConfig::named(name).with_filter(Filter::All)
+        }
+    }
 }
 
-/// The SJA1000's receive FIFO, in bytes.
-pub const SJA1000_FIFO_BYTES: usize = 64;
+/// The SJA1000's receive FIFO, in bytes ([`crate::sja1000::FIFO_BYTES`]).
+pub const SJA1000_FIFO_BYTES: usize = crate::sja1000::FIFO_BYTES;
 
-/// Bytes a received frame takes in an SJA1000 receive FIFO: frame information and identifier
-/// (3 bytes base, 5 extended) plus the data; a remote frame stores no data.
+/// Bytes a received frame takes in an SJA1000 receive FIFO ([`crate::sja1000::message_bytes`],
+/// where the rule lives).
 pub fn fifo_bytes(frame: &Frame) -> usize {
-    let header = if frame.is_extended() { 5 } else { 3 };
-    header + frame.data().len()
+    crate::sja1000::message_bytes(frame)
 }
 
 /// A frame in a receive FIFO, stamped with its end-of-frame time.
@@ -325,7 +336,7 @@ impl Controller {
     /// Stores a received frame; false (and the overrun recorded) when it does not fit.
     pub(crate) fn store(&mut self, at: BusTime, frame: Frame) -> bool {
         let need = fifo_bytes(&frame);
-        if self.rx_bytes + need > self.config.rx_fifo_bytes {
+        if self.rx_bytes.saturating_add(need) > self.config.rx_fifo_bytes {
             self.overrun_flag = true;
             self.counters.rx_overruns += 1;
             return false;

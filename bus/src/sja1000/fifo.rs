@@ -21,6 +21,15 @@ pub(crate) struct RxFifo {
     lengths: VecDeque<u8>,
 }
 
+/// Bytes a received frame takes in the FIFO RAM: frame information and identifier (3 bytes base,
+/// 5 extended) plus the data; a remote frame stores no data. The one place this rule lives: the
+/// engine's controllers that stand for an SJA1000 count with it too
+/// ([`crate::engine::fifo_bytes`]).
+pub fn message_bytes(frame: &Frame) -> usize {
+    let header = if frame.is_extended() { 5 } else { 3 };
+    header + frame.data().len()
+}
+
 /// The receive-buffer bytes of a frame (frame information, identifier, data).
 pub(crate) fn encode(frame: &Frame) -> Vec<u8> {
     let mut out = Vec::with_capacity(13);
@@ -71,11 +80,11 @@ impl RxFifo {
 
     /// Stores `frame`; false (and nothing stored) when it does not fit.
     pub fn push(&mut self, frame: &Frame) -> bool {
-        let bytes = encode(frame);
         let used = self.used();
-        if used + bytes.len() > FIFO_BYTES {
+        if used + message_bytes(frame) > FIFO_BYTES {
             return false;
         }
+        let bytes = encode(frame);
         for (i, b) in bytes.iter().enumerate() {
             self.ram[(usize::from(self.start) + used + i) % FIFO_BYTES] = *b;
         }

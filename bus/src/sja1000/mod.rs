@@ -28,7 +28,7 @@ mod timing;
 #[cfg(test)]
 mod tests;
 
-pub use fifo::FIFO_BYTES;
+pub use fifo::{FIFO_BYTES, message_bytes};
 pub use timing::BitTiming;
 pub(crate) use timing::{iso_tolerance, within_tolerance};
 
