@@ -8,7 +8,6 @@
 use crate::frame::{extended_id, standard_id};
 use crate::text::quote;
 use crate::{Error, Frame, Id};
-use core::fmt::Write;
 
 /// Parses one frame in `ID#DATA` notation.
 pub fn parse_frame(text: &str) -> Result<Frame, Error> {
@@ -95,23 +94,9 @@ pub fn format_frame(frame: &Frame) -> String {
     out
 }
 
-/// Appends a frame in `ID#DATA` notation to `out`.
+/// Appends a frame in `ID#DATA` notation to `out` ([`Frame::write_text`]).
 pub fn write_frame(out: &mut String, frame: &Frame) {
-    // Writing to a String cannot fail.
-    let _ = match frame.id() {
-        Id::Standard(id) => write!(out, "{:03X}#", id.as_raw()),
-        Id::Extended(id) => write!(out, "{:08X}#", id.as_raw()),
-    };
-    if frame.is_remote() {
-        out.push('R');
-        if frame.dlc() > 0 {
-            let _ = write!(out, "{}", frame.dlc());
-        }
-    } else {
-        for b in frame.data() {
-            let _ = write!(out, "{b:02X}");
-        }
-    }
+    frame.write_text(out);
 }
 
 #[cfg(test)]

@@ -97,9 +97,35 @@ impl Frame {
     }
 }
 
+impl Frame {
+    /// Appends the frame in candump's `ID#DATA` notation to `out`: the identifier in upper-case
+    /// hex (3 digits base, 8 extended), `#`, then the data bytes in upper-case hex, or `R` and a
+    /// non-zero DLC for a remote frame. [`crate::candump`] reads and writes this notation.
+    pub fn write_text(&self, out: &mut String) {
+        use core::fmt::Write;
+        // Writing to a String cannot fail.
+        let _ = match self.id {
+            Id::Standard(id) => write!(out, "{:03X}#", id.as_raw()),
+            Id::Extended(id) => write!(out, "{:08X}#", id.as_raw()),
+        };
+        if self.remote {
+            out.push('R');
+            if self.dlc() > 0 {
+                let _ = write!(out, "{}", self.dlc());
+            }
+        } else {
+            for b in self.data() {
+                let _ = write!(out, "{b:02X}");
+            }
+        }
+    }
+}
+
 impl core::fmt::Debug for Frame {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        write!(f, "Frame({})", crate::candump::format_frame(self))
+        let mut text = String::with_capacity(26);
+        self.write_text(&mut text);
+        write!(f, "Frame({text})")
     }
 }
 

@@ -2,7 +2,7 @@
 //! (SJA1000s in its external data space, each in a window of its own, and the AT89C51CC03's
 //! own), and which plant signals its analog inputs and port pins are wired to.
 
-use super::wires::{self, AnalogFile, AnalogWire, PinFile, PinWire};
+use super::wires::{self, AnalogFile, AnalogWire, At, PinFile, PinWire};
 use crate::{Error, Problem, parse_ron};
 use bus::time::BusDuration;
 use serde::Deserialize;
@@ -219,7 +219,15 @@ pub fn load(file: &str, path: &Path, text: &str, read: Reader) -> Result<Firmwar
     }
     let chips = controllers(&f, cc03, text, &at, &mut problems);
     let analog = wires::analog(&f.analog, cc03, text, &at, &mut problems);
-    let pins = wires::pins(&f.pins, &chips, text, &at, &mut problems);
+    // Pins a CAN controller's interrupt output drives: no plant signal may drive them too.
+    let irq_pins: Vec<(u8, u8)> = chips
+        .iter()
+        .filter_map(|c| match c {
+            ChipSpec::Sja1000 { irq: Some(p), .. } => Some(p.port_bit()),
+            _ => None,
+        })
+        .collect();
+    let pins = wires::pins(&f.pins, &irq_pins, text, &at, &mut problems);
     let image_path = path.parent().unwrap_or(Path::new("")).join(&f.image);
     let image = match read(&image_path) {
         Err(e) => {
@@ -258,9 +266,6 @@ pub fn load(file: &str, path: &Path, text: &str, read: Reader) -> Result<Firmwar
 
 /// The highest ADC reference taken, mV.
 pub const MAX_VREF_MV: u32 = 10_000;
-
-/// Makes a problem about a field of the node file.
-pub(super) type At<'a> = &'a dyn Fn(&str, String) -> Problem;
 
 fn controllers(f: &File, cc03: bool, text: &str, at: At, problems: &mut Vec<Problem>) -> Vec<ChipSpec> {
     let mut chips = Vec::new();

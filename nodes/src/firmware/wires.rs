@@ -1,10 +1,12 @@
 //! A firmware node file's wires to the plant: ADC channels and port pins, as written and as
 //! checked (every signal the plant's, every channel and pin one the chip has, none twice).
 
-use super::spec::{At, ChipSpec};
 use crate::Problem;
 use crate::plant::Plant;
 use serde::Deserialize;
+
+/// Makes a problem about a field of the node file.
+pub(super) type At<'a> = &'a dyn Fn(&str, String) -> Problem;
 
 /// An ADC channel wired to a plant signal: the pin's voltage in millivolts is the signal times
 /// `scale`.
@@ -140,7 +142,7 @@ pub(super) fn analog(
 
 pub(super) fn pins(
     files: &[PinFile],
-    chips: &[ChipSpec],
+    irq_pins: &[(u8, u8)],
     text: &str,
     at: At,
     problems: &mut Vec<Problem>,
@@ -189,11 +191,7 @@ pub(super) fn pins(
         if wires.iter().any(|w| (w.port, w.bit) == (port, bit)) {
             problems.push(at(&format!("{field}.pin"), format!("{pin} is wired twice")));
         }
-        let irq = chips.iter().any(|c| match c {
-            ChipSpec::Sja1000 { irq: Some(p), .. } => p.port_bit() == (port, bit),
-            _ => false,
-        });
-        if irq {
+        if irq_pins.contains(&(port, bit)) {
             problems.push(at(
                 &format!("{field}.pin"),
                 format!("{pin} is driven by a CAN controller's interrupt output"),

@@ -1,17 +1,17 @@
 //! `harvemu campaign SCENARIO --runs N --out DIR` and `harvemu campaign merge DIR... --out DIR`.
 
+use super::outputs::{finish, scenario_text, summary_lines, write};
 use super::runs::Campaign;
 use super::shard::{INDEX_VAR, SHARDS_VAR, Shard};
 use super::summary::{self, Failed, Summary};
 use crate::configs;
 use crate::exit::Ended;
-use crate::output::{self, Output};
-use crate::scenario::Scenario;
+use crate::output;
 use crate::{Error, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
-use std::io::{IsTerminal, Write};
+use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -236,82 +236,4 @@ fn shrunk_text(c: &Campaign, f: &super::runs::Failure, file: &Path) -> Result<St
             .collect::<String>(),
     );
     scenario_text(&about, &s, file)
-}
-
-/// A scenario file: the comment lines `about`, the line that reruns it, and the RON.
-pub(super) fn scenario_text(about: &str, s: &Scenario, file: &Path) -> Result<String> {
-    let pretty = ron::ser::PrettyConfig::new().struct_names(true);
-    let body = ron::ser::to_string_pretty(s, pretty)
-        .map_err(|e| Error::Internal(format!("cannot write a scenario as RON: {e}")))?;
-    Ok(format!(
-        "{about}// Rerun: harvemu scenario {}\n{body}\n",
-        file.display()
-    ))
-}
-
-/// The lines on standard output: the totals and each failing run.
-pub(super) fn summary_lines(s: &Summary, out: &Path) -> String {
-    let mut text = format!(
-        "campaign {} (seed {}, shard {}): {} of {} runs, {} passed, {} failed{}\n",
-        s.campaign,
-        s.seed,
-        s.shard,
-        s.done,
-        s.runs,
-        s.passed,
-        s.failed.len(),
-        if s.interrupted { ", INTERRUPTED" } else { "" }
-    );
-    // A terminal's worth; summary.json has them all.
-    for f in s.failed.iter().take(SHOWN) {
-        let _ = writeln!(
-            text,
-            "  FAIL run {} (seed {}): {}  {}\n    shrunk from {} to {} fault(s): harvemu scenario {}",
-            f.run,
-            f.seed,
-            f.expectation,
-            f.observed,
-            f.faults_before,
-            f.faults_after,
-            out.join(&f.shrunk).display()
-        );
-    }
-    if s.failed.len() > SHOWN {
-        let _ = writeln!(
-            text,
-            "  ... and {} more failing runs: {}",
-            s.failed.len() - SHOWN,
-            out.join("summary.json").display()
-        );
-    }
-    text
-}
-
-/// Failing runs listed on standard output.
-const SHOWN: usize = 20;
-
-/// Writes summary.json and junit.xml, then the lines on standard output.
-pub(super) fn finish(s: &Summary, out: &Path, text: &str) -> Result<Ended> {
-    let json = serde_json::to_string_pretty(s)? + "\n";
-    write(&out.join("summary.json"), json.as_bytes())?;
-    write(
-        &out.join("junit.xml"),
-        s.junit().map_err(Error::Internal)?.as_bytes(),
-    )?;
-    if let Some(signal) = crate::stop::received() {
-        eprintln!("harvemu: interrupted by {}", signal.describe());
-    }
-    output::stdout(text)?;
-    Ok(Ended {
-        expectations_failed: !s.failed.is_empty(),
-        node_down: false,
-    })
-}
-
-/// Writes a whole output and puts it in place.
-pub(super) fn write(path: &Path, bytes: &[u8]) -> Result<()> {
-    let mut o = Output::create(path)?;
-    o.write_all(bytes)
-        .map_err(|e| output::failed("write", o.path(), e))?;
-    o.commit()
 }

@@ -1,6 +1,6 @@
 //! `harvemu campaign merge DIR... --out DIR`: the shards of a campaign, as one.
 
-use super::cli::{finish, scenario_text, summary_lines, write};
+use super::outputs::{finish, scenario_text, summary_lines, write};
 use super::paths::seen_from;
 use super::summary::Summary;
 use crate::configs::BUILT_IN;

@@ -14,6 +14,7 @@
 
 pub mod cli;
 mod merge;
+mod outputs;
 mod paths;
 mod runs;
 pub mod shard;

@@ -85,7 +85,7 @@ impl Campaign {
                 base.scenario.expect.push(invariant);
             }
         }
-        let nodes = scenario::node_names(&base.harvester);
+        let nodes = base.harvester.node_names();
         Ok(Campaign {
             id: fnv1a(text.as_bytes()),
             base,

@@ -233,6 +233,16 @@ impl Harvester {
     pub fn relay(&self) -> BusTime {
         BusTime::from_millis(self.config.time_relay_ms)
     }
+
+    /// The names of its nodes, the monitor's ("F5") first when it is emulated.
+    pub fn node_names(&self) -> Vec<String> {
+        let monitor = self.config.monitor.enabled.then(|| "F5".to_string());
+        monitor
+            .into_iter()
+            .chain(self.scripts.iter().map(|s| s.name.clone()))
+            .chain(self.firmware.iter().map(|f| f.name.clone()))
+            .collect()
+    }
 }
 
 /// The longest reaction time a config may give (`reaction_us`, `monitor.reaction_us`): one

@@ -87,7 +87,7 @@ fn parse(
     if let Some(r) = &scenario.random_faults {
         // Ordinary steps from here on: the runner, the report and the checks see no difference.
         let seed = r.seed.unwrap_or(harvester.config.seed);
-        let steps = random::expand(r, seed, scenario.duration_s, &node_names(&harvester));
+        let steps = random::expand(r, seed, scenario.duration_s, &harvester.node_names());
         scenario.timeline.extend(steps);
     }
     if let Some(s) = scenario.cruise_start_s {
@@ -99,14 +99,4 @@ fn parse(
         harvester,
         fixed,
     })
-}
-
-/// The names of a harvester's nodes, the monitor's ("F5") first when it is emulated.
-pub fn node_names(h: &Harvester) -> Vec<String> {
-    let monitor = h.config.monitor.enabled.then(|| "F5".to_string());
-    monitor
-        .into_iter()
-        .chain(h.scripts.iter().map(|s| s.name.clone()))
-        .chain(h.firmware.iter().map(|f| f.name.clone()))
-        .collect()
 }

@@ -29,7 +29,7 @@ mod validate;
 
 pub(crate) use actions::Actions;
 pub use check::Verdict;
-pub use load::{Loaded, from_text, load, load_with, node_names};
+pub use load::{Loaded, from_text, load, load_with};
 pub use model::*;
 pub use random::{Fault, Hit, RandomFault, RandomFaults};
 pub use run::{Outcome, run};

@@ -10,7 +10,7 @@ mod expect;
 mod timeline;
 
 use super::model::{Hits, Scenario, Target};
-use super::{junit, load::node_names, random};
+use super::{junit, random};
 use crate::harvester::Harvester;
 use bus::text::{LIST_CHARS, cut, quote};
 use nodes::Problem;
@@ -28,7 +28,7 @@ pub const MAX_OVERLOAD_FRAMES: u8 = 2;
 pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
     let mut c = Checks {
         file,
-        names: node_names(h),
+        names: h.node_names(),
         duration_s: s.duration_s,
         signals: Plant::signal_names(),
         found: Vec::new(),
