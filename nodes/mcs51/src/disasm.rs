@@ -1,31 +1,12 @@
-//! A disassembler in Intel/as31 syntax, for instruction traces.
+//! A disassembler in Intel/as31 syntax, for instruction traces: it prints the decoded form the
+//! core executes ([`crate::decode`]).
 
-/// SFR names by address, for direct operands.
+use crate::cpu::SFRS;
+use crate::decode::{Ins, OPS, Opnd};
+
+/// The name of the 80C51 SFR at `addr`, for direct operands.
 fn sfr_name(addr: u8) -> Option<&'static str> {
-    Some(match addr {
-        0x80 => "P0",
-        0x81 => "SP",
-        0x82 => "DPL",
-        0x83 => "DPH",
-        0x87 => "PCON",
-        0x88 => "TCON",
-        0x89 => "TMOD",
-        0x8A => "TL0",
-        0x8B => "TL1",
-        0x8C => "TH0",
-        0x8D => "TH1",
-        0x90 => "P1",
-        0x98 => "SCON",
-        0x99 => "SBUF",
-        0xA0 => "P2",
-        0xA8 => "IE",
-        0xB0 => "P3",
-        0xB8 => "IP",
-        0xD0 => "PSW",
-        0xE0 => "ACC",
-        0xF0 => "B",
-        _ => return None,
-    })
+    SFRS.iter().find(|&&(a, _)| a == addr).map(|&(_, name)| name)
 }
 
 /// A number in Intel syntax: hex with an H suffix, a leading 0 before a letter digit.
@@ -51,174 +32,44 @@ fn bit(b: u8) -> String {
     hex(b as u32, 2)
 }
 
-/// Template of each opcode: operands in `{}` are filled from the following bytes in order:
-/// `d` direct, `i` #data, `b` bit, `r` relative, `p` 11-bit page address, `l` 16-bit address,
-/// `w` #data16. `Rn` and `@i` (@Ri) take the register from the opcode's low bits.
-fn template(op: u8) -> &'static str {
-    match op {
-        0x00 => "NOP",
-        0x02 => "LJMP {l}",
-        0x03 => "RR A",
-        0x04 => "INC A",
-        0x05 => "INC {d}",
-        0x06 | 0x07 => "INC @i",
-        0x08..=0x0F => "INC Rn",
-        0x10 => "JBC {b},{r}",
-        0x12 => "LCALL {l}",
-        0x13 => "RRC A",
-        0x14 => "DEC A",
-        0x15 => "DEC {d}",
-        0x16 | 0x17 => "DEC @i",
-        0x18..=0x1F => "DEC Rn",
-        0x20 => "JB {b},{r}",
-        0x22 => "RET",
-        0x23 => "RL A",
-        0x30 => "JNB {b},{r}",
-        0x32 => "RETI",
-        0x33 => "RLC A",
-        0x40 => "JC {r}",
-        0x42 | 0x52 | 0x62 => "{d},A",
-        0x43 | 0x53 | 0x63 => "{d},{i}",
-        0x50 => "JNC {r}",
-        0x60 => "JZ {r}",
-        0x70 => "JNZ {r}",
-        0x72 => "ORL C,{b}",
-        0x73 => "JMP @A+DPTR",
-        0x74 => "MOV A,{i}",
-        0x75 => "MOV {d},{i}",
-        0x76 | 0x77 => "MOV @i,{i}",
-        0x78..=0x7F => "MOV Rn,{i}",
-        0x80 => "SJMP {r}",
-        0x82 => "ANL C,{b}",
-        0x83 => "MOVC A,@A+PC",
-        0x84 => "DIV AB",
-        0x85 => "MOV {d},{d}",
-        0x86 | 0x87 => "MOV {d},@i",
-        0x88..=0x8F => "MOV {d},Rn",
-        0x90 => "MOV DPTR,{w}",
-        0x92 => "MOV {b},C",
-        0x93 => "MOVC A,@A+DPTR",
-        0xA0 => "ORL C,/{b}",
-        0xA2 => "MOV C,{b}",
-        0xA3 => "INC DPTR",
-        0xA4 => "MUL AB",
-        0xA5 => "DB 0A5H",
-        0xA6 | 0xA7 => "MOV @i,{d}",
-        0xA8..=0xAF => "MOV Rn,{d}",
-        0xB0 => "ANL C,/{b}",
-        0xB2 => "CPL {b}",
-        0xB3 => "CPL C",
-        0xB4 => "CJNE A,{i},{r}",
-        0xB5 => "CJNE A,{d},{r}",
-        0xB6 | 0xB7 => "CJNE @i,{i},{r}",
-        0xB8..=0xBF => "CJNE Rn,{i},{r}",
-        0xC0 => "PUSH {d}",
-        0xC2 => "CLR {b}",
-        0xC3 => "CLR C",
-        0xC4 => "SWAP A",
-        0xC5 => "XCH A,{d}",
-        0xC6 | 0xC7 => "XCH A,@i",
-        0xC8..=0xCF => "XCH A,Rn",
-        0xD0 => "POP {d}",
-        0xD2 => "SETB {b}",
-        0xD3 => "SETB C",
-        0xD4 => "DA A",
-        0xD5 => "DJNZ {d},{r}",
-        0xD6 | 0xD7 => "XCHD A,@i",
-        0xD8..=0xDF => "DJNZ Rn,{r}",
-        0xE0 => "MOVX A,@DPTR",
-        0xE2 | 0xE3 => "MOVX A,@i",
-        0xE4 => "CLR A",
-        0xE5 => "MOV A,{d}",
-        0xE6 | 0xE7 => "MOV A,@i",
-        0xE8..=0xEF => "MOV A,Rn",
-        0xF0 => "MOVX @DPTR,A",
-        0xF2 | 0xF3 => "MOVX @i,A",
-        0xF4 => "CPL A",
-        0xF5 => "MOV {d},A",
-        0xF6 | 0xF7 => "MOV @i,A",
-        0xF8..=0xFF => "MOV Rn,A",
-        _ if op & 0x1F == 0x01 => "AJMP {p}",
-        _ if op & 0x1F == 0x11 => "ACALL {p}",
-        _ => match op & 0x0F {
-            4 => "A,{i}",
-            5 => "A,{d}",
-            6 | 7 => "A,@i",
-            _ => "A,Rn",
-        },
-    }
-}
-
 /// Disassembles the instruction at `pc` (its bytes from `code[pc]`, wrapping at 64 KB; missing
 /// bytes read FFh); returns the text and the instruction's length in bytes.
 pub fn disasm(code: &[u8], pc: u16) -> (String, u16) {
     let byte = |i: u16| code.get(pc.wrapping_add(i) as usize).copied().unwrap_or(0xFF);
     let op = byte(0);
-    let mut t = template(op).to_string();
-    // The ALU groups and ORL/ANL/XRL direct share templates without a mnemonic.
-    let prefix = match op >> 4 {
-        0x2 => "ADD ",
-        0x3 => "ADDC ",
-        0x4 => "ORL ",
-        0x5 => "ANL ",
-        0x6 => "XRL ",
-        0x9 => "SUBB ",
-        _ => "",
-    };
-    if t.starts_with('{') || t.starts_with("A,") {
-        t = format!("{prefix}{t}");
+    let d = OPS[op as usize];
+    let len = d.len as u16;
+    if d.ins == Ins::Reserved {
+        return (format!("{} {}", d.ins.mnemonic(), hex(op as u32, 2)), len);
     }
-    let mut out = String::new();
-    let mut len: u16 = 1;
-    let mut rest = t.as_str();
-    let mut dirs: Vec<u8> = Vec::new();
-    while let Some(open) = rest.find('{') {
-        out.push_str(&rest[..open]);
-        let kind = rest.as_bytes()[open + 1];
-        rest = &rest[open + 3..];
-        let text = match kind {
-            b'd' => {
-                let d = byte(len);
-                dirs.push(d);
-                direct(d)
-            }
-            b'i' => format!("#{}", hex(byte(len) as u32, 2)),
-            b'b' => bit(byte(len)),
-            b'r' => {
-                let end = pc.wrapping_add(len + 1);
-                hex(end.wrapping_add(byte(len) as i8 as u16) as u32, 4)
-            }
-            b'p' => {
-                let end = pc.wrapping_add(2);
-                hex(
-                    ((end & 0xF800) | (op as u16 >> 5) << 8 | byte(len) as u16) as u32,
-                    4,
-                )
-            }
-            b'l' => {
-                len += 1;
-                hex(u16::from_be_bytes([byte(len - 1), byte(len)]) as u32, 4)
-            }
-            _ => {
-                len += 1;
-                format!(
-                    "#{}",
-                    hex(u16::from_be_bytes([byte(len - 1), byte(len)]) as u32, 4)
-                )
+    let end = pc.wrapping_add(len);
+    let mut text = d.ins.mnemonic().to_string();
+    for (n, (&o, &at)) in d.opnds.iter().zip(&d.at).enumerate() {
+        let b = byte(at as u16);
+        let operand = match o {
+            Opnd::Empty => break,
+            Opnd::A => "A".to_string(),
+            Opnd::C => "C".to_string(),
+            Opnd::AB => "AB".to_string(),
+            Opnd::Dptr => "DPTR".to_string(),
+            Opnd::Rn(r) => format!("R{r}"),
+            Opnd::AtRi(i) => format!("@R{i}"),
+            Opnd::AtDptr => "@DPTR".to_string(),
+            Opnd::AtADptr => "@A+DPTR".to_string(),
+            Opnd::AtAPc => "@A+PC".to_string(),
+            Opnd::Direct => direct(b),
+            Opnd::Imm => format!("#{}", hex(b as u32, 2)),
+            Opnd::Imm16 => format!("#{}", hex(u16::from_be_bytes([b, byte(at as u16 + 1)]) as u32, 4)),
+            Opnd::Bit => bit(b),
+            Opnd::NotBit => format!("/{}", bit(b)),
+            Opnd::Rel | Opnd::Addr11(_) | Opnd::Addr16 => {
+                hex(o.target(end, b, byte(at as u16 + 1)) as u32, 4)
             }
         };
-        len += 1;
-        out.push_str(&text);
+        text.push(if n == 0 { ' ' } else { ',' });
+        text.push_str(&operand);
     }
-    out.push_str(rest);
-    if op == 0x85 {
-        // MOV direct,direct is encoded source first.
-        out = format!("MOV {},{}", direct(dirs[1]), direct(dirs[0]));
-    }
-    let out = out
-        .replace("@i", &format!("@R{}", op & 1))
-        .replace("Rn", &format!("R{}", op & 7));
-    (out, len)
+    (text, len)
 }
 
 #[cfg(test)]

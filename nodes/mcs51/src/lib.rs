@@ -8,6 +8,9 @@
 //! space asks to ([`Xdata::wants_stop`]: a peripheral moved its interrupt output). Port pins are inputs the caller sets with
 //! [`Cpu::set_pin`]; serial output is collected for [`Cpu::take_serial`].
 //!
+//! One opcode table decodes every opcode to its operation and operands, with its length and
+//! machine cycles; execution, cycle counting and [`disasm()`] (Intel/as31 syntax) all read it.
+//!
 //! We write our own core rather than use the `i8051` crate because its recent versions count no
 //! cycles, ignore IP and treat INT0/INT1 as level-triggered only.
 //!
@@ -57,6 +60,7 @@
 #![warn(missing_docs)]
 
 mod cpu;
+mod decode;
 mod disasm;
 mod error;
 pub mod hex;

@@ -16,8 +16,9 @@ use std::time::Instant;
 /// 000A  80 F6     SJMP 0002H         2
 /// ```
 ///
-/// Code beyond the loop reads FFh, so MOVC never gives 05h and the loop is 8 cycles a turn, with
-/// nothing for idle skipping to find.
+/// Code beyond the loop reads FFh, so MOVC never gives 05h: CJNE jumps back to ADD every time
+/// (SJMP is never reached) and the loop is 1 + 1 + 2 + 2 + 2 = 8 cycles a turn, with nothing for
+/// idle skipping to find.
 const BUSY: [u8; 12] = [
     0x74, 0x00, 0x24, 0x03, 0xF8, 0xA3, 0x93, 0xB4, 0x05, 0xF8, 0x80, 0xF6,
 ];
@@ -75,6 +76,10 @@ mod tests {
         let mut cpu = mcs51::Cpu::new(mcs51::Variant::I8051, &image());
         cpu.run(&mut mcs51::NoXdata, 8001).unwrap();
         assert_eq!(cpu.skipped_cycles(), 0);
+        // One INC DPTR a turn, and back at ADD (0002h): DPL is SFR 82h, DPH 83h.
+        let sfr = cpu.sfr();
+        assert_eq!(u16::from(sfr[3]) << 8 | u16::from(sfr[2]), 1000);
+        assert_eq!(cpu.pc(), 0x0002);
         // MOVC replaces A each turn; from the 11th turn on, A + DPTR points past the loop, where
         // code reads FFh, so each turn begins with A = FFh and leaves R0 = FFh + 3 = 02h.
         assert_eq!(cpu.iram()[0], 0x02);

@@ -2,19 +2,22 @@
 //! addresses, the stack, and the flag arithmetic of ADD/ADDC/SUBB.
 
 use super::{ACC, Cpu, DPH, DPL, P2, PSW, SP};
+use crate::decode::Opnd;
 use crate::{Error, Xdata};
+
+/// What a direct read of a port SFR sees: its pins, or its latch (read-modify-write
+/// instructions).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Port {
+    Pins,
+    Latch,
+}
 
 const CY: u8 = 0x80;
 pub(super) const AC: u8 = 0x40;
 const OV: u8 = 0x04;
 
 impl Cpu {
-    #[inline(always)]
-    pub(super) fn fetch(&mut self) -> u8 {
-        let b = self.code[self.pc as usize];
-        self.pc = self.pc.wrapping_add(1);
-        b
-    }
     #[inline(always)]
     pub(super) fn a(&self) -> u8 {
         self.sfr[(ACC - 0x80) as usize]
@@ -142,17 +145,6 @@ impl Cpu {
         let p = self.psw_raw();
         *p = (*p & !(CY | OV)) | if cy { CY } else { 0 } | if ov { OV } else { 0 };
     }
-    pub(super) fn cjne(&mut self, x: u8, y: u8) {
-        let rel = self.fetch();
-        self.set_cy(x < y);
-        if x != y {
-            self.jump_rel(rel);
-        }
-    }
-    pub(super) fn movx_addr_ri(&self, op: u8) -> u16 {
-        let lo = self.iram[self.rn(op & 1)];
-        u16::from_le_bytes([lo, self.sfr[(P2 - 0x80) as usize]])
-    }
     pub(super) fn call(&mut self, target: u16) -> Result<(), Error> {
         let [lo, hi] = self.pc.to_le_bytes();
         self.push(lo)?;
@@ -161,27 +153,42 @@ impl Cpu {
         Ok(())
     }
 
-    /// Second operand of ADD/ADDC/ORL/ANL/XRL/SUBB A,<src> (x4 #data, x5 direct, x6/x7 @Ri,
-    /// x8–xF Rn).
+    /// Reads a byte operand: A, Rn, @Ri, direct or #data (`b`, its byte). A direct SFR reads
+    /// the port pins or the latch as `port` says.
     #[inline(always)]
-    pub(super) fn alu_operand(&mut self, x: &mut dyn Xdata, op: u8) -> u8 {
-        if op & 0x0F == 4 {
-            self.fetch()
-        } else {
-            self.src_operand(x, op)
+    pub(super) fn load(&mut self, x: &mut dyn Xdata, o: Opnd, b: u8, port: Port) -> u8 {
+        match o {
+            Opnd::A => self.a(),
+            Opnd::Rn(n) => self.iram[self.rn(n)],
+            Opnd::AtRi(i) => self.indirect(self.iram[self.rn(i)]),
+            Opnd::Direct if matches!(port, Port::Latch) => self.latch(x, b),
+            Opnd::Direct => self.direct(x, b),
+            Opnd::Imm => b,
+            _ => unreachable!("the opcode table gives no byte source {o:?}"),
         }
     }
 
-    /// Source operand by the low opcode bits: x5 direct, x6/x7 @Ri, x8–xF Rn.
+    /// Writes a byte operand: A, Rn, @Ri or direct (`b`, its byte).
     #[inline(always)]
-    pub(super) fn src_operand(&mut self, x: &mut dyn Xdata, op: u8) -> u8 {
-        match op & 0x0F {
-            5 => {
-                let d = self.fetch();
-                self.direct(x, d)
+    pub(super) fn store(&mut self, x: &mut dyn Xdata, o: Opnd, b: u8, v: u8) {
+        match o {
+            Opnd::A => self.set_a(v),
+            Opnd::Rn(n) => {
+                let r = self.rn(n);
+                self.iram[r] = v;
             }
-            6 | 7 => self.indirect(self.iram[self.rn(op & 1)]),
-            _ => self.iram[self.rn(op & 7)],
+            Opnd::AtRi(i) => self.set_indirect(self.iram[self.rn(i)], v),
+            Opnd::Direct => self.set_direct(x, b, v),
+            _ => unreachable!("the opcode table gives no byte destination {o:?}"),
+        }
+    }
+
+    /// The external address of MOVX: @DPTR, or @Ri with P2 as the high byte.
+    #[inline(always)]
+    pub(super) fn movx_addr(&self, o: Opnd) -> u16 {
+        match o {
+            Opnd::AtRi(i) => u16::from_le_bytes([self.iram[self.rn(i)], self.sfr[(P2 - 0x80) as usize]]),
+            _ => self.dptr(),
         }
     }
 }

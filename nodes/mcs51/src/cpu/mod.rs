@@ -5,65 +5,17 @@ mod adc;
 pub(crate) mod cc03;
 mod interrupts;
 mod ops;
+mod sfrs;
 mod timer2;
 mod timers;
 mod types;
 
+pub(crate) use sfrs::*;
 pub use types::{RunEnd, Snapshot, Step, XAccess};
 
+use crate::decode::{Ins, OPS};
 use crate::{Error, Image, Variant, Xdata};
 use std::sync::Arc;
-
-// SFR addresses (Intel MCS-51 User's Manual, table of special function registers).
-pub(crate) const P0: u8 = 0x80;
-pub(crate) const SP: u8 = 0x81;
-pub(crate) const DPL: u8 = 0x82;
-pub(crate) const DPH: u8 = 0x83;
-pub(crate) const PCON: u8 = 0x87;
-pub(crate) const TCON: u8 = 0x88;
-pub(crate) const TMOD: u8 = 0x89;
-pub(crate) const TL0: u8 = 0x8A;
-pub(crate) const TL1: u8 = 0x8B;
-pub(crate) const TH0: u8 = 0x8C;
-pub(crate) const TH1: u8 = 0x8D;
-pub(crate) const P1: u8 = 0x90;
-pub(crate) const SCON: u8 = 0x98;
-pub(crate) const SBUF: u8 = 0x99;
-pub(crate) const P2: u8 = 0xA0;
-pub(crate) const IE: u8 = 0xA8;
-pub(crate) const P3: u8 = 0xB0;
-pub(crate) const IP: u8 = 0xB8;
-pub(crate) const PSW: u8 = 0xD0;
-pub(crate) const ACC: u8 = 0xE0;
-pub(crate) const B: u8 = 0xF0;
-
-const IMPLEMENTED: [u8; 21] = [
-    P0, SP, DPL, DPH, PCON, TCON, TMOD, TL0, TL1, TH0, TH1, P1, SCON, SBUF, P2, IE, P3, IP, PSW, ACC, B,
-];
-
-/// Whether each SFR address 80h–FFh is implemented (writes elsewhere are ignored).
-const WRITABLE: [bool; 128] = {
-    let mut t = [false; 128];
-    let mut i = 0;
-    while i < IMPLEMENTED.len() {
-        t[(IMPLEMENTED[i] - 0x80) as usize] = true;
-        i += 1;
-    }
-    t
-};
-
-/// SFRs whose value depends on or changes the timers or the serial port: they are brought up
-/// to date before an access.
-const TIMED: [bool; 128] = {
-    let mut t = [false; 128];
-    let timed = [TCON, TMOD, TL0, TL1, TH0, TH1, SCON, SBUF, P3];
-    let mut i = 0;
-    while i < timed.len() {
-        t[(timed[i] - 0x80) as usize] = true;
-        i += 1;
-    }
-    t
-};
 
 /// Transmission in progress: what still has to pass before TI is set.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -357,7 +309,7 @@ impl Cpu {
                 continue;
             }
             let op = self.code[self.pc as usize];
-            if (op | 0x07 == 0xDF || op == 0xD5) && self.skip_delay_loop(until) {
+            if matches!(OPS[op as usize].ins, Ins::Djnz) && self.skip_delay_loop(until) {
                 continue;
             }
             self.execute(x)?;

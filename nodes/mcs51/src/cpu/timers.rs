@@ -14,6 +14,7 @@
 //! T1 = P3.5) as the caller drives them.
 
 use super::{Cpu, PCON, SCON, TCON, TH0, TH1, TL0, TL1, TMOD, Tx};
+use crate::decode::{Ins, OPS, Opnd};
 
 /// Adds `inc` to an up-counter of `bits` bits; returns the new value and the overflow count.
 fn count(value: u32, inc: u64, bits: u32) -> (u32, u64) {
@@ -234,29 +235,33 @@ impl Cpu {
     /// stepping would before `until` or before any interrupt could be taken, in closed form.
     /// Returns false if the instruction is not such a loop or nothing may be skipped.
     pub(crate) fn skip_delay_loop(&mut self, until: u64) -> bool {
-        let pc = self.pc as usize;
-        let op = self.code[pc];
-        let (addr, len) = match op {
-            0xD8..=0xDF if self.code[(pc + 1) & 0xFFFF] == 0xFE => ((self.psw() & 0x18) | (op & 7), 2u16),
-            0xD5 if self.code[(pc + 2) & 0xFFFF] == 0xFD && self.code[(pc + 1) & 0xFFFF] < 0x80 => {
-                (self.code[(pc + 1) & 0xFFFF], 3)
-            }
+        let pc = self.pc;
+        let d = OPS[self.code[pc as usize] as usize];
+        let byte = |k: u8| self.code[pc.wrapping_add(k as u16) as usize];
+        // A loop onto itself: the relative offset, the last byte, is minus the length.
+        if d.ins != Ins::Djnz || byte(d.len - 1) as i8 != -(d.len as i8) {
+            return false;
+        }
+        let (len, per) = (d.len as u16, d.cycles as u64);
+        let addr = match d.opnds[0] {
+            Opnd::Rn(n) => (self.psw() & 0x18) | n,
+            Opnd::Direct if byte(1) < 0x80 => byte(1),
             _ => return false,
         };
         let value = self.iram[addr as usize];
         let mut k = if value == 0 { 256 } else { value as u64 };
-        // Iteration i starts at cycles + 2i and runs only while that is below `until`.
-        k = k.min(until.saturating_sub(self.cycles).div_ceil(2));
+        // Iteration i starts at cycles + per * i and runs only while that is below `until`.
+        k = k.min(until.saturating_sub(self.cycles).div_ceil(per));
         if self.interrupt_possible() {
             if self.request_takeable() {
                 // Held off for one instruction only (after RETI or an IE/IP write).
                 return false;
             }
             // The iteration whose cycles reach the event is the last one that runs unpolled.
-            k = k.min(self.next_event.saturating_sub(self.cycles).div_ceil(2));
+            k = k.min(self.next_event.saturating_sub(self.cycles).div_ceil(per));
         }
         // The watchdog resets the core whether or not interrupts are enabled.
-        k = k.min(self.wdt_deadline.saturating_sub(self.cycles).div_ceil(2));
+        k = k.min(self.wdt_deadline.saturating_sub(self.cycles).div_ceil(per));
         if k < 2 {
             return false;
         }
@@ -264,8 +269,8 @@ impl Cpu {
         if self.iram[addr as usize] == 0 {
             self.pc = self.pc.wrapping_add(len);
         }
-        self.cycles += 2 * k;
-        self.skipped += 2 * k;
+        self.cycles += per * k;
+        self.skipped += per * k;
         if self.cycles >= self.next_event {
             self.sync(self.cycles);
         }
