@@ -1,5 +1,6 @@
-//! The README's commands leave nothing untracked behind: every file its examples write (with
-//! `--record`, `--junit`, `--report`, `-o`) is ignored by `.gitignore`.
+//! The commands of the README and of docs/USAGE.md (its examples, run from the repository root)
+//! leave nothing untracked behind: every file they write (with `--record`, `--junit`,
+//! `--report`, `-o`) is ignored by `.gitignore`.
 
 use std::path::{Path, PathBuf};
 
@@ -32,19 +33,21 @@ fn outputs(readme: &str) -> Vec<String> {
 
 #[test]
 fn every_file_the_readme_writes_is_ignored() {
-    let readme = std::fs::read_to_string(root().join("README.md")).unwrap();
     let ignore = std::fs::read_to_string(root().join(".gitignore")).unwrap();
     let ignored: Vec<&str> = ignore
         .lines()
         .filter(|l| !l.starts_with('#'))
         .map(str::trim)
         .collect();
-    let files = outputs(&readme);
-    assert!(files.len() >= 4, "the README's examples write files: {files:?}");
-    for f in &files {
-        assert!(
-            ignored.contains(&format!("/{f}").as_str()),
-            "README writes {f}, which .gitignore does not ignore"
-        );
+    for (doc, at_least) in [("README.md", 2), ("docs/USAGE.md", 4)] {
+        let text = std::fs::read_to_string(root().join(doc)).unwrap();
+        let files = outputs(&text);
+        assert!(files.len() >= at_least, "{doc}'s examples write files: {files:?}");
+        for f in &files {
+            assert!(
+                ignored.contains(&format!("/{f}").as_str()),
+                "{doc} writes {f}, which .gitignore does not ignore"
+            );
+        }
     }
 }
