@@ -7,7 +7,7 @@ use bus::node::NodeLogic;
 use bus::time::BusTime;
 use libfuzzer_sys::fuzz_target;
 use nodes::environment::PlantSignals;
-use nodes::script::{Environment, NodeScript, ScriptedNode, SharedEnv, from_text};
+use nodes::script::{Environment, NodeScript, Port, ScriptedNode, SharedEnv, from_text};
 use std::cell::RefCell;
 use std::rc::Rc;
 
@@ -40,10 +40,13 @@ struct Constant;
 
 impl Environment for Constant {
     fn advance_to(&mut self, _: BusTime) {}
-    fn read(&self, _: &str) -> Option<f64> {
+    fn port(&self, _: &str) -> Option<Port> {
+        Some(Port(0))
+    }
+    fn read(&self, _: Port) -> Option<f64> {
         Some(1.0)
     }
-    fn write(&mut self, _: &str, _: f64) -> bool {
+    fn write(&mut self, _: Port, _: f64) -> bool {
         true
     }
 }

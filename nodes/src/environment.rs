@@ -1,18 +1,21 @@
 //! The plant as the environment of the scripted nodes.
 
 use crate::plant::{Plant, PlantConfig};
-use crate::script::{Environment, Signals};
+use crate::script::{Environment, Port, Signals};
 use bus::time::BusTime;
 
 impl Environment for Plant {
     fn advance_to(&mut self, t: BusTime) {
         Plant::advance_to(self, t);
     }
-    fn read(&self, name: &str) -> Option<f64> {
-        self.signal(name)
+    fn port(&self, name: &str) -> Option<Port> {
+        Plant::port(name)
     }
-    fn write(&mut self, name: &str, value: f64) -> bool {
-        self.set_input(name, value).is_ok()
+    fn read(&self, port: Port) -> Option<f64> {
+        self.read_port(port)
+    }
+    fn write(&mut self, port: Port, value: f64) -> bool {
+        self.write_port(port, value)
     }
 }
 

@@ -200,7 +200,31 @@ impl Plant {
     /// Current value of a named output (its override if one is set) or of an input (as last
     /// set); `None` for an unknown name.
     pub fn signal(&self, name: &str) -> Option<f64> {
-        match signals::lookup(name)? {
+        self.value_of(signals::lookup(name)?)
+    }
+
+    /// The port of a named signal, for reads and writes without the name
+    /// ([`Plant::read_port`]); `None` for an unknown name.
+    pub fn port(name: &str) -> Option<crate::script::Port> {
+        signals::port(name).map(crate::script::Port)
+    }
+
+    /// [`Plant::signal`] by port; `None` for a port that is not the plant's.
+    pub fn read_port(&self, port: crate::script::Port) -> Option<f64> {
+        self.value_of(signals::signal(port.0)?)
+    }
+
+    /// [`Plant::set_input`] by port: false for an output, a port that is not the plant's, or a
+    /// value the input does not take.
+    pub fn write_port(&mut self, port: crate::script::Port, value: f64) -> bool {
+        match signals::signal(port.0) {
+            Some(Signal::In(input)) => self.pending.set(input, value),
+            _ => false,
+        }
+    }
+
+    fn value_of(&self, signal: Signal) -> Option<f64> {
+        match signal {
             Signal::In(input) => self.pending.get(input),
             Signal::Out(output) => Some(
                 self.overrides

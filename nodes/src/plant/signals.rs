@@ -177,17 +177,37 @@ fn table() -> Vec<(String, Signal)> {
     t
 }
 
-/// The table, built once: names are looked up on every sample, so with a fast hash (the names
-/// are ours, not an attacker's).
-static TABLE: LazyLock<(Vec<String>, FxHashMap<String, Signal>)> = LazyLock::new(|| {
+/// Names in order, each's signal, the index of each name.
+type Table = (Vec<String>, Vec<Signal>, FxHashMap<String, u32>);
+
+/// The table, built once: the names in order, each's signal, and the index of each name (a
+/// fast hash: the names are ours, not an attacker's). Names are looked up when a reader loads;
+/// reads then go by index ([`crate::script::Port`]).
+static TABLE: LazyLock<Table> = LazyLock::new(|| {
     let t = table();
     let names = t.iter().map(|(n, _)| n.clone()).collect();
-    (names, t.into_iter().collect())
+    let signals = t.iter().map(|(_, s)| *s).collect();
+    let index = t
+        .into_iter()
+        .enumerate()
+        .map(|(i, (n, _))| (n, i as u32))
+        .collect();
+    (names, signals, index)
 });
 
 /// The signal a name stands for.
 pub(crate) fn lookup(name: &str) -> Option<Signal> {
-    TABLE.1.get(name).copied()
+    port(name).and_then(signal)
+}
+
+/// The index of a name in the table: what a [`crate::script::Port`] of the plant holds.
+pub(crate) fn port(name: &str) -> Option<u32> {
+    TABLE.2.get(name).copied()
+}
+
+/// The signal at index `port`.
+pub(crate) fn signal(port: u32) -> Option<Signal> {
+    TABLE.1.get(port as usize).copied()
 }
 
 /// Every name, inputs first.

@@ -185,6 +185,10 @@ pub enum Expr {
     Const(f64),
     /// A plant signal, through this node's fault hooks.
     Signal(String),
+    /// A plant signal resolved to its port when the node starts ([`crate::script::Port`]):
+    /// never in a file.
+    #[serde(skip)]
+    Port(crate::script::Port),
     /// A variable of the node.
     Var(String),
     /// A field of the frame being reacted to (only in reactions).
@@ -206,7 +210,7 @@ impl Expr {
     pub fn is_internal(&self) -> bool {
         match self {
             Expr::Const(_) | Expr::Var(_) | Expr::StateCode => true,
-            Expr::Signal(_) | Expr::Field(_) => false,
+            Expr::Signal(_) | Expr::Port(_) | Expr::Field(_) => false,
             Expr::Scaled(e, ..) | Expr::Clamp(e, ..) | Expr::Quantize(e, _) => e.is_internal(),
         }
     }
@@ -241,6 +245,9 @@ pub enum Action {
     Send(String),
     /// Write a plant input.
     Write(String, Expr),
+    /// A plant input resolved to its port when the node starts: never in a file.
+    #[serde(skip)]
+    WritePort(crate::script::Port, Expr),
     /// Set a variable.
     Set(String, Expr),
     /// An acknowledgement arrived: every send so far is answered, and the count of missed

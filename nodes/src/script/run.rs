@@ -17,11 +17,19 @@ use std::rc::Rc;
 pub trait Environment {
     /// Brings the environment to bus time `t` (no-op for a time already passed).
     fn advance_to(&mut self, t: BusTime);
+    /// The port of a named signal: readers resolve their names once, when they load, and read
+    /// by port. `None` for a name the environment does not have.
+    fn port(&self, name: &str) -> Option<Port>;
     /// The value of a signal.
-    fn read(&self, name: &str) -> Option<f64>;
-    /// Sets an input; false when the name is not an input.
-    fn write(&mut self, name: &str, value: f64) -> bool;
+    fn read(&self, port: Port) -> Option<f64>;
+    /// Sets an input; false when the port is not an input's or the value not one it takes.
+    fn write(&mut self, port: Port, value: f64) -> bool;
 }
+
+/// A signal of an [`Environment`], resolved from its name ([`Environment::port`]): a number
+/// that only the environment that gave it reads.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Port(pub u32);
 
 /// The environment shared by the nodes of one harvester.
 pub type SharedEnv = Rc<RefCell<dyn Environment>>;
@@ -120,7 +128,8 @@ pub struct ScriptedNode {
     vars: BTreeMap<String, f64>,
     sends: Vec<SendState>,
     timers: Vec<Option<BusTime>>,
-    faults: Vec<(SignalFault, BusTime)>,
+    /// Sensor faults, each with the port of its signal and when it began.
+    faults: Vec<(SignalFault, Option<Port>, BusTime)>,
     /// Acknowledgement tracking of the sends of entries with an `ack`.
     acks: Acks,
     /// Set when the node gave up under an `ack` with `resume`.
@@ -139,9 +148,14 @@ pub struct ScriptedNode {
 
 impl ScriptedNode {
     /// A node that powers on at `power_on`; `seed` drives its noise faults.
-    pub fn new(script: NodeScript, env: SharedEnv, power_on: BusTime, seed: u64) -> ScriptedNode {
+    pub fn new(mut script: NodeScript, env: SharedEnv, power_on: BusTime, seed: u64) -> ScriptedNode {
         let boot_at = power_on + BusDuration::from_millis(script.boot_delay_ms);
-        let faults = script.faults.iter().map(|f| (f.clone(), power_on)).collect();
+        resolve_ports(&mut script, &*env.borrow());
+        let faults = script
+            .faults
+            .iter()
+            .map(|f| (f.clone(), env.borrow().port(&f.signal), power_on))
+            .collect();
         ScriptedNode {
             address: Address(script.address),
             vars: script.vars.clone(),
@@ -207,13 +221,15 @@ impl ScriptedNode {
     }
     /// Installs (Some) or removes (None) a sensor fault on a signal, from `now`.
     pub fn set_fault(&mut self, signal: &str, fault: Option<FaultKind>, now: BusTime) {
-        self.faults.retain(|(f, _)| f.signal != signal);
+        self.faults.retain(|(f, ..)| f.signal != signal);
         if let Some(fault) = fault {
+            let port = self.env.borrow().port(signal);
             self.faults.push((
                 SignalFault {
                     signal: signal.to_string(),
                     fault,
                 },
+                port,
                 now,
             ));
         }
@@ -266,11 +282,13 @@ impl ScriptedNode {
         self.set_state(&initial);
     }
 
-    fn read_signal(&mut self, name: &str) -> Result<f64, NoValue> {
-        let truth = self.env.borrow().read(name).unwrap_or(0.0);
+    /// A plant signal through this node's fault hooks; `None` (an unknown name in a script built
+    /// in code) reads 0 as the plant would.
+    fn read_signal(&mut self, port: Option<Port>) -> Result<f64, NoValue> {
+        let truth = port.and_then(|p| self.env.borrow().read(p)).unwrap_or(0.0);
         let mut value = truth;
-        for (f, since) in &self.faults {
-            if f.signal != name {
+        for (f, fault_port, since) in &self.faults {
+            if port.is_none() || *fault_port != port {
                 continue;
             }
             value = match f.fault {
@@ -294,7 +312,12 @@ impl ScriptedNode {
     fn eval_unchecked(&mut self, e: &Expr, frame: Option<&Decoded>) -> Result<f64, NoValue> {
         Ok(match e {
             Expr::Const(v) => *v,
-            Expr::Signal(s) => self.read_signal(s)?,
+            Expr::Port(p) => self.read_signal(Some(*p))?,
+            // Left by the start only where the name is unknown: a script built in code.
+            Expr::Signal(s) => {
+                let port = self.env.borrow().port(s);
+                self.read_signal(port)?
+            }
             Expr::Var(v) => self.vars.get(v).copied().unwrap_or(0.0),
             Expr::Field(f) => frame.and_then(|d| d.get(f)).map_or(0.0, |v| v.physical),
             Expr::StateCode => f64::from(self.s.states.get(self.state).map_or(0, |d| d.code)),
@@ -432,11 +455,13 @@ impl ScriptedNode {
                         self.emit(k, frame);
                     }
                 }
-                Action::Write(signal, e) => {
+                Action::WritePort(port, e) => {
                     if let Ok(v) = self.eval(e, frame) {
-                        self.env.borrow_mut().write(signal, v);
+                        self.env.borrow_mut().write(*port, v);
                     }
                 }
+                // Left by the start only where the name is unknown: nothing to write to.
+                Action::Write(..) => {}
                 Action::Set(var, e) => {
                     if let Ok(v) = self.eval(e, frame) {
                         self.set_var(var, v);
@@ -628,5 +653,49 @@ impl NodeLogic for ScriptedNode {
             .chain(acks)
             .filter(|&t| t < BusTime::NEVER)
             .min()
+    }
+}
+
+/// Resolves the plant signals a script names to their ports, once, when its node starts: reads
+/// and writes then go by port. A name the environment does not have (only a script built in
+/// code can hold one: loading refuses it) stays a name.
+fn resolve_ports(script: &mut NodeScript, env: &dyn Environment) {
+    fn expr(e: &mut Expr, env: &dyn Environment) {
+        match e {
+            Expr::Signal(name) => {
+                if let Some(p) = env.port(name) {
+                    *e = Expr::Port(p);
+                }
+            }
+            Expr::Scaled(inner, ..) | Expr::Clamp(inner, ..) | Expr::Quantize(inner, _) => expr(inner, env),
+            Expr::Const(_) | Expr::Port(_) | Expr::Var(_) | Expr::Field(_) | Expr::StateCode => {}
+        }
+    }
+    fn actions(list: &mut [Action], env: &dyn Environment) {
+        for a in list {
+            match a {
+                Action::Write(name, e) => {
+                    expr(e, env);
+                    if let Some(p) = env.port(name) {
+                        *a = Action::WritePort(p, e.clone());
+                    }
+                }
+                Action::WritePort(_, e) | Action::Set(_, e) => expr(e, env),
+                _ => {}
+            }
+        }
+    }
+    for m in &mut script.messages {
+        for f in &mut m.frames {
+            for e in f.fields.values_mut() {
+                expr(e, env);
+            }
+        }
+    }
+    for r in &mut script.reactions {
+        actions(&mut r.actions, env);
+    }
+    for t in &mut script.timers {
+        actions(&mut t.actions, env);
     }
 }

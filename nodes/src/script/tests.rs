@@ -16,14 +16,30 @@ struct Fake {
     now: BusTime,
 }
 
+/// The fake plant's signals; a port is the index of its name here.
+const FAKE_SIGNALS: [&str; 5] = [
+    "row3.unit1",
+    "engine.rpm",
+    "speed.actual",
+    "speed.mode_request",
+    "speed.setpoint",
+];
+
 impl Environment for Fake {
     fn advance_to(&mut self, t: BusTime) {
         self.now = self.now.max(t);
     }
-    fn read(&self, name: &str) -> Option<f64> {
-        self.values.get(name).copied()
+    fn port(&self, name: &str) -> Option<Port> {
+        FAKE_SIGNALS
+            .iter()
+            .position(|n| *n == name)
+            .map(|i| Port(i as u32))
     }
-    fn write(&mut self, name: &str, value: f64) -> bool {
+    fn read(&self, port: Port) -> Option<f64> {
+        self.values.get(FAKE_SIGNALS[port.0 as usize]).copied()
+    }
+    fn write(&mut self, port: Port, value: f64) -> bool {
+        let name = FAKE_SIGNALS[port.0 as usize];
         self.writes.push((name.to_string(), value));
         self.values.insert(name.to_string(), value);
         true
@@ -33,14 +49,7 @@ impl Environment for Fake {
 struct FakeSignals;
 impl Signals for FakeSignals {
     fn is_signal(&self, name: &str) -> bool {
-        [
-            "row3.unit1",
-            "engine.rpm",
-            "speed.actual",
-            "speed.mode_request",
-            "speed.setpoint",
-        ]
-        .contains(&name)
+        FAKE_SIGNALS.contains(&name)
     }
     fn is_input(&self, name: &str) -> bool {
         name.starts_with("speed.")
