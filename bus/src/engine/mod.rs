@@ -15,11 +15,12 @@
 //! contend; losers retry when the bus is next idle), the stuffed length of every frame, ACK (a
 //! frame that no other connected, acknowledging, not-bus-off controller acknowledges is an ACK
 //! error), automatic retransmission, suspend transmission after anything an error-passive node
-//! sent, bus off and recovery after 128 × 11 recessive bits, acceptance filters, the SJA1000's
-//! 64-byte receive FIFO with counted overruns, the controller modes drivers use (listen-only,
-//! self test, single shot, abort, sleep: off the bus until the next start of frame wakes it) and
-//! bus integration: a controller that joins the bus takes part only after 11 consecutive
-//! recessive bits.
+//! sent, bus off and recovery after 128 × 11 recessive bits, acceptance filters, receive FIFOs
+//! with counted overruns (the SJA1000's 64 bytes by default; no limit for a controller that
+//! hands frames over to a chip model, [`ControllerConfig::handing_over`]), the controller modes
+//! drivers use (listen-only, self test, single shot, abort, sleep: off the bus until the next
+//! start of frame wakes it) and bus integration: a controller that joins the bus takes part only
+//! after 11 consecutive recessive bits.
 //!
 //! An attempt that goes through cleanly (one frame or identical ones, acknowledged, nothing
 //! injected, every controller idle) is committed in closed form. Any other attempt runs bit by
