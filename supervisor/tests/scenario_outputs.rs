@@ -147,9 +147,10 @@ fn jobs(seeds: u64) -> Vec<Job> {
         for s in scenarios() {
             let name = s.file_stem().unwrap().to_string_lossy().into_owned();
             let key = format!("scenario {name} {seed}");
+            // Relative to the repository root, where harvemu runs: outputs name the file as given,
+            // and must not depend on where the repository is.
             let args = format!(
-                "scenario {} --seed {seed} --record {{dir}}/trace.log --junit {{dir}}/junit.xml --report {{dir}}/report.html",
-                s.to_str().unwrap()
+                "scenario configs/scenarios/{name}.ron --seed {seed} --record {{dir}}/trace.log --junit {{dir}}/junit.xml --report {{dir}}/report.html"
             );
             jobs.push(Job {
                 key,
@@ -203,12 +204,14 @@ fn run(job: &Job, dir: &Path) -> Result<Vec<(String, String)>, String> {
         String::from_utf8_lossy(&out.stderr)
     )
     .replace(own_s, "{dir}");
-    digests.push((format!("{what} output"), crc64(shown.as_bytes())));
     let mut problems = Vec::new();
+    located(what, "output", &shown, &mut problems);
+    digests.push((format!("{what} output"), crc64(shown.as_bytes())));
     for (file, clean) in &job.files {
         let path = own.join(file);
         let body = std::fs::read_to_string(&path).map_err(|e| format!("{what}: {}: {e}", path.display()))?;
         let cleaned = clean(&body).replace(own_s, "{dir}");
+        located(what, file, &cleaned, &mut problems);
         digests.push((format!("{what} {file}"), crc64(cleaned.as_bytes())));
         if *file == "trace.log" {
             if body.lines().count() < 10 {
@@ -225,6 +228,20 @@ fn run(job: &Job, dir: &Path) -> Result<Vec<(String, String)>, String> {
         Ok(digests)
     } else {
         Err(problems.join("\n"))
+    }
+}
+
+/// A digest must not depend on where the repository is: an output that names the repository's
+/// own path is a problem of the test (a path given absolute) or of harvemu.
+fn located(what: &str, output: &str, text: &str, problems: &mut Vec<String>) {
+    let root = common::root();
+    let canonical = root.canonicalize().unwrap_or_else(|_| root.clone());
+    let named = [root, canonical]
+        .into_iter()
+        .map(|p| p.to_string_lossy().into_owned())
+        .find(|p| text.contains(p.as_str()));
+    if let Some(path) = named {
+        problems.push(format!("{what} {output}: names the repository's path {path}"));
     }
 }
 
@@ -387,4 +404,24 @@ fn wall_clock_times_are_taken_out() {
         report("<tr><th>wall time</th><td>1.5 s</td></tr>"),
         "<tr><th>wall time</th><td>-</td></tr>"
     );
+}
+
+#[test]
+fn an_output_that_names_the_repository_is_found() {
+    let mut problems = Vec::new();
+    let root = common::root().to_string_lossy().into_owned();
+    located(
+        "scenario x 1",
+        "output",
+        &format!("x ({root}/configs/scenarios/x.ron, seed 1)"),
+        &mut problems,
+    );
+    assert_eq!(problems.len(), 1, "{problems:?}");
+    located(
+        "scenario x 1",
+        "output",
+        "x (configs/scenarios/x.ron, seed 1)",
+        &mut problems,
+    );
+    assert_eq!(problems.len(), 1, "{problems:?}");
 }
