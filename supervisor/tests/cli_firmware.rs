@@ -426,23 +426,31 @@ fn trace_cpu_writes_the_instructions_of_a_window() {
     assert_eq!(full.status.code(), Some(3), "{}", text(&full));
 }
 
+/// Writes into `dir` the network `net.ron` of one node: `source` assembled into `{file}.hex`, run
+/// by an 80C51 at `clock_hz` with no CAN controller, named `name` in `{file}.ron`.
+fn lone_node(dir: &Path, file: &str, name: &str, source: &str, clock_hz: u32) {
+    assemble_into(dir, file, source);
+    std::fs::write(
+        dir.join(format!("{file}.ron")),
+        format!(
+            "Firmware(name: \"{name}\", image: \"{file}.hex\", entry: None, \
+             cpu: I80C51(clock_hz: {clock_hz}), controllers: [])"
+        ),
+    )
+    .expect("write");
+    std::fs::write(
+        dir.join("net.ron"),
+        format!("Network(name: \"{file}\", bitrate: 30000, nodes: [\"{file}.ron\"])"),
+    )
+    .expect("write");
+}
+
 /// Runs `source` as node CPU (an 80C51 at 11.0592 MHz with no CAN controller) alone on a
 /// network for 20 ms of bus time with `--trace-cpu CPU`: the trace's lines, split into words.
 /// No frame or controller event ever reaches the node: only its own deadlines wake it.
 fn trace_alone(tag: &str, source: &str) -> Vec<Vec<String>> {
     let dir = scratch("cli-firmware", tag);
-    assemble_into(&dir, "prog", source);
-    std::fs::write(
-        dir.join("cpu.ron"),
-        "Firmware(name: \"CPU\", image: \"prog.hex\", entry: None, \
-         cpu: I80C51(clock_hz: 11059200), controllers: [])",
-    )
-    .expect("write");
-    std::fs::write(
-        dir.join("net.ron"),
-        "Network(name: \"alone\", bitrate: 30000, nodes: [\"cpu.ron\"])",
-    )
-    .expect("write");
+    lone_node(&dir, "cpu", "CPU", source, 11_059_200);
     let out = Command::new(env!("CARGO_BIN_EXE_harvemu"))
         .current_dir(&dir)
         .args(["run", "net.ron", "--fast", "--for", "20ms", "--trace-cpu", "CPU"])
@@ -657,18 +665,7 @@ TAIL:   .byte   54H, 41H, 49H, 4CH, 0
 /// port gave the log, and the whole log.
 fn serial_lines(tag: &str, source: &str) -> (Vec<String>, String) {
     let dir = scratch("cli-firmware", tag);
-    assemble_into(&dir, "serial", source);
-    std::fs::write(
-        dir.join("serial.ron"),
-        "Firmware(name: \"TTY\", image: \"serial.hex\", entry: None, \
-         cpu: I80C51(clock_hz: 12000000), controllers: [])",
-    )
-    .expect("write");
-    std::fs::write(
-        dir.join("net.ron"),
-        "Network(name: \"serial\", bitrate: 30000, nodes: [\"serial.ron\"])",
-    )
-    .expect("write");
+    lone_node(&dir, "serial", "TTY", source, 12_000_000);
     let out = Command::new(env!("CARGO_BIN_EXE_harvemu"))
         .current_dir(&dir)
         .env("RUST_LOG", "nodes::firmware=info")

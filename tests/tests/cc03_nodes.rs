@@ -84,6 +84,19 @@ fn run(benches: &[(String, String)], ms: u64) -> FirmwareRun {
     run
 }
 
+/// Channel 0 set up to transmit the base frame 100#AA (CANIDT1 = ID10..3 = 20h, DLC 1) and the
+/// controller enabled (ENA).
+const CHANNEL0_SENDS_AA: &str = "\tmov CANPAGE,#00h
+\tmov CANSTCH,#00h
+\tmov CANIDT1,#20h
+\tmov CANIDT2,#00h
+\tmov CANIDT3,#00h
+\tmov CANIDT4,#00h
+\tmov CANMSG,#0AAh
+\tmov CANCONCH,#41h
+\tmov CANGCON,#02h
+";
+
 /// Channel 0 (0x100, one byte AAh) is alone on the bus: nobody acknowledges it and it is sent
 /// again and again (ACK errors, AERR). After 10 ms the program launches channel 1 (0x200, BBh),
 /// which must wait for channel 0, then writes CONCH = 00 to channel 0. The partner joins at
@@ -94,16 +107,7 @@ fn run(benches: &[(String, String)], ms: u64) -> FirmwareRun {
 fn aborting_a_channel_that_is_retried_lets_the_next_channel_go() {
     let main = format!(
         "{BIT_TIMING}
-	mov CANPAGE,#00h
-	mov CANSTCH,#00h
-	mov CANIDT1,#20h
-	mov CANIDT2,#00h
-	mov CANIDT3,#00h
-	mov CANIDT4,#00h
-	mov CANMSG,#0AAh
-	mov CANCONCH,#41h
-	mov CANGCON,#02h
-{}
+{CHANNEL0_SENDS_AA}{}
 	mov CANPAGE,#10h
 	mov CANSTCH,#00h
 	mov CANIDT1,#40h
@@ -157,16 +161,7 @@ stop:	sjmp stop
 fn ena_cleared_and_set_during_an_attempt_sends_the_frame_once() {
     let main = format!(
         "{BIT_TIMING}
-	mov CANPAGE,#00h
-	mov CANSTCH,#00h
-	mov CANIDT1,#20h
-	mov CANIDT2,#00h
-	mov CANIDT3,#00h
-	mov CANIDT4,#00h
-	mov CANMSG,#0AAh
-	mov CANCONCH,#41h
-	mov CANGCON,#02h
-w0:	mov A,CANTEC
+{CHANNEL0_SENDS_AA}w0:	mov A,CANTEC
 	jz w0
 {}
 	mov CANGCON,#00h

@@ -282,8 +282,8 @@ impl ScriptedNode {
         self.set_state(&initial);
     }
 
-    /// A plant signal through this node's fault hooks; `None` (an unknown name in a script built
-    /// in code) reads 0 as the plant would.
+    /// A plant signal through this node's fault hooks. `None` (a name the environment does not
+    /// have, which only a script built in code can hold) reads 0, with no fault applied.
     fn read_signal(&mut self, port: Option<Port>) -> Result<f64, NoValue> {
         let truth = port.and_then(|p| self.env.borrow().read(p)).unwrap_or(0.0);
         let mut value = truth;
