@@ -259,7 +259,7 @@ pub fn run_firmware_specs(
 ) -> FirmwareRun {
     use bus::engine::{BitPosition, BusConfig, ControllerConfig, NodeId, Recovery, Rule, Schedule, Target};
     use bus_runtime::hub::{AttachControllers, Control, GetCrashed, GetSnapshot, Hub, HubConfig};
-    use bus_runtime::node::{Apply, NodeActor};
+    use bus_runtime::node::{NodeActor, ReadHardware};
     use nodes::firmware::FirmwareNode;
     let trace = Shared::default();
     let t = trace.clone();
@@ -345,13 +345,7 @@ pub fn run_firmware_specs(
                 .collect();
             let mut states = Vec::new();
             for a in actors {
-                let (tx, rx) = std::sync::mpsc::channel();
-                let asked = a
-                    .send(Apply(Box::new(move |logic| {
-                        let _ = tx.send(logic.hardware(end));
-                    })))
-                    .await;
-                states.push(asked.ok().and_then(|()| rx.recv().ok()).flatten());
+                states.push(a.send(ReadHardware(end)).await.ok().flatten());
             }
             (states, crashed, controllers)
         });

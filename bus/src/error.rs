@@ -26,6 +26,9 @@ pub enum Error {
     /// A request names a node the bus does not have.
     #[error("no node {0}")]
     NoNode(u16),
+    /// A node was to be attached with no controller at all.
+    #[error("a node needs a controller")]
+    NoControllers,
     /// Text in the `ID#DATA` notation could not be read.
     #[error("{0}")]
     Syntax(String),

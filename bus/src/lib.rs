@@ -17,6 +17,9 @@
 //! - [`trace`] formats the engine's events as candump lines.
 //! - [`candump`] reads and writes the `ID#DATA` frame notation of can-utils.
 //! - [`tracefile`] reads candump logs and Vector ASC traces, and writes ASC.
+//! - [`schedule::Scheduler`] runs the engine and wakes the nodes at their deadlines and inputs:
+//!   the hub's whole policy (reaction times, buffering, register-level wakes, crashes, hangs,
+//!   trace order), stepped by a driver that gives it the wall clock and carries its wakes.
 //! - [`pacing`] decides when a real-time hub commits bus time, and the overrun policy (bus time
 //!   slips after a stall instead of bursting); it is given the wall clock, it does not read it.
 //! - [`sja1000`] is the SJA1000 stand-alone CAN controller at register level (BasicCAN and
@@ -43,6 +46,7 @@ pub mod filter;
 mod frame;
 pub mod node;
 pub mod pacing;
+pub mod schedule;
 pub mod sja1000;
 pub mod text;
 pub mod time;

@@ -5,15 +5,10 @@ use thiserror::Error;
 #[derive(Debug, Error)]
 #[non_exhaustive]
 pub enum Error {
-    /// The core refused a configuration or a frame (a bad bit rate, an unknown node).
+    /// The core refused a configuration, a frame or a request (a bad bit rate, an unknown node,
+    /// a node without controllers).
     #[error(transparent)]
     Bus(#[from] bus::Error),
-    /// A node the request names is not on the hub.
-    #[error("no node {0}")]
-    NoNode(u16),
-    /// A node was to be attached with no controller at all.
-    #[error("a node needs a controller")]
-    NoControllers,
     /// The hub actor is gone (the run is ending), so it could not answer.
     #[error("the hub stopped")]
     HubStopped,

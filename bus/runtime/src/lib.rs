@@ -1,9 +1,10 @@
 //! The bus at run time: the pure core of the `bus` crate given a clock, actors and sockets.
 //!
 //! Contract:
-//! - [`hub::Hub`] is the actor that owns the engine ([`bus::engine::Bus`]), wakes each node's
-//!   actor at its deadlines and commits bus time: paced by the wall clock (real time, with the
-//!   overrun policy of [`bus::pacing`]) or as fast as the nodes answer (virtual time).
+//! - [`hub::Hub`] is the actor that drives the scheduler ([`bus::schedule::Scheduler`], which owns
+//!   the engine and decides every wake): it carries each wake to the node's actor and the answer
+//!   back, and gives the scheduler the wall clock, paced (real time, with the overrun policy of
+//!   [`bus::pacing`]) or not at all (virtual time, as fast as the nodes answer).
 //! - [`node::NodeActor`] drives one sans-IO [`bus::node::NodeLogic`]; a panic in the logic is
 //!   caught and reported to the hub as a crash, never taking the process down.
 //! - [`gateway`] serves the hub to socketcand clients (python-can's `socketcand` interface) over

@@ -1,11 +1,13 @@
 //! The node actor: drives one sans-IO [`NodeLogic`] on behalf of the hub, catching its panics.
 //!
-//! The hub sends a [`Wake`] with the inputs since the last one; the actor feeds them to the logic
-//! with [`drive_counted`] and answers with a [`Report`] through the wake's [`Reply`].
+//! The hub sends a [`Wake`] with the inputs since the last one, for each of the node's
+//! controllers that is due; the actor feeds them to the logic with [`drive_counted`], one
+//! controller after the other, and answers with a [`Report`] for each through the wake's
+//! [`Reply`]: one message out and one back per wake, however many controllers.
 
 use actix::prelude::*;
-use bus::engine::Received;
-use bus::node::{ControllerEvent, CrashCause, NodeLogic, Report, drive_counted};
+use bus::node::{CrashCause, HardwareState, NodeFault, NodeLogic, Refused, Report, drive_counted};
+use bus::schedule::Inputs;
 use bus::time::BusTime;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::sync::Arc;
@@ -17,14 +19,10 @@ use std::sync::Arc;
 pub struct Wake {
     /// Bus time of the wake.
     pub now: BusTime,
-    /// Which of the node's controllers the inputs are from: 0, but for a node with several
-    /// ([`crate::hub::AttachControllers`]).
-    pub controller: usize,
-    /// Frames from the receive FIFO, oldest first.
-    pub frames: Vec<Received>,
-    /// Controller notifications, oldest first.
-    pub events: Vec<(BusTime, ControllerEvent)>,
-    /// Where the [`Report`] goes.
+    /// The inputs of each of the node's controllers that is due, in controller order: one, but
+    /// for a node with several ([`crate::hub::AttachControllers`]).
+    pub inputs: Vec<Inputs>,
+    /// Where the [`Report`]s go.
     pub reply: Reply,
 }
 
@@ -32,12 +30,11 @@ pub struct Wake {
 #[derive(Message, Debug)]
 #[rtype(result = "()")]
 pub struct Answer {
-    /// The node's slot on the hub.
-    pub slot: usize,
     /// The hub's wake round it answers.
     pub round: u64,
-    /// What the node did.
-    pub report: Report,
+    /// What the node did with each controller's inputs, by the controller's slot on the hub, in
+    /// the wake's order; a crash ends the list.
+    pub reports: Vec<(usize, Report)>,
 }
 
 /// The way back for one wake's [`Report`]. One-way messages both ways are the cheapest round
@@ -48,27 +45,26 @@ pub struct Answer {
 pub struct Reply {
     // Shared: cloning an actix address allocates, an `Arc` does not.
     to: Option<Arc<Recipient<Answer>>>,
-    slot: usize,
+    node: usize,
     round: u64,
 }
 
 impl Reply {
-    /// A reply to `to` for the node in `slot`, wake round `round`.
-    pub fn new(to: Arc<Recipient<Answer>>, slot: usize, round: u64) -> Reply {
+    /// A reply to `to` for the node whose first controller is in `node`, wake round `round`.
+    pub fn new(to: Arc<Recipient<Answer>>, node: usize, round: u64) -> Reply {
         Reply {
             to: Some(to),
-            slot,
+            node,
             round,
         }
     }
 
-    /// Sends the report.
-    pub fn send(mut self, report: Report) {
+    /// Sends the reports.
+    pub fn send(mut self, reports: Vec<(usize, Report)>) {
         if let Some(to) = self.to.take() {
             to.do_send(Answer {
-                slot: self.slot,
                 round: self.round,
-                report,
+                reports,
             });
         }
     }
@@ -77,13 +73,13 @@ impl Reply {
 impl Drop for Reply {
     fn drop(&mut self) {
         if let Some(to) = self.to.take() {
+            let gone = Report {
+                crashed: Some(CrashCause::ActorGone),
+                ..Report::default()
+            };
             to.do_send(Answer {
-                slot: self.slot,
                 round: self.round,
-                report: Report {
-                    crashed: Some(CrashCause::ActorGone),
-                    ..Report::default()
-                },
+                reports: vec![(self.node, gone)],
             });
         }
     }
@@ -116,25 +112,42 @@ impl Handler<Wake> for NodeActor {
     type Result = ();
 
     fn handle(&mut self, wake: Wake, ctx: &mut Context<Self>) {
-        let Wake {
-            now,
-            controller,
-            frames,
-            events,
-            reply,
-        } = wake;
+        let Wake { now, inputs, reply } = wake;
         let _span = tracing::trace_span!("node", node = %self.name).entered();
+        let mut reports = Vec::with_capacity(inputs.len());
+        for input in inputs {
+            let slot = input.slot;
+            let report = self.drive(now, input, ctx);
+            let crashed = report.crashed.is_some();
+            reports.push((slot, report));
+            if crashed {
+                break;
+            }
+        }
+        reply.send(reports);
+    }
+}
+
+impl NodeActor {
+    /// Feeds one controller's inputs to the logic; a crash stops the actor.
+    fn drive(&mut self, now: BusTime, input: Inputs, ctx: &mut Context<Self>) -> Report {
         if std::mem::take(&mut self.crash_next) {
             // An injected crash behaves as a panic would, without the noise of one.
             tracing::info!(node = %self.name, "injected crash");
             ctx.stop();
-            return reply.send(Report {
+            return Report {
                 crashed: Some(CrashCause::Injected),
                 ..Report::default()
-            });
+            };
         }
+        let Inputs {
+            controller,
+            frames,
+            events,
+            ..
+        } = input;
         let mut handled = 0;
-        let report = match catch_unwind(AssertUnwindSafe(|| {
+        match catch_unwind(AssertUnwindSafe(|| {
             drive_counted(self.logic.as_mut(), controller, now, frames, events, &mut handled)
         })) {
             Ok(report) => report,
@@ -148,8 +161,7 @@ impl Handler<Wake> for NodeActor {
                     ..Report::default()
                 }
             }
-        };
-        reply.send(report);
+        }
     }
 }
 
@@ -173,18 +185,46 @@ impl Handler<Crash> for NodeActor {
     }
 }
 
-/// A change made to a node's logic from outside.
-pub type LogicChange = Box<dyn FnOnce(&mut dyn NodeLogic) + Send>;
+/// Hands a fault to the node's logic from `now` on ([`NodeLogic::inject`]: a scenario's sensor
+/// faults); answers with the logic's refusal, if it refused.
+#[derive(Message)]
+#[rtype(result = "Result<(), Refused>")]
+pub struct Inject {
+    /// The fault.
+    pub fault: NodeFault,
+    /// From when.
+    pub now: BusTime,
+}
 
-/// Runs a function on the node's logic, on the node's actor (a scenario's faults reach the logic
-/// this way, through [`NodeLogic::inject`]).
+impl Handler<Inject> for NodeActor {
+    type Result = Result<(), Refused>;
+    fn handle(&mut self, msg: Inject, _: &mut Context<Self>) -> Self::Result {
+        self.logic.inject(&msg.fault, msg.now)
+    }
+}
+
+/// Asks for the node's hardware at bus time `0` ([`NodeLogic::hardware`]: a firmware node's CPU
+/// and chips, for a state dump); `None` for a logic without such hardware.
+#[derive(Message)]
+#[rtype(result = "Option<HardwareState>")]
+pub struct ReadHardware(pub BusTime);
+
+impl Handler<ReadHardware> for NodeActor {
+    type Result = Option<HardwareState>;
+    fn handle(&mut self, ReadHardware(at): ReadHardware, _: &mut Context<Self>) -> Self::Result {
+        self.logic.hardware(at)
+    }
+}
+
+/// Tells the node's logic that the run ends at bus time `0` ([`NodeLogic::run_ends`]: a traced
+/// firmware node brings its instruction trace up to there).
 #[derive(Message)]
 #[rtype(result = "()")]
-pub struct Apply(pub LogicChange);
+pub struct RunEnds(pub BusTime);
 
-impl Handler<Apply> for NodeActor {
+impl Handler<RunEnds> for NodeActor {
     type Result = ();
-    fn handle(&mut self, Apply(f): Apply, _: &mut Context<Self>) {
-        f(self.logic.as_mut());
+    fn handle(&mut self, RunEnds(at): RunEnds, _: &mut Context<Self>) {
+        self.logic.run_ends(at);
     }
 }

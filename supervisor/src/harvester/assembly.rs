@@ -233,7 +233,10 @@ impl Running {
                 reaction: Duration::from_micros(reaction_us),
             })
             .await??;
-        let id = ids.first().copied().ok_or(bus_runtime::Error::NoControllers)?;
+        let id = ids
+            .first()
+            .copied()
+            .ok_or(bus_runtime::Error::Bus(bus::Error::NoControllers))?;
         self.nodes.extend(names.into_iter().zip(ids));
         self.members.push(Member {
             name: name.to_string(),
@@ -245,6 +248,12 @@ impl Running {
             down: false,
         });
         Ok(())
+    }
+
+    /// The nodes on the bus now, with their ids (a firmware node's first controller's), in the
+    /// order they were attached.
+    pub fn node_ids(&self) -> Vec<(String, NodeId)> {
+        self.members.iter().map(|m| (m.name.clone(), m.id)).collect()
     }
 
     /// The node called `name`.
@@ -269,14 +278,7 @@ impl Running {
             .iter()
             .filter(|m| matches!(m.spec, Spec::Firmware(_)))
         {
-            let (tx, rx) = std::sync::mpsc::channel();
-            let asked = m
-                .actor
-                .send(bus_runtime::node::Apply(Box::new(move |logic| {
-                    let _ = tx.send(logic.hardware(at));
-                })))
-                .await;
-            if let Some(state) = asked.ok().and_then(|()| rx.recv().ok()).flatten() {
+            if let Ok(Some(state)) = m.actor.send(bus_runtime::node::ReadHardware(at)).await {
                 states.push((m.name.clone(), state));
             }
         }
@@ -291,12 +293,8 @@ impl Running {
             return;
         };
         for m in self.members.iter().filter(|m| m.name == trace.node) {
-            let _ = m
-                .actor
-                .send(bus_runtime::node::Apply(Box::new(move |logic| {
-                    logic.run_ends(at)
-                })))
-                .await;
+            // A node whose actor is gone has no trace to end.
+            let _ = m.actor.send(bus_runtime::node::RunEnds(at)).await;
         }
     }
 

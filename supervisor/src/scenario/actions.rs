@@ -14,7 +14,7 @@ use bus::candump::parse_frame;
 use bus::engine::{BitPosition, Effect, NodeId, Rule, RuleId, Schedule};
 use bus::node::NodeFault;
 use bus_runtime::hub::{Control, Submit};
-use bus_runtime::node::Apply;
+use bus_runtime::node::Inject;
 use std::collections::BTreeMap;
 
 /// What the actions so far left running: error rules until their end, and the babblers.
@@ -161,7 +161,6 @@ async fn inject(running: &Running, at: &str, node: &str, fault: NodeFault) -> cr
         .actor(node)
         .ok_or_else(|| Error::BadInput(format!("no node {node}")))?;
     let now = running.now();
-    let (answer, taken) = std::sync::mpsc::channel();
     let described = describe(&fault);
     let down = || {
         Error::BadInput(format!(
@@ -172,21 +171,10 @@ async fn inject(running: &Running, at: &str, node: &str, fault: NodeFault) -> cr
         return Err(down());
     }
     actor
-        .send(Apply(Box::new(move |logic| {
-            // The receiver waits below: it cannot be gone.
-            let _ = answer.send(logic.inject(&fault, now));
-        })))
+        .send(Inject { fault, now })
         .await
-        .map_err(|_| down())?;
-    match taken.try_recv() {
-        Ok(Ok(())) => Ok(()),
-        Ok(Err(refused)) => Err(Error::BadInput(format!(
-            "{at}: node {node} refused {described}: {refused}"
-        ))),
-        Err(e) => Err(Error::Internal(format!(
-            "{at}: node {node} did not answer {described}: {e}"
-        ))),
-    }
+        .map_err(|_| down())?
+        .map_err(|refused| Error::BadInput(format!("{at}: node {node} refused {described}: {refused}")))
 }
 
 /// A fault in words, for errors.

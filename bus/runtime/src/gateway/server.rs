@@ -248,9 +248,11 @@ impl Handler<Wake> for Timers {
     type Result = ();
 
     fn handle(&mut self, wake: Wake, _: &mut Context<Self>) {
-        let Wake {
-            now, frames, reply, ..
-        } = wake;
+        let Wake { now, inputs, reply } = wake;
+        // One controller: its slot is the node's, and its frames are all handled (dropped: the
+        // gateway's clients hear of frames as observers).
+        let slot = inputs.first().map_or(0, |i| i.slot);
+        let frames: u64 = inputs.iter().map(|i| i.frames.len() as u64).sum();
         let mut sh = self.shared.borrow_mut();
         let sh = &mut *sh;
         let mut transmit = Vec::new();
@@ -273,12 +275,13 @@ impl Handler<Wake> for Timers {
         sh.stats.dropped += dropped;
         sh.armed = next;
         sh.poked = false;
-        reply.send(Report {
+        let report = Report {
             transmit,
             next_timeout: next,
-            frames_handled: frames.len() as u64,
+            frames_handled: frames,
             ..Report::default()
-        });
+        };
+        reply.send(vec![(slot, report)]);
     }
 }
 

@@ -1,10 +1,10 @@
 //! What a register-level node (firmware) asks of its controller, and the events it hears of
-//! as they happen ([`bus::node::NodeLogic::wants_every_event`]).
+//! as they happen ([`crate::node::NodeLogic::wants_every_event`]).
 
-use super::Hub;
-use bus::engine::{BitPosition, Effect, NodeId, Rule, RuleId, Schedule, SeenBy, Target};
-use bus::node::{ControllerCommand, ControllerEvent};
-use bus::time::BusTime;
+use super::{Notice, Scheduler};
+use crate::engine::{BitPosition, Effect, NodeId, Rule, RuleId, Schedule, SeenBy, Target};
+use crate::node::{ControllerCommand, ControllerEvent};
+use crate::time::BusTime;
 
 /// A controller's switches as its logic set them.
 #[derive(Clone, Debug, Default)]
@@ -17,7 +17,7 @@ pub(super) struct Switches {
     pub counters: (u16, u16),
 }
 
-impl Hub {
+impl Scheduler {
     /// Applies one command of slot `i`'s logic at `now`.
     pub(super) fn apply(&mut self, i: usize, command: ControllerCommand, now: BusTime) {
         let node = NodeId(i as u16);
@@ -60,8 +60,9 @@ impl Hub {
                 self.bus.set_ack(node, tuned && !listen_only)
             }
         };
-        if let Err(e) = result {
-            tracing::error!(node = %self.slots[i].name, error = %e, "controller command failed");
+        if let Err(error) = result {
+            let node = self.slots[i].name.clone();
+            self.notices.push_back(Notice::CommandFailed { node, error });
         }
     }
 
@@ -109,7 +110,7 @@ impl Hub {
         slot.input(at, Some(ControllerEvent::Counters { tec, rec }), true);
     }
 
-    /// [`Hub::counters_to`] with the controller's present counters.
+    /// [`Scheduler::counters_to`] with the controller's present counters.
     pub(super) fn counters_now(&mut self, i: usize, at: BusTime) {
         if let Some(c) = self.bus.controller(NodeId(i as u16)) {
             let (tec, rec) = (c.fault().tec(), c.fault().rec());

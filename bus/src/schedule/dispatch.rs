@@ -1,0 +1,240 @@
+//! The engine's events on their way out: to the trace (in time order), to observers, and to the
+//! nodes' pending inputs; and the wakes those inputs make.
+
+use super::{Inputs, Notice, Observed, Scheduler, Slot, Wake, kept};
+use crate::engine::{Event, NodeId};
+use crate::node::ControllerEvent;
+use crate::time::BusTime;
+use crate::trace::{Record, Source};
+
+impl Scheduler {
+    /// Routes the engine's events to traces, observers and the nodes' pending inputs. Returns
+    /// the earliest due time among the nodes that got inputs.
+    pub(super) fn dispatch(&mut self) -> Option<BusTime> {
+        let mut due: Option<BusTime> = None;
+        let mut scratch = std::mem::take(&mut self.scratch);
+        scratch.extend(self.bus.take_events());
+        for event in scratch.drain(..) {
+            // Into the reorder window; names are looked up as records go out (`hand_over`).
+            if !self.sinks.is_empty()
+                && let Some(record) = Record::of_event(&self.iface, |_| "", &event)
+            {
+                let node = match record.source {
+                    Source::Bus => None,
+                    Source::Controller { node, .. } => Some(node),
+                };
+                if let Err(e) = self.order.push(record.at, (node, record.kind)) {
+                    if self.order_error.is_none() {
+                        self.notices.push_back(Notice::TraceOrder(e.clone()));
+                    }
+                    self.order_error.get_or_insert(e);
+                }
+            }
+            if let Event::Frame { end, node, frame, .. } = event {
+                let seen = Observed { at: end, node, frame };
+                self.observers.retain_mut(|o| o(&seen));
+            }
+            if self.register_level > 0 {
+                self.counters_of(&event);
+                // Counters wake register-level nodes (at most a handful): keep `due` whole.
+                if let Some(d) = self
+                    .slots
+                    .iter()
+                    .filter(|s| s.every_event)
+                    .filter_map(Slot::due)
+                    .min()
+                {
+                    due = Some(due.map_or(d, |x| x.min(d)));
+                }
+            }
+            // No register-level node (the usual case): no slot lookup on the per-frame path.
+            let every = |n: NodeId| {
+                self.register_level > 0 && self.slots.get(n.index()).is_some_and(|s| s.every_event)
+            };
+            let (node, at, input, wakes) = match event {
+                Event::Delivered { node, at } => (node, at, None, true),
+                Event::Overrun { node, at } => (node, at, Some(ControllerEvent::Overrun), true),
+                Event::Woken { node, at } => (node, at, Some(ControllerEvent::Woken), true),
+                Event::State { node, at, to, .. } => (node, at, Some(ControllerEvent::State(to)), true),
+                Event::TxDone { node, at, frame, .. } => {
+                    (node, at, Some(ControllerEvent::Sent(frame)), every(node))
+                }
+                Event::TxAborted { node, at, frame, .. } => {
+                    (node, at, Some(ControllerEvent::Aborted(frame)), every(node))
+                }
+                Event::BusError {
+                    node,
+                    at,
+                    error,
+                    transmitting,
+                    location,
+                    ..
+                } if every(node) => {
+                    let e = ControllerEvent::BusError {
+                        error,
+                        transmitting,
+                        location,
+                    };
+                    (node, at, Some(e), true)
+                }
+                Event::ArbitrationLost { node, at, bit } if every(node) => {
+                    (node, at, Some(ControllerEvent::ArbitrationLost(bit)), true)
+                }
+                Event::RecoveryProgress { node, at, sequences } if every(node) => {
+                    (node, at, Some(ControllerEvent::RecoveryProgress(sequences)), true)
+                }
+                _ => continue,
+            };
+            if let Some(slot) = self.slots.get_mut(node.index()) {
+                slot.input(at, input, wakes);
+                if let Some(d) = slot.due() {
+                    due = Some(due.map_or(d, |x| x.min(d)));
+                }
+            }
+        }
+        self.scratch = scratch;
+        self.hand_over(false);
+        due
+    }
+
+    /// Hands the trace's records that are due to the sinks, in time order: those a reorder
+    /// window older than the newest, or every one when `all` (the end of the trace).
+    pub(super) fn hand_over(&mut self, all: bool) {
+        if self.sinks.is_empty() {
+            return;
+        }
+        let controllers = self.bus.controllers();
+        let name = |n: NodeId| {
+            controllers
+                .get(n.index())
+                .map_or("?", |c| c.config().name.as_str())
+        };
+        loop {
+            let next = if all {
+                self.order.pop_any()
+            } else {
+                self.order.pop()
+            };
+            let Some((at, (node, kind))) = next else {
+                return;
+            };
+            let source = match node {
+                None => Source::Bus,
+                Some(node) => Source::Controller {
+                    node,
+                    name: name(node),
+                },
+            };
+            let record = Record {
+                at,
+                bus: &self.iface,
+                source,
+                kind,
+            };
+            let error = &mut self.trace_error;
+            self.sinks.retain_mut(|s| kept(s.record(&record), error));
+        }
+    }
+
+    /// Wakes every node due at `at`, once each with the inputs of its controllers that are due;
+    /// the bus waits until all of them have answered. Returns false when no node needed its
+    /// logic woken (frames that can wait were only taken from their FIFOs): the bus goes on at
+    /// once.
+    pub(super) fn wake(&mut self, at: BusTime) -> bool {
+        self.now = at;
+        self.round += 1;
+        self.crashed_in_round = false;
+        self.stop_in_round = false;
+        for i in 0..self.slots.len() {
+            if self.slots[i].due() != Some(at) {
+                continue;
+            }
+            // Every slot has its controller (attached together): an error here is a bug, told.
+            let drained = match self.bus.drain_rx(NodeId(i as u16), at) {
+                Ok((frames, _overrun)) => frames,
+                Err(error) => {
+                    let node = self.slots[i].name.clone();
+                    self.notices.push_back(Notice::CommandFailed { node, error });
+                    Vec::new()
+                }
+            };
+            let still_arriving = self.bus.rx_front(NodeId(i as u16));
+            let slot = &mut self.slots[i];
+            // A frame still on the wire is the next input, from its end.
+            slot.pending_since = still_arriving;
+            let timeout_due = slot.next_timeout.is_some_and(|t| t <= at);
+            if slot.frames_can_wait && !timeout_due && !slot.event_wake {
+                // What the node's receive interrupt does: the frames leave the FIFO now (so it
+                // does not overrun), and the logic gets them, in order, at its next deadline.
+                slot.buffered.extend(drained);
+                continue;
+            }
+            if drained.is_empty() && slot.buffered.is_empty() && slot.events.is_empty() && !timeout_due {
+                // Nothing for the logic (a frame it was due for went with a reset): no round
+                // trip; its deadline stands.
+                slot.event_wake = false;
+                continue;
+            }
+            let frames = if slot.buffered.is_empty() {
+                drained
+            } else {
+                let mut frames = std::mem::take(&mut slot.buffered);
+                frames.extend(drained);
+                frames
+            };
+            slot.next_timeout = None;
+            slot.event_wake = false;
+            slot.handover.in_flight += frames.len() as u64;
+            let inputs = Inputs {
+                slot: i,
+                controller: slot.controller,
+                frames,
+                events: std::mem::take(&mut slot.events),
+            };
+            let first = slot.first;
+            // A node's controllers are neighbours: a further one joins its node's wake.
+            match self.woken.back_mut() {
+                Some(wake) if wake.node == first && wake.round == self.round => wake.inputs.push(inputs),
+                _ => {
+                    self.waiting += 1;
+                    self.wakes += 1;
+                    self.woken.push_back(Wake {
+                        node: first,
+                        round: self.round,
+                        now: at,
+                        inputs: vec![inputs],
+                    });
+                }
+            }
+        }
+        self.waiting > 0
+    }
+
+    /// Tells register-level nodes of the counters an event changed: the values the event
+    /// carries where it has them, else the controller's as the event leaves them (a frame
+    /// that went through, a reset).
+    fn counters_of(&mut self, event: &Event) {
+        match *event {
+            Event::BusError {
+                node, at, tec, rec, ..
+            }
+            | Event::State {
+                node, at, tec, rec, ..
+            }
+            | Event::Warning {
+                node, at, tec, rec, ..
+            } => self.counters_to(node.index(), at, tec, rec),
+            Event::TxDone { node, at, .. } | Event::Restarted { node, at } => {
+                self.counters_now(node.index(), at)
+            }
+            Event::Frame { end, .. } => {
+                for i in 0..self.slots.len() {
+                    if self.slots[i].every_event {
+                        self.counters_now(i, end);
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+}
