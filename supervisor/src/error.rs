@@ -66,9 +66,6 @@ pub enum Error {
     /// The plant refused an input a scenario set (scenarios are checked against it before).
     #[error(transparent)]
     Plant(#[from] nodes::plant::PlantError),
-    /// A node harvemu looked up by name is not on the bus (the names were checked before).
-    #[error("no node {0}")]
-    NoNode(String),
     /// A measurement or report that would not encode as JSON.
     #[error(transparent)]
     Json(#[from] serde_json::Error),
@@ -98,7 +95,6 @@ impl Error {
             | Error::System(_)
             | Error::Json(_)
             | Error::Plant(_)
-            | Error::NoNode(_)
             | Error::Internal(_) => exit::INTERNAL,
         }
     }

@@ -91,7 +91,6 @@ mod tests {
             window: bus::time::BusDuration::from_millis(80),
         };
         assert_eq!(err(bus_runtime::Error::Bus(late).into()), 70);
-        assert_eq!(err(Error::NoNode("F9".into())), 70);
         assert_eq!(err(Error::System(missing())), 70);
         let io: crate::Result<Ended> = Err(output());
         for (s, c) in [(Signal::Int, 130), (Signal::Term, 143), (Signal::Hup, 129)] {

@@ -26,8 +26,7 @@ fn error(e: supervisor::Error) -> PyErr {
     match e {
         supervisor::Error::BadInput(_)
         | supervisor::Error::Config(_)
-        | supervisor::Error::Plant(_)
-        | supervisor::Error::NoNode(_) => PyValueError::new_err(message),
+        | supervisor::Error::Plant(_) => PyValueError::new_err(message),
         _ => PyRuntimeError::new_err(message),
     }
 }

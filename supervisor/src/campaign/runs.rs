@@ -14,6 +14,9 @@ use std::sync::mpsc;
 
 /// What a run that panicked fails (harvemu itself, not a node's logic).
 pub const NO_PANIC: &str = "harvemu does not panic";
+/// The expectation a run fails when its drawn faults do not resolve (a bug: they come from a
+/// section the campaign checked).
+pub const RESOLVES: &str = "the run's faults make a valid scenario";
 /// What a run that ended with an error fails.
 pub const NO_ERROR: &str = "the run ends without an error";
 
@@ -108,9 +111,15 @@ impl Campaign {
         (seed, History { faults, duration_s })
     }
 
+    /// The scenario of a run, resolved: see [`Campaign::unresolved`]; the problems when its faults
+    /// do not make a scenario `harvemu scenario` would take.
+    pub fn loaded(&self, seed: u64, h: &History) -> Result<Loaded, nodes::Error> {
+        self.unresolved(seed, h).resolved()
+    }
+
     /// The scenario of a run: the file's own steps and the faults' steps, in time order, with
     /// the run's seed and length and no random faults.
-    pub fn loaded(&self, seed: u64, h: &History) -> Loaded {
+    fn unresolved(&self, seed: u64, h: &History) -> Loaded {
         let mut l = self.base.clone();
         l.harvester.config.seed = seed;
         let s = &mut l.scenario;
@@ -145,16 +154,15 @@ impl Campaign {
         }
     }
 
-    /// Whether a candidate is a scenario `harvemu scenario` would take.
-    fn valid(&self, l: &Loaded) -> bool {
-        scenario::validate(&l.source.to_string(), &l.scenario, &l.harvester).is_empty()
-    }
-
     /// Plays run `i`, and shrinks it with at most `budget` candidates when it fails; `None`
     /// when a stop signal interrupted it.
     pub fn run(&self, i: u64, budget: u32) -> Option<RunResult> {
         let (seed, start) = self.history(i);
-        let failed = self.failures(&self.loaded(seed, &start))?;
+        let failed = match self.loaded(seed, &start) {
+            Ok(l) => self.failures(&l)?,
+            // Drawn from a section the campaign checked: a bug, told as the run's failure.
+            Err(e) => vec![(RESOLVES.into(), e.to_string())],
+        };
         let Some((expectation, observed)) = failed.into_iter().next() else {
             return Some(RunResult {
                 run: i,
@@ -170,10 +178,10 @@ impl Campaign {
         // What the candidate kept last showed: the shrunk run's observation.
         let mut shrunk_observed = observed.clone();
         let shrunk = shrink::shrink(start, bounds, budget, |h| {
-            let l = self.loaded(seed, h);
-            if !self.valid(&l) {
+            // A candidate is kept only if `harvemu scenario` would take it.
+            let Ok(l) = self.loaded(seed, h) else {
                 return false;
-            }
+            };
             let Some(failed) = self.failures(&l) else {
                 return false;
             };
@@ -189,7 +197,7 @@ impl Campaign {
         if crate::stop::received().is_some() {
             return None;
         }
-        let mut scenario = self.loaded(seed, &shrunk.history).scenario;
+        let mut scenario = self.unresolved(seed, &shrunk.history).scenario;
         scenario.random_faults = None;
         scenario.name = format!("{} run {i}", self.name());
         scenario.description = format!(

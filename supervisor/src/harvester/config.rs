@@ -3,6 +3,7 @@
 
 use crate::configs::Source;
 use bus::bits::BitRate;
+use bus::engine::NodeId;
 use bus::time::BusTime;
 use nodes::firmware::FirmwareSpec;
 use nodes::monitor::MonitorConfig;
@@ -232,6 +233,27 @@ impl Harvester {
     /// The time at which the field nodes power up.
     pub fn relay(&self) -> BusTime {
         BusTime::from_millis(self.config.time_relay_ms)
+    }
+
+    /// Its nodes' names with the ids they take on the bus: the monitor ("F5") first when it is
+    /// emulated, then the scripted nodes and the firmware nodes in config order, as they are
+    /// attached (`harvester/assembly.rs`); a firmware node takes one id per chip (one without a
+    /// chip, one), and its first is the node's.
+    pub fn node_ids(&self) -> Vec<(String, NodeId)> {
+        let mut next = 0u16;
+        let mut take = |name: &str, controllers: usize| {
+            let id = NodeId(next);
+            next = next.saturating_add(u16::try_from(controllers.max(1)).unwrap_or(u16::MAX));
+            (name.to_string(), id)
+        };
+        let monitor = self.config.monitor.enabled.then(|| take("F5", 1));
+        let scripts: Vec<_> = self.scripts.iter().map(|s| take(&s.name, 1)).collect();
+        let firmware: Vec<_> = self
+            .firmware
+            .iter()
+            .map(|f| take(&f.name, f.chips.len()))
+            .collect();
+        monitor.into_iter().chain(scripts).chain(firmware).collect()
     }
 
     /// The names of its nodes, the monitor's ("F5") first when it is emulated.

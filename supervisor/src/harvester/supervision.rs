@@ -173,7 +173,7 @@ impl Running {
             .members
             .iter()
             .find(|m| m.name == name)
-            .ok_or_else(|| crate::Error::NoNode(name.into()))?;
+            .ok_or_else(|| crate::Error::BadInput(format!("no node {name} on the bus")))?;
         if m.down || m.restart_at.is_some() || !m.actor.connected() {
             self.events.push(SupervisorEvent {
                 at: self.now,

@@ -2,16 +2,15 @@
 //! faults through the node interface ([`NodeLogic::inject`](bus::node::NodeLogic::inject)),
 //! plant inputs, crashes and power cycles.
 //!
-//! Contract: an action takes effect at the bus time the run has reached; one the harvester
-//! cannot carry out ends the run with an error. A fault a node's logic refuses is bad input
+//! Contract: an action, resolved before the run ([`Act`]), takes effect at the bus time the run
+//! has reached; one the harvester cannot carry out ends the run with an error. A fault a node's logic refuses is bad input
 //! (exit code 2), named with the scenario's file, the timeline step, the node and the fault.
 
 use super::babbler::Babblers;
-use super::model::{Action, ErrorKind, Hits, SeenBy, Target};
+use super::plan::Act;
 use crate::Error;
 use crate::harvester::Running;
-use bus::candump::parse_frame;
-use bus::engine::{BitPosition, Effect, NodeId, Rule, RuleId, Schedule};
+use bus::engine::{Rule, RuleId};
 use bus::node::NodeFault;
 use bus_runtime::hub::{Control, Submit};
 use bus_runtime::node::Inject;
@@ -36,99 +35,26 @@ impl Actions {
         }
     }
 
-    /// Carries out timeline entry `index`.
-    pub(crate) async fn act(
-        &mut self,
-        running: &mut Running,
-        index: usize,
-        action: Action,
-    ) -> crate::Result<()> {
-        let id = |n: &str| running.node(n).ok_or_else(|| Error::NoNode(n.into()));
-        match action {
-            Action::BitErrors {
-                target,
-                hits,
-                kind,
-                seen_by,
-                ..
-            } => {
-                let effect = match kind {
-                    ErrorKind::Bit => Effect::Bit,
-                    ErrorKind::Stuff => Effect::Stuff,
-                    ErrorKind::Crc => Effect::Crc,
-                    ErrorKind::Form => Effect::Form,
-                };
-                let seen_by = match seen_by {
-                    SeenBy::All => bus::engine::SeenBy::All,
-                    SeenBy::Nodes(names) => {
-                        bus::engine::SeenBy::Nodes(names.iter().map(|n| id(n)).collect::<Result<_, _>>()?)
-                    }
-                };
-                let rule = Rule {
-                    target: engine_target(&target, &id)?,
-                    schedule: engine_schedule(hits),
-                    bit: BitPosition::Random,
-                    effect,
-                    seen_by,
-                };
-                self.add_rule(running, index, rule).await?;
-            }
-            Action::Overload {
-                target,
-                hits,
-                by,
-                frames,
-                ..
-            } => {
-                let seen_by = if by.is_empty() {
-                    bus::engine::SeenBy::All
-                } else {
-                    bus::engine::SeenBy::Nodes(by.iter().map(|n| id(n)).collect::<Result<_, _>>()?)
-                };
-                let rule = Rule {
-                    target: engine_target(&target, &id)?,
-                    schedule: engine_schedule(hits),
-                    bit: BitPosition::Random,
-                    effect: Effect::Overload(frames),
-                    seen_by,
-                };
-                self.add_rule(running, index, rule).await?;
-            }
-            Action::AckFailure(n) => drop(running.hub.send(Control::SetAck(id(&n)?, false)).await??),
-            Action::AckRestored(n) => drop(running.hub.send(Control::SetAck(id(&n)?, true)).await??),
-            Action::Disconnect(n) => drop(running.hub.send(Control::SetConnected(id(&n)?, false)).await??),
-            Action::Reconnect(n) => drop(running.hub.send(Control::SetConnected(id(&n)?, true)).await??),
-            Action::Hang(n) => drop(running.hub.send(Control::SetHung(id(&n)?, true)).await??),
-            Action::Resume(n) => drop(running.hub.send(Control::SetHung(id(&n)?, false)).await??),
-            Action::Crash(n) => running.crash(&n).await?,
-            Action::Babble { frame, .. } => self.babblers.start(running, parse_frame(&frame)?).await?,
-            Action::SendFrame { node, frame } => {
-                let frame = parse_frame(&frame)?;
-                running
-                    .hub
-                    .send(Submit {
-                        node: id(&node)?,
-                        frame,
-                    })
-                    .await??;
-            }
-            Action::SensorFault { node, signal, fault } => {
-                let fault = NodeFault::Sensor {
-                    signal,
-                    reads: fault.into(),
-                };
+    /// Carries out timeline entry `index`, resolved.
+    pub(crate) async fn act(&mut self, running: &mut Running, index: usize, act: Act) -> crate::Result<()> {
+        let control = |c: Control| async { running.hub.send(c).await?.map(drop).map_err(crate::Error::from) };
+        match act {
+            Act::Rule(rule) => return self.add_rule(running, index, rule).await,
+            Act::Ack(n, on) => control(Control::SetAck(n, on)).await?,
+            Act::Connect(n, on) => control(Control::SetConnected(n, on)).await?,
+            Act::Hang(n, on) => control(Control::SetHung(n, on)).await?,
+            Act::Crash(n) => running.crash(&n).await?,
+            Act::Babble(frame) => self.babblers.start(running, frame).await?,
+            Act::Send(node, frame) => drop(running.hub.send(Submit { node, frame }).await??),
+            Act::Inject { node, fault } => {
                 let at = format!("{}: timeline[{index}]", self.file);
                 inject(running, &at, &node, fault).await?
             }
-            Action::SensorRepaired { node, signal } => {
-                let at = format!("{}: timeline[{index}]", self.file);
-                inject(running, &at, &node, NodeFault::SensorRepaired { signal }).await?
-            }
-            Action::Plant { input, value } => {
+            Act::Plant { input, value } => {
                 let now = running.now();
                 running.plant.borrow_mut().set_input_at(now, &input, value)?;
             }
-            Action::PowerCycle => running.power_cycle().await?,
+            Act::PowerCycle => running.power_cycle().await?,
         }
         Ok(())
     }
@@ -182,35 +108,6 @@ fn describe(fault: &NodeFault) -> String {
     match fault {
         NodeFault::Sensor { signal, reads } => format!("the sensor fault {reads:?} on {signal}"),
         NodeFault::SensorRepaired { signal } => format!("the repair of the sensor of {signal}"),
-    }
-}
-
-/// The engine's form of the frames a fault targets.
-fn engine_target(
-    target: &Target,
-    id: &dyn Fn(&str) -> crate::Result<NodeId>,
-) -> crate::Result<bus::engine::Target> {
-    Ok(match target {
-        Target::Any => bus::engine::Target::Any,
-        Target::Node(n) => bus::engine::Target::Node(id(n)?),
-        Target::Id(text) => bus::engine::Target::Id {
-            id: u32::from_str_radix(text, 16).map_err(|e| Error::Internal(e.to_string()))?,
-            mask: 0x1FFF_FFFF,
-        },
-        Target::Priority(p) => {
-            let (id, mask) = protocol::ident::Priority::new(*p)?.id_and_mask();
-            bus::engine::Target::Id { id, mask }
-        }
-    })
-}
-
-/// The engine's form of which targeted frames are hit.
-fn engine_schedule(hits: Hits) -> Schedule {
-    match hits {
-        Hits::Once => Schedule::Once,
-        Hits::EveryNth(n) => Schedule::EveryNth(n),
-        Hits::Always => Schedule::Always,
-        Hits::BitErrorRate(r) => Schedule::BitErrorRate(r),
     }
 }
 

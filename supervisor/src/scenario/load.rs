@@ -1,12 +1,13 @@
 //! Reading a scenario: its file, its harvester, and what it takes from the command line.
 //!
-//! Contract: a [`Loaded`] scenario passed [`validate`] against its harvester; the seed, the
-//! cruise start and the random faults (drawn as ordinary timeline steps) are applied to it, so
-//! that the run needs nothing else.
+//! Contract: a [`Loaded`] scenario passed the validation against its harvester and carries its
+//! timeline resolved ([`Plan`]), the random faults (drawn as ordinary timeline steps) among it;
+//! the seed and the cruise start are applied to it, so that the run needs nothing else.
 
 use super::model::Scenario;
+use super::plan::Plan;
 use super::random;
-use super::validate::validate;
+use super::validate::{MAX_DURATION_S, resolve};
 use crate::configs::Source;
 use crate::harvester::Harvester;
 use nodes::Error;
@@ -24,6 +25,18 @@ pub struct Loaded {
     /// How many of the timeline's steps are the file's own: the rest were drawn from its
     /// `random_faults`.
     pub fixed: usize,
+    /// The timeline resolved: what the run carries out.
+    pub plan: Plan,
+}
+
+impl Loaded {
+    /// The same scenario with its timeline changed in place (a campaign's drawn faults, a
+    /// shrunk history), resolved again; the problems if it no longer resolves.
+    pub fn resolved(mut self) -> Result<Loaded, Error> {
+        self.plan =
+            resolve(&self.source.to_string(), &self.scenario, &self.harvester).map_err(Error::Invalid)?;
+        Ok(self)
+    }
 }
 
 /// Reads and checks a scenario and its harvester; every problem is listed. Files are read with
@@ -76,20 +89,25 @@ fn parse(
         scenario.duration_s = d;
     }
     let mut harvester = harvester(&source.beside(&scenario.config))?;
-    let problems = validate(&file, &scenario, &harvester);
-    if !problems.is_empty() {
-        return Err(Error::Invalid(problems));
-    }
     if let Some(s) = seed.or(scenario.seed) {
         harvester.config.seed = s;
     }
     let fixed = scenario.timeline.len();
-    if let Some(r) = &scenario.random_faults {
+    let names = harvester.node_names();
+    let length = scenario.duration_s;
+    if let Some(r) = &scenario.random_faults
+        && length.is_finite()
+        && length > 0.0
+        && length <= MAX_DURATION_S
+        && random::problems(r, length, &names).is_empty()
+    {
         // Ordinary steps from here on: the runner, the report and the checks see no difference.
+        // (With a problem in the section, or in the length, nothing is drawn: the validation
+        // lists the problem.)
         let seed = r.seed.unwrap_or(harvester.config.seed);
-        let steps = random::expand(r, seed, scenario.duration_s, &harvester.node_names());
-        scenario.timeline.extend(steps);
+        scenario.timeline.extend(random::expand(r, seed, length, &names));
     }
+    let plan = resolve(&file, &scenario, &harvester).map_err(Error::Invalid)?;
     if let Some(s) = scenario.cruise_start_s {
         harvester.config.monitor.cruise.start_s = Some(s);
     }
@@ -98,5 +116,6 @@ fn parse(
         scenario,
         harvester,
         fixed,
+        plan,
     })
 }

@@ -2,12 +2,13 @@
 //! expectations checked against the monitor's display, the bus statistics and node states, each
 //! with a verdict.
 //!
-//! Contract: [`load()`] gives a scenario only when [`validate()`] finds no problem in it, and lists
-//! every problem otherwise; [`run()`] plays a loaded scenario to an [`Outcome`] with one verdict per
+//! Contract: [`load()`] gives a scenario only when [`resolve()`] finds no problem in it, with its
+//! timeline resolved ([`Plan`]), and lists every problem otherwise; [`run()`] plays a loaded scenario to an [`Outcome`] with one verdict per
 //! expectation, the same for the same seed. A step the running harvester cannot carry out (a
 //! fault the node's logic refuses) ends the run with an error naming the step, node and fault.
 //!
-//! The parts: the file format (`model`), reading (`load`), validation (`validate`), the run
+//! The parts: the file format (`model`), reading (`load`), validation and resolution
+//! (`validate`, into the [`Plan`] of `plan`), the run
 //! loop (`run`), the timeline's actions on the running harvester
 //! (`actions`, with the babbling idiot in `babbler`), the verdicts (`check`, over the node
 //! states of `states`), and what the run leaves for the report ([`books`], [`series`],
@@ -20,6 +21,7 @@ mod check;
 pub mod junit;
 mod load;
 mod model;
+mod plan;
 pub mod random;
 mod run;
 pub mod series;
@@ -31,7 +33,8 @@ pub(crate) use actions::Actions;
 pub use check::Verdict;
 pub use load::{Loaded, from_text, load, load_with};
 pub use model::*;
+pub use plan::{Act, Plan, Todo};
 pub use random::{Fault, Hit, RandomFault, RandomFaults};
 pub use run::{Outcome, run};
 pub use series::Series;
-pub use validate::{MAX_DURATION_S, MAX_OVERLOAD_FRAMES, validate};
+pub use validate::{MAX_DURATION_S, MAX_OVERLOAD_FRAMES, action as resolve_action, resolve, validate};

@@ -9,7 +9,8 @@
 use super::actions::Actions;
 use super::books::{Books, TraceTally};
 use super::check::{self, Verdict};
-use super::model::{Action, Expect, Scenario};
+use super::model::Expect;
+use super::plan::Todo;
 use super::series::{self, Series};
 use super::{Loaded, trace_count};
 use crate::harvester::{self, Running, SupervisorEvent};
@@ -52,40 +53,6 @@ impl Outcome {
     pub fn passed(&self) -> bool {
         self.verdicts.iter().all(|v| v.passed)
     }
-}
-
-/// What falls due on the timeline.
-enum Todo {
-    /// A step's action.
-    Act(usize, Action),
-    /// The end of a step's bit errors or overloads.
-    EndBitErrors(usize),
-    /// The end of a babbling idiot's flood.
-    EndBabble,
-}
-
-/// The timeline in the order it falls due: by time, then by step.
-fn schedule(s: &Scenario) -> Vec<(BusTime, usize, Todo)> {
-    let mut todo = Vec::new();
-    for (i, step) in s.timeline.iter().enumerate() {
-        todo.push((
-            BusTime::from_secs_f64(step.at_s),
-            i,
-            Todo::Act(i, step.action.clone()),
-        ));
-        match &step.action {
-            Action::BitErrors { until_s: Some(u), .. } | Action::Overload { until_s: Some(u), .. } => {
-                todo.push((BusTime::from_secs_f64(*u), i, Todo::EndBitErrors(i)))
-            }
-            Action::Babble { until_s, .. } => {
-                todo.push((BusTime::from_secs_f64(*until_s), i, Todo::EndBabble))
-            }
-            _ => {}
-        }
-    }
-    // Stable: one step's entries at the same time keep their order, its start before its end.
-    todo.sort_by_key(|(t, i, _)| (*t, *i));
-    todo
 }
 
 /// Runs a loaded scenario in virtual time. `progress` is called with bus seconds reached.
@@ -132,7 +99,7 @@ async fn play(
         r = p.running.run_until(h.relay().min(end)) => r?,
         sig = p.stop.wait() => p.interrupted = Some(sig),
     }
-    for (at, _, what) in schedule(s) {
+    for (at, what) in l.plan.todo.iter().cloned() {
         if p.interrupted.is_some() {
             break;
         }
@@ -142,12 +109,11 @@ async fn play(
         }
         progress(p.running.now().as_secs_f64());
         match what {
-            Todo::Act(i, action) => {
-                let name = action.name();
-                actions.act(&mut p.running, i, action).await?;
+            Todo::Act { index, name, act } => {
+                actions.act(&mut p.running, index, act).await?;
                 *applied.entry(name).or_insert(0) += 1;
             }
-            Todo::EndBitErrors(i) => actions.end_rule(&p.running, i).await?,
+            Todo::EndRule(i) => actions.end_rule(&p.running, i).await?,
             Todo::EndBabble => actions.end_babble(&p.running).await?,
         }
     }

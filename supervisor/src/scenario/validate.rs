@@ -1,17 +1,23 @@
-//! Validation of a scenario against its harvester, before anything runs.
+//! Validation of a scenario against its harvester, before anything runs, and the resolution of
+//! its timeline into what the run carries out.
 //!
-//! Contract: [`validate`] lists every problem it finds, each named by file and field: nodes the
+//! Contract: [`resolve`] lists every problem it finds, each named by file and field: nodes the
 //! harvester does not have, times outside the run, values the harvester or the plant would
 //! refuse, sensor faults on the monitor (which has none), and expectations whose numbers mean
-//! they could never fail or never pass. It starts nothing; a scenario it passes can still be
-//! stopped while it runs, by a fault a node's logic refuses.
+//! they could never fail or never pass; with none, it gives the timeline resolved ([`Plan`]):
+//! the one interpretation of every step, which the run carries out without checking again. It
+//! starts nothing; a scenario it passes can still be stopped while it runs, by a fault a node's
+//! logic refuses. [`action`] resolves one action the same way, against a running harvester's
+//! nodes (the Python session's `act`).
 
 mod expect;
 mod timeline;
 
-use super::model::{Hits, Scenario, Target};
+use super::model::{Scenario, Step};
+use super::plan::{Plan, Resolved};
 use super::{junit, random};
 use crate::harvester::Harvester;
+use bus::engine::NodeId;
 use bus::text::{LIST_CHARS, cut, quote};
 use nodes::Problem;
 use nodes::plant::Plant;
@@ -24,11 +30,18 @@ pub const MAX_DURATION_S: f64 = 30.0 * 24.0 * 3600.0;
 /// delay the next data or remote frame.
 pub const MAX_OVERLOAD_FRAMES: u8 = 2;
 
-/// Checks names, times and values of a scenario against its harvester.
+/// Checks names, times and values of a scenario against its harvester: every problem, none when
+/// it is good.
 pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
+    resolve(file, s, h).err().unwrap_or_default()
+}
+
+/// Checks a scenario against its harvester and resolves its timeline, with the node ids the
+/// harvester's nodes take on its bus ([`Harvester::node_ids`]); or every problem.
+pub fn resolve(file: &str, s: &Scenario, h: &Harvester) -> Result<Plan, Vec<Problem>> {
     let mut c = Checks {
         file,
-        names: h.node_names(),
+        nodes: h.node_ids(),
         duration_s: s.duration_s,
         signals: Plant::signal_names(),
         found: Vec::new(),
@@ -46,7 +59,8 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
         }
     }
     if let Some(r) = &s.random_faults {
-        for (field, message) in random::problems(r, s.duration_s, &c.names) {
+        let names: Vec<String> = c.nodes.iter().map(|(n, _)| n.clone()).collect();
+        for (field, message) in random::problems(r, s.duration_s, &names) {
             c.push(field, message);
         }
     }
@@ -64,20 +78,50 @@ pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
     if s.expect.is_empty() {
         c.push("expect", "a scenario needs at least one expectation");
     }
-    for (i, step) in s.timeline.iter().enumerate() {
-        timeline::step(&mut c, &format!("timeline[{i}]"), step);
-    }
+    let steps: Vec<Resolved> = s
+        .timeline
+        .iter()
+        .enumerate()
+        .filter_map(|(i, step)| timeline::step(&mut c, &format!("timeline[{i}]"), i, step))
+        .collect();
     for (i, e) in s.expect.iter().enumerate() {
         expect::expectation(&mut c, &format!("expect[{i}]"), e, h);
     }
-    c.found
+    if c.found.is_empty() {
+        Ok(Plan::new(steps))
+    } else {
+        Err(c.found)
+    }
+}
+
+/// Resolves step `index` of a harvester already running, whose nodes are `nodes` (names and
+/// ids on its bus) and which has reached `now_s`; `file` names where the step came from. The
+/// same checks as a scenario's step, in a run without end.
+pub fn action(
+    file: &str,
+    nodes: Vec<(String, NodeId)>,
+    index: usize,
+    step: &Step,
+) -> Result<Plan, Vec<Problem>> {
+    let mut c = Checks {
+        file,
+        nodes,
+        duration_s: f64::INFINITY,
+        signals: Plant::signal_names(),
+        found: Vec::new(),
+    };
+    let resolved = timeline::step(&mut c, "action", index, step);
+    match resolved {
+        Some(r) if c.found.is_empty() => Ok(Plan::new(vec![r])),
+        _ => Err(c.found),
+    }
 }
 
 /// The problems found so far, and what the checks of single fields need to know.
 struct Checks<'a> {
     file: &'a str,
-    /// The harvester's nodes.
-    names: Vec<String>,
+    /// The harvester's nodes, with their ids on its bus.
+    nodes: Vec<(String, NodeId)>,
     /// The run's length, s.
     duration_s: f64,
     /// The plant's signals.
@@ -90,23 +134,28 @@ impl Checks<'_> {
         self.found.push(Problem::at(self.file, field, message));
     }
 
-    /// A node of the harvester.
-    fn node(&mut self, field: String, n: &str) {
-        if !self.names.iter().any(|x| x == n) {
+    /// A node of the harvester, and its id.
+    fn node(&mut self, field: String, n: &str) -> Option<NodeId> {
+        let found = self.nodes.iter().find(|(x, _)| x == n).map(|(_, id)| *id);
+        if found.is_none() {
+            let names: Vec<&str> = self.nodes.iter().map(|(x, _)| x.as_str()).collect();
             let message = format!(
                 "unknown node {} (nodes: {})",
                 quote(n),
-                cut(&self.names.join(", "), LIST_CHARS)
+                cut(&names.join(", "), LIST_CHARS)
             );
             self.push(field, message);
         }
+        found
     }
 
-    /// A signal of the plant.
-    fn signal(&mut self, field: String, signal: &str) {
-        if !self.signals.iter().any(|s| s == signal) {
+    /// A signal of the plant: true when it is one.
+    fn signal(&mut self, field: String, signal: &str) -> bool {
+        let known = self.signals.iter().any(|s| s == signal);
+        if !known {
             self.push(field, format!("unknown plant signal {}", quote(signal)));
         }
+        known
     }
 
     /// A time in the run.
@@ -139,33 +188,6 @@ impl Checks<'_> {
                 format!("{at}.to_s"),
                 format!("the window {from} s to {to} s is empty: to_s must be after from_s"),
             );
-        }
-    }
-
-    /// Which frames a fault selects.
-    fn frames(&mut self, at: &str, target: &Target, hits: &Hits) {
-        match target {
-            Target::Node(n) => self.node(format!("{at}.action.target"), n),
-            Target::Id(id)
-                if id.len() != 8 || u32::from_str_radix(id, 16).map_or(true, |v| v > 0x1FFF_FFFF) =>
-            {
-                self.push(
-                    format!("{at}.action.target"),
-                    format!("{} is not an 8-digit 29-bit identifier", quote(id)),
-                )
-            }
-            Target::Priority(pr) if *pr > 31 => {
-                self.push(format!("{at}.action.target"), format!("priority {pr} is over 31"))
-            }
-            _ => {}
-        }
-        match hits {
-            Hits::EveryNth(0) => self.push(format!("{at}.action.hits"), "EveryNth(0)"),
-            Hits::BitErrorRate(r) if !(0.0..=1.0).contains(r) => self.push(
-                format!("{at}.action.hits"),
-                format!("bit-error rate {r} is outside 0..1"),
-            ),
-            _ => {}
         }
     }
 }

@@ -9,7 +9,7 @@
 use super::program::{Inbox, Program};
 use super::{Command, NodeState, Received};
 use crate::harvester::{self, Harvester, Running};
-use crate::scenario::{Action, Actions};
+use crate::scenario::{self, Action, Actions, Step, Todo};
 use crate::{Error, Result};
 use actix::prelude::*;
 use bus::engine::{ControllerConfig, NodeId};
@@ -350,21 +350,19 @@ impl Driver {
         let action: Action = nodes::parse_ron("the action", text)?;
         let index = self.acted;
         self.acted += 1;
-        let ends = match &action {
-            Action::BitErrors { until_s: Some(u), .. } | Action::Overload { until_s: Some(u), .. } => {
-                Some((*u, End::Rule(index)))
-            }
-            Action::Babble { until_s, .. } => Some((*until_s, End::Babble)),
-            _ => None,
+        let step = Step {
+            at_s: self.running.now().as_secs_f64(),
+            action,
         };
-        if let Some((u, _)) = &ends
-            && !(u.is_finite() && *u >= 0.0)
-        {
-            return Err(Error::BadInput(format!("until_s {u} is not a bus time")));
-        }
-        self.actions.act(&mut self.running, index, action).await?;
-        if let Some((u, what)) = ends {
-            self.ends.push((BusTime::from_secs_f64(u), what));
+        // The same resolution as a scenario's step, against the nodes on the bus now.
+        let plan = scenario::resolve_action("the action", self.running.node_ids(), index, &step)
+            .map_err(|problems| Error::Config(nodes::Error::Invalid(problems)))?;
+        for (at, todo) in plan.todo {
+            match todo {
+                Todo::Act { index, act, .. } => self.actions.act(&mut self.running, index, act).await?,
+                Todo::EndRule(index) => self.ends.push((at, End::Rule(index))),
+                Todo::EndBabble => self.ends.push((at, End::Babble)),
+            }
         }
         Ok(())
     }

@@ -75,7 +75,9 @@ pub(super) fn expectation(c: &mut Checks, at: &str, e: &Expect, h: &Harvester) {
                 );
             }
         }
-        Expect::Restarts { node, .. } => c.node(format!("{at}.node"), node),
+        Expect::Restarts { node, .. } => {
+            c.node(format!("{at}.node"), node);
+        }
         Expect::Display { field, min, max } => {
             let fields = serde_json::to_value(nodes::monitor::Display::default()).unwrap_or_default();
             if fields.get(field).is_none() {

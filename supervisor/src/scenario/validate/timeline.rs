@@ -1,20 +1,42 @@
-//! The checks of one timeline step: the nodes, frames, times and values its action names.
+//! One timeline step checked and resolved: the nodes, frames, times and values its action names,
+//! turned into what the run carries out ([`Act`]), or the problems that stop it.
 
 use super::{Checks, MAX_OVERLOAD_FRAMES};
-use crate::scenario::model::{Action, ErrorKind, SeenBy, Step};
+use crate::scenario::model::{Action, ErrorKind, Hits, SeenBy, Step, Target};
+use crate::scenario::plan::{Act, Resolved, Todo};
 use bus::candump::parse_frame;
+use bus::engine::{BitPosition, Effect, Rule, Schedule};
+use bus::node::NodeFault;
 use bus::text::quote;
+use bus::time::BusTime;
 use nodes::plant::Plant;
 
-/// Checks step `at` (its field path, `timeline[i]`).
-pub(super) fn step(c: &mut Checks, at: &str, step: &Step) {
+/// Checks step `index` (its field path `at`, `timeline[i]`); resolved when it has no problem.
+pub(super) fn step(c: &mut Checks, at: &str, index: usize, step: &Step) -> Option<Resolved> {
+    let before = c.found.len();
     c.time(format!("{at}.at_s"), step.at_s);
-    if let Action::SensorFault { fault, .. } = &step.action
-        && let Some(m) = fault.problem()
-    {
-        c.push(format!("{at}.action.fault"), m);
-    }
-    match &step.action {
+    let act = action(c, at, step.at_s, &step.action);
+    let end = |t: f64, what| Some((BusTime::from_secs_f64(t), what));
+    let ends = match &step.action {
+        Action::BitErrors { until_s: Some(u), .. } | Action::Overload { until_s: Some(u), .. } => {
+            end(*u, Todo::EndRule(index))
+        }
+        Action::Babble { until_s, .. } => end(*until_s, Todo::EndBabble),
+        _ => None,
+    };
+    let act = act.filter(|_| c.found.len() == before)?;
+    Some(Resolved {
+        index,
+        at: BusTime::from_secs_f64(step.at_s),
+        name: step.action.name(),
+        act,
+        ends,
+    })
+}
+
+/// Checks an action that starts at `at_s` and resolves it; `None` when a problem was found.
+fn action(c: &mut Checks, at: &str, at_s: f64, action: &Action) -> Option<Act> {
+    match action {
         Action::BitErrors {
             target,
             hits,
@@ -22,28 +44,50 @@ pub(super) fn step(c: &mut Checks, at: &str, step: &Step) {
             kind,
             seen_by,
         } => {
-            c.frames(at, target, hits);
+            let frames = c.frames(at, target, hits);
             if let Some(u) = until_s {
-                c.end(format!("{at}.action.until_s"), step.at_s, *u);
+                c.end(format!("{at}.action.until_s"), at_s, *u);
             }
-            if let SeenBy::Nodes(nodes) = seen_by {
-                if nodes.is_empty() {
-                    c.push(
-                        format!("{at}.action.seen_by"),
-                        "Nodes([]): name at least one node, or leave seen_by out for All",
-                    );
+            let seen_by = match seen_by {
+                SeenBy::All => Some(bus::engine::SeenBy::All),
+                SeenBy::Nodes(nodes) => {
+                    if nodes.is_empty() {
+                        c.push(
+                            format!("{at}.action.seen_by"),
+                            "Nodes([]): name at least one node, or leave seen_by out for All",
+                        );
+                    }
+                    let ids: Vec<_> = nodes
+                        .iter()
+                        .enumerate()
+                        .map(|(k, n)| c.node(format!("{at}.action.seen_by[{k}]"), n))
+                        .collect();
+                    if *kind == ErrorKind::Bit {
+                        c.push(
+                            format!("{at}.action.seen_by"),
+                            "a bit error is a bit flipped on the wire, which every node sees: \
+                             seen_by: Nodes(..) needs kind Stuff, Crc or Form",
+                        );
+                    }
+                    ids.into_iter()
+                        .collect::<Option<_>>()
+                        .map(bus::engine::SeenBy::Nodes)
                 }
-                for (k, n) in nodes.iter().enumerate() {
-                    c.node(format!("{at}.action.seen_by[{k}]"), n);
-                }
-                if *kind == ErrorKind::Bit {
-                    c.push(
-                        format!("{at}.action.seen_by"),
-                        "a bit error is a bit flipped on the wire, which every node sees: \
-                         seen_by: Nodes(..) needs kind Stuff, Crc or Form",
-                    );
-                }
-            }
+            };
+            let effect = match kind {
+                ErrorKind::Bit => Effect::Bit,
+                ErrorKind::Stuff => Effect::Stuff,
+                ErrorKind::Crc => Effect::Crc,
+                ErrorKind::Form => Effect::Form,
+            };
+            let (target, schedule) = frames?;
+            Some(Act::Rule(Rule {
+                target,
+                schedule,
+                bit: BitPosition::Random,
+                effect,
+                seen_by: seen_by?,
+            }))
         }
         Action::Overload {
             target,
@@ -52,13 +96,15 @@ pub(super) fn step(c: &mut Checks, at: &str, step: &Step) {
             by,
             frames,
         } => {
-            c.frames(at, target, hits);
+            let selected = c.frames(at, target, hits);
             if let Some(u) = until_s {
-                c.end(format!("{at}.action.until_s"), step.at_s, *u);
+                c.end(format!("{at}.action.until_s"), at_s, *u);
             }
-            for (k, n) in by.iter().enumerate() {
-                c.node(format!("{at}.action.by[{k}]"), n);
-            }
+            let ids: Vec<_> = by
+                .iter()
+                .enumerate()
+                .map(|(k, n)| c.node(format!("{at}.action.by[{k}]"), n))
+                .collect();
             if !(1..=MAX_OVERLOAD_FRAMES).contains(frames) {
                 c.push(
                     format!("{at}.action.frames"),
@@ -68,45 +114,149 @@ pub(super) fn step(c: &mut Checks, at: &str, step: &Step) {
                     ),
                 );
             }
+            let ids: Vec<_> = ids.into_iter().collect::<Option<_>>()?;
+            let seen_by = if ids.is_empty() {
+                bus::engine::SeenBy::All
+            } else {
+                bus::engine::SeenBy::Nodes(ids)
+            };
+            let (target, schedule) = selected?;
+            Some(Act::Rule(Rule {
+                target,
+                schedule,
+                bit: BitPosition::Random,
+                effect: Effect::Overload(*frames),
+                seen_by,
+            }))
         }
-        Action::AckFailure(n)
-        | Action::AckRestored(n)
-        | Action::Disconnect(n)
-        | Action::Reconnect(n)
-        | Action::Crash(n)
-        | Action::Hang(n)
-        | Action::Resume(n) => c.node(format!("{at}.action"), n),
+        Action::AckFailure(n) => Some(Act::Ack(c.node(format!("{at}.action"), n)?, false)),
+        Action::AckRestored(n) => Some(Act::Ack(c.node(format!("{at}.action"), n)?, true)),
+        Action::Disconnect(n) => Some(Act::Connect(c.node(format!("{at}.action"), n)?, false)),
+        Action::Reconnect(n) => Some(Act::Connect(c.node(format!("{at}.action"), n)?, true)),
+        Action::Hang(n) => Some(Act::Hang(c.node(format!("{at}.action"), n)?, true)),
+        Action::Resume(n) => Some(Act::Hang(c.node(format!("{at}.action"), n)?, false)),
+        Action::Crash(n) => c.node(format!("{at}.action"), n).map(|_| Act::Crash(n.clone())),
         Action::Babble { frame, until_s } => {
-            if let Err(e) = parse_frame(frame) {
-                c.push(format!("{at}.action.frame"), e.to_string());
-            }
-            c.end(format!("{at}.action.until_s"), step.at_s, *until_s);
+            c.end(format!("{at}.action.until_s"), at_s, *until_s);
+            Some(Act::Babble(c.frame(format!("{at}.action.frame"), frame)?))
         }
         Action::SendFrame { node, frame } => {
-            c.node(format!("{at}.action.node"), node);
-            if let Err(e) = parse_frame(frame) {
-                c.push(format!("{at}.action.frame"), e.to_string());
-            }
+            let id = c.node(format!("{at}.action.node"), node);
+            let frame = c.frame(format!("{at}.action.frame"), frame);
+            Some(Act::Send(id?, frame?))
         }
-        Action::SensorFault { node, signal, .. } | Action::SensorRepaired { node, signal } => {
-            c.node(format!("{at}.action.node"), node);
-            if node == "F5" {
-                c.push(format!("{at}.action.node"), "the monitor has no sensors");
+        Action::SensorFault { node, signal, fault } => {
+            if let Some(m) = fault.problem() {
+                c.push(format!("{at}.action.fault"), m);
             }
-            c.signal(format!("{at}.action.signal"), signal);
+            sensor(c, at, node, signal)?;
+            let fault = NodeFault::Sensor {
+                signal: signal.clone(),
+                reads: (*fault).into(),
+            };
+            Some(Act::Inject {
+                node: node.clone(),
+                fault,
+            })
+        }
+        Action::SensorRepaired { node, signal } => {
+            sensor(c, at, node, signal)?;
+            let fault = NodeFault::SensorRepaired {
+                signal: signal.clone(),
+            };
+            Some(Act::Inject {
+                node: node.clone(),
+                fault,
+            })
         }
         Action::Plant { input, value } => match Plant::input_range(input) {
-            None => c.push(
-                format!("{at}.action.input"),
-                format!("{} is not a plant input", quote(input)),
-            ),
-            // The plant refuses it when the step runs, which would end the run there.
-            Some(range) if !range.contains(*value) => c.push(
-                format!("{at}.action.value"),
-                format!("{value} is not {range}, the range of plant input {input}"),
-            ),
-            Some(_) => {}
+            None => {
+                c.push(
+                    format!("{at}.action.input"),
+                    format!("{} is not a plant input", quote(input)),
+                );
+                None
+            }
+            // The plant would refuse it when the step runs.
+            Some(range) if !range.contains(*value) => {
+                c.push(
+                    format!("{at}.action.value"),
+                    format!("{value} is not {range}, the range of plant input {input}"),
+                );
+                None
+            }
+            Some(_) => Some(Act::Plant {
+                input: input.clone(),
+                value: *value,
+            }),
         },
-        Action::PowerCycle => {}
+        Action::PowerCycle => Some(Act::PowerCycle),
+    }
+}
+
+/// A sensor of a node: a field node's, of a plant signal.
+fn sensor(c: &mut Checks, at: &str, node: &str, signal: &str) -> Option<()> {
+    let id = c.node(format!("{at}.action.node"), node);
+    if node == "F5" {
+        c.push(format!("{at}.action.node"), "the monitor has no sensors");
+    }
+    let known = c.signal(format!("{at}.action.signal"), signal);
+    id.filter(|_| node != "F5" && known).map(|_| ())
+}
+
+impl Checks<'_> {
+    /// Which frames a fault selects, in the engine's form.
+    fn frames(&mut self, at: &str, target: &Target, hits: &Hits) -> Option<(bus::engine::Target, Schedule)> {
+        let field = format!("{at}.action.target");
+        let target = match target {
+            Target::Any => Some(bus::engine::Target::Any),
+            Target::Node(n) => self.node(field, n).map(bus::engine::Target::Node),
+            Target::Id(text) => match u32::from_str_radix(text, 16) {
+                Ok(id) if text.len() == 8 && id <= 0x1FFF_FFFF => Some(bus::engine::Target::Id {
+                    id,
+                    mask: 0x1FFF_FFFF,
+                }),
+                _ => {
+                    self.push(
+                        field,
+                        format!("{} is not an 8-digit 29-bit identifier", quote(text)),
+                    );
+                    None
+                }
+            },
+            Target::Priority(p) => match protocol::ident::Priority::new(*p) {
+                Ok(priority) => {
+                    let (id, mask) = priority.id_and_mask();
+                    Some(bus::engine::Target::Id { id, mask })
+                }
+                Err(_) => {
+                    self.push(field, format!("priority {p} is over 31"));
+                    None
+                }
+            },
+        };
+        let field = format!("{at}.action.hits");
+        let schedule = match *hits {
+            Hits::EveryNth(0) => {
+                self.push(field, "EveryNth(0)");
+                None
+            }
+            Hits::BitErrorRate(r) if !(0.0..=1.0).contains(&r) => {
+                self.push(field, format!("bit-error rate {r} is outside 0..1"));
+                None
+            }
+            Hits::Once => Some(Schedule::Once),
+            Hits::EveryNth(n) => Some(Schedule::EveryNth(n)),
+            Hits::Always => Some(Schedule::Always),
+            Hits::BitErrorRate(r) => Some(Schedule::BitErrorRate(r)),
+        };
+        Some((target?, schedule?))
+    }
+
+    /// A frame in candump notation.
+    fn frame(&mut self, field: String, text: &str) -> Option<bus::Frame> {
+        parse_frame(text)
+            .map_err(|e| self.push(field, e.to_string()))
+            .ok()
     }
 }
