@@ -140,7 +140,8 @@ impl Hub {
         }
         // A wall-timer deadline set before is stale from here on.
         self.armed += 1;
-        let wall = self.clock();
+        // Unpaced, the scheduler reads no clock: none is read for it.
+        let wall = if self.paced { self.clock() } else { 0 };
         step(&mut self.sched, wall);
         self.carry_out(ctx);
     }
@@ -235,7 +236,7 @@ impl Handler<Answer> for Hub {
     type Result = ();
     fn handle(&mut self, msg: Answer, ctx: &mut Context<Self>) {
         self.step(ctx, |sched, wall| {
-            sched.handle_answer(msg.round, msg.reports, wall)
+            sched.handle_answer(msg.round, msg.slot, msg.report, msg.last, wall)
         });
     }
 }

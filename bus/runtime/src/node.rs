@@ -3,12 +3,14 @@
 //! The hub sends a [`Wake`] with the inputs since the last one, for each of the node's
 //! controllers that is due; the actor feeds them to the logic with [`drive_counted`], one
 //! controller after the other, and answers with a [`Report`] for each through the wake's
-//! [`Reply`]: one message out and one back per wake, however many controllers.
+//! [`Reply`]: one message out per wake, one back per controller (one, but for a node with
+//! several).
 
 use actix::prelude::*;
 use bus::node::{CrashCause, HardwareState, NodeFault, NodeLogic, Refused, Report, drive_counted};
 use bus::schedule::Inputs;
 use bus::time::BusTime;
+use smallvec::SmallVec;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::sync::Arc;
 
@@ -21,7 +23,7 @@ pub struct Wake {
     pub now: BusTime,
     /// The inputs of each of the node's controllers that is due, in controller order: one, but
     /// for a node with several ([`crate::hub::AttachControllers`]).
-    pub inputs: Vec<Inputs>,
+    pub inputs: SmallVec<[Inputs; 1]>,
     /// Where the [`Report`]s go.
     pub reply: Reply,
 }
@@ -32,9 +34,13 @@ pub struct Wake {
 pub struct Answer {
     /// The hub's wake round it answers.
     pub round: u64,
-    /// What the node did with each controller's inputs, by the controller's slot on the hub, in
-    /// the wake's order; a crash ends the list.
-    pub reports: Vec<(usize, Report)>,
+    /// The controller's slot on the hub whose inputs the report answers.
+    pub slot: usize,
+    /// What the node did with them.
+    pub report: Report,
+    /// The wake's last answer (a wake with inputs of several controllers answers each, in
+    /// order; a crash ends them).
+    pub last: bool,
 }
 
 /// The way back for one wake's [`Report`]. One-way messages both ways are the cheapest round
@@ -59,12 +65,26 @@ impl Reply {
         }
     }
 
-    /// Sends the reports.
-    pub fn send(mut self, reports: Vec<(usize, Report)>) {
+    /// Sends the report on the inputs of the controller in `slot`, not the wake's last.
+    pub fn send(&self, slot: usize, report: Report) {
+        if let Some(to) = &self.to {
+            to.do_send(Answer {
+                round: self.round,
+                slot,
+                report,
+                last: false,
+            });
+        }
+    }
+
+    /// Sends the wake's last report.
+    pub fn finish(mut self, slot: usize, report: Report) {
         if let Some(to) = self.to.take() {
             to.do_send(Answer {
                 round: self.round,
-                reports,
+                slot,
+                report,
+                last: true,
             });
         }
     }
@@ -79,7 +99,9 @@ impl Drop for Reply {
             };
             to.do_send(Answer {
                 round: self.round,
-                reports: vec![(self.node, gone)],
+                slot: self.node,
+                report: gone,
+                last: true,
             });
         }
     }
@@ -114,17 +136,15 @@ impl Handler<Wake> for NodeActor {
     fn handle(&mut self, wake: Wake, ctx: &mut Context<Self>) {
         let Wake { now, inputs, reply } = wake;
         let _span = tracing::trace_span!("node", node = %self.name).entered();
-        let mut reports = Vec::with_capacity(inputs.len());
-        for input in inputs {
+        let count = inputs.len();
+        for (k, input) in inputs.into_iter().enumerate() {
             let slot = input.slot;
             let report = self.drive(now, input, ctx);
-            let crashed = report.crashed.is_some();
-            reports.push((slot, report));
-            if crashed {
-                break;
+            if report.crashed.is_some() || k + 1 == count {
+                return reply.finish(slot, report);
             }
+            reply.send(slot, report);
         }
-        reply.send(reports);
     }
 }
 

@@ -202,7 +202,7 @@ impl Scheduler {
                         node: first,
                         round: self.round,
                         now: at,
-                        inputs: vec![inputs],
+                        inputs: smallvec::smallvec![inputs],
                     });
                 }
             }

@@ -74,6 +74,7 @@ use crate::pacing::{Overruns, Pace, Pacer};
 use crate::time::{BusDuration, BusTime};
 use crate::trace::{Kind, Reorder, Sink};
 use slot::Slot;
+use smallvec::SmallVec;
 use std::collections::VecDeque;
 
 /// A frame as an observer of the bus sees it.
@@ -99,8 +100,9 @@ pub struct Wake {
     pub round: u64,
     /// Bus time of the wake.
     pub now: BusTime,
-    /// The inputs of each of the node's controllers that is due, in controller order.
-    pub inputs: Vec<Inputs>,
+    /// The inputs of each of the node's controllers that is due, in controller order (one but
+    /// for a node with several: kept inline, so a wake allocates nothing of its own).
+    pub inputs: SmallVec<[Inputs; 1]>,
 }
 
 /// One controller's inputs in a [`Wake`].
@@ -382,26 +384,22 @@ impl Scheduler {
         }
     }
 
-    /// Takes a node's answer to wake `round`: a report for each controller slot of the wake, in
-    /// order; a crash report may end the list early (the slots it lacks count their frames as
-    /// lost). Then runs on as [`Scheduler::advance`] does.
-    pub fn handle_answer(&mut self, round: u64, reports: Vec<(usize, Report)>, wall_ns: u64) {
-        let Some(node) = reports.first().map(|(slot, _)| *slot) else {
-            return;
-        };
-        if round != self.round || self.waiting == 0 || node >= self.slots.len() {
+    /// Takes a node's report to wake `round` on the inputs of the controller in `slot`; `last`
+    /// when it is the wake's last (its controllers report in order, and a crash is the last
+    /// report: the slots after it count their frames as lost). After the last report of the
+    /// round, runs on as [`Scheduler::advance`] does.
+    pub fn handle_answer(&mut self, round: u64, slot: usize, report: Report, last: bool, wall_ns: u64) {
+        if round != self.round || self.waiting == 0 || slot >= self.slots.len() {
             return;
         }
-        for (slot, report) in reports {
-            if slot >= self.slots.len() {
-                continue;
-            }
-            self.stop_in_round |= report.stop;
-            self.crashed_in_round |= self.answer(slot, report);
+        self.stop_in_round |= report.stop;
+        self.crashed_in_round |= self.answer(slot, report);
+        if !last {
+            return;
         }
         // A slot whose report never came (its logic crashed on an earlier controller's inputs)
         // lost the frames of its wake.
-        for j in self.group(node) {
+        for j in self.group(slot) {
             let h = &mut self.slots[j].handover;
             h.crashed += std::mem::take(&mut h.in_flight);
         }

@@ -141,16 +141,12 @@ impl Driver {
                 let controllers = wake.inputs.iter().map(|i| i.controller).collect();
                 self.wakes.push((wake.node, wake.now, controllers));
                 let logic = self.logics[wake.node].as_mut().unwrap();
-                let reports = wake
-                    .inputs
-                    .into_iter()
-                    .map(|i| {
-                        let report =
-                            drive_counted(logic.as_mut(), i.controller, wake.now, i.frames, i.events, &mut 0);
-                        (i.slot, report)
-                    })
-                    .collect::<Vec<_>>();
-                answers.push((wake.round, reports));
+                let count = wake.inputs.len();
+                for (k, i) in wake.inputs.into_iter().enumerate() {
+                    let report =
+                        drive_counted(logic.as_mut(), i.controller, wake.now, i.frames, i.events, &mut 0);
+                    answers.push((wake.round, i.slot, report, k + 1 == count));
+                }
             }
             let mut stopped = None;
             while let Some(notice) = self.sched.poll_notice() {
@@ -164,8 +160,8 @@ impl Driver {
                 return at;
             }
             assert!(!answers.is_empty(), "neither a wake nor a stop");
-            for (round, reports) in answers {
-                self.sched.handle_answer(round, reports, 0);
+            for (round, slot, report, last) in answers {
+                self.sched.handle_answer(round, slot, report, last, 0);
             }
         }
     }
@@ -405,17 +401,13 @@ fn a_report_that_ends_at_a_crash_counts_the_other_controllers_frames_as_lost() {
                 break;
             }
             let logic = d.logics[wake.node].as_mut().unwrap();
-            let reports = wake
-                .inputs
-                .into_iter()
-                .map(|i| {
-                    (
-                        i.slot,
-                        drive_counted(logic.as_mut(), i.controller, wake.now, i.frames, i.events, &mut 0),
-                    )
-                })
-                .collect();
-            d.sched.handle_answer(wake.round, reports, 0);
+            let count = wake.inputs.len();
+            for (k, i) in wake.inputs.into_iter().enumerate() {
+                let report =
+                    drive_counted(logic.as_mut(), i.controller, wake.now, i.frames, i.events, &mut 0);
+                d.sched
+                    .handle_answer(wake.round, i.slot, report, k + 1 == count, 0);
+            }
         }
     }
     let wake = last.unwrap();
@@ -424,8 +416,7 @@ fn a_report_that_ends_at_a_crash_counts_the_other_controllers_frames_as_lost() {
         crashed: Some(CrashCause::Panic("boom".into())),
         ..Report::default()
     };
-    d.sched
-        .handle_answer(wake.round, vec![(ids[0].index(), crash)], 0);
+    d.sched.handle_answer(wake.round, ids[0].index(), crash, true, 0);
     let nodes = d.sched.snapshot().nodes;
     for id in &ids {
         let h = nodes[id.index()].handover;
@@ -458,7 +449,7 @@ fn a_paced_scheduler_waits_for_the_wall_clock_and_asks_to_be_advanced_then() {
     // The wake at attach is due at once.
     let wake = sched.poll_wake().unwrap();
     let report = drive_counted(&mut logic, 0, wake.now, Vec::new(), Vec::new(), &mut 0);
-    sched.handle_answer(wake.round, vec![(wake.node, report)], 1_000);
+    sched.handle_answer(wake.round, wake.node, report, true, 1_000);
     // Its next deadline, 10 ms, is not yet on the wall clock: no wake, a timeout instead.
     assert!(sched.poll_wake().is_none());
     assert_eq!(sched.poll_timeout(), Some(10_000_000));

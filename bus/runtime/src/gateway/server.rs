@@ -281,7 +281,7 @@ impl Handler<Wake> for Timers {
             frames_handled: frames,
             ..Report::default()
         };
-        reply.send(vec![(slot, report)]);
+        reply.finish(slot, report);
     }
 }
 

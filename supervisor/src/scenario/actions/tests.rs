@@ -68,7 +68,7 @@ fn nodes_take_the_ids_the_plan_gives_them() {
         "configs/harvester-firmware-c0.ron",
         "configs/firmware/irq_lab.ron",
     ] {
-        let h = Harvester::open(&Source::file(&root.join(config))).unwrap();
+        let h = Harvester::open(&Source::file(root.join(config))).unwrap();
         let system = actix::System::with_tokio_rt(|| bus_runtime::hub::runtime(true).unwrap());
         let running = system
             .block_on(crate::harvester::start(&h, false, Vec::new()))
@@ -92,7 +92,7 @@ fn nodes_take_the_ids_the_plan_gives_them() {
     std::fs::write(dir.join("two.ron"), two).unwrap();
     let lab = r#"Network(name: "ids", bitrate: 30000, nodes: ["two.ron", "sender.ron"])"#;
     std::fs::write(dir.join("lab.ron"), lab).unwrap();
-    let h = Harvester::open(&Source::file(&dir.join("lab.ron"))).unwrap();
+    let h = Harvester::open(&Source::file(dir.join("lab.ron"))).unwrap();
     let system = actix::System::with_tokio_rt(|| bus_runtime::hub::runtime(true).unwrap());
     let running = system
         .block_on(crate::harvester::start(&h, false, Vec::new()))
