@@ -24,9 +24,9 @@ const PACED_STEP_S: f64 = 0.1;
 fn error(e: supervisor::Error) -> PyErr {
     let message = e.report().to_string();
     match e {
-        supervisor::Error::BadInput(_)
-        | supervisor::Error::Config(_)
-        | supervisor::Error::Plant(_) => PyValueError::new_err(message),
+        supervisor::Error::BadInput(_) | supervisor::Error::Config(_) | supervisor::Error::Plant(_) => {
+            PyValueError::new_err(message)
+        }
         _ => PyRuntimeError::new_err(message),
     }
 }
