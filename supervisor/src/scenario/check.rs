@@ -1,9 +1,11 @@
 //! Verdicts: each expectation against what the run produced.
 
+use super::Expect;
 use super::books::Books;
+use super::plan::Check;
 use super::states::{Seen, Timeline};
-use super::{Expect, Scenario};
 use crate::harvester::{Happened, Running};
+use bus::engine::NodeId;
 use bus::fault::ErrorState;
 use bus::time::{BusDuration, BusTime};
 use bus_runtime::hub::Snapshot;
@@ -31,12 +33,15 @@ fn verdict(e: &Expect, passed: bool, at: Option<BusTime>, observed: String) -> V
     }
 }
 
-/// Checks every expectation.
-pub fn all(s: &Scenario, r: &Running, snap: &Snapshot, books: &Books) -> Vec<Verdict> {
-    s.expect.iter().map(|e| one(e, r, snap, books)).collect()
+/// Checks every expectation, resolved ([`Check`]: its node's id known).
+pub fn all(checks: &[Check], r: &Running, snap: &Snapshot, books: &Books) -> Vec<Verdict> {
+    checks
+        .iter()
+        .map(|c| one(&c.expect, c.node, r, snap, books))
+        .collect()
 }
 
-fn one(e: &Expect, r: &Running, snap: &Snapshot, books: &Books) -> Verdict {
+fn one(e: &Expect, id: Option<NodeId>, r: &Running, snap: &Snapshot, books: &Books) -> Verdict {
     let display = r.display.as_ref().map(|d| d.borrow().clone()).unwrap_or_default();
     match e {
         Expect::AlarmRaised {
@@ -117,14 +122,14 @@ fn one(e: &Expect, r: &Running, snap: &Snapshot, books: &Books) -> Verdict {
             )
         }
         Expect::NodeState {
-            node,
             state,
             after_s,
             within_ms,
+            ..
         } => {
             let from = BusTime::from_secs_f64(*after_s);
             let to = from + BusDuration::from_millis(*within_ms);
-            let history = r.node(node).and_then(|id| snap.stats.nodes.get(id.index()));
+            let history = id.and_then(|id| snap.stats.nodes.get(id.index()));
             let hit = history.and_then(|h| {
                 h.counters
                     .points
@@ -133,10 +138,7 @@ fn one(e: &Expect, r: &Running, snap: &Snapshot, books: &Books) -> Verdict {
                     .map(|(t, _)| *t)
             });
             // A node that never left the state has no history point: its current state counts.
-            let now_state = r
-                .node(node)
-                .and_then(|id| snap.nodes.get(id.index()))
-                .map(|n| n.state);
+            let now_state = id.and_then(|id| snap.nodes.get(id.index())).map(|n| n.state);
             match hit {
                 Some(t) => verdict(
                     e,
@@ -252,9 +254,7 @@ fn one(e: &Expect, r: &Running, snap: &Snapshot, books: &Books) -> Verdict {
             from_s,
             to_s,
         } => {
-            let Some(t) = timeline(r, snap, node) else {
-                return no_node(e, node);
-            };
+            let t = timeline(snap, id);
             let (from, to) = window(*from_s, *to_s);
             match t.first(from, to, |p| p.state == *state) {
                 Some(seen) => verdict(e, false, Some(seen.at), was(node, &seen, &state.to_string())),
@@ -273,9 +273,7 @@ fn one(e: &Expect, r: &Running, snap: &Snapshot, books: &Books) -> Verdict {
             from_s,
             to_s,
         } => {
-            let Some(t) = timeline(r, snap, node) else {
-                return no_node(e, node);
-            };
+            let t = timeline(snap, id);
             let (from, to) = window(*from_s, *to_s);
             match t.first(from, to, |p| p.state != *state) {
                 Some(seen) => verdict(
@@ -294,9 +292,7 @@ fn one(e: &Expect, r: &Running, snap: &Snapshot, books: &Books) -> Verdict {
             }
         }
         Expect::BusOffCount { node, min, max } => {
-            let Some(t) = timeline(r, snap, node) else {
-                return no_node(e, node);
-            };
+            let t = timeline(snap, id);
             let times = t.entries(ErrorState::BusOff);
             let n = times.len();
             let listed: Vec<String> = times.iter().take(5).map(|t| format!("{t} s")).collect();
@@ -313,9 +309,7 @@ fn one(e: &Expect, r: &Running, snap: &Snapshot, books: &Books) -> Verdict {
             }
         }
         Expect::BusOffLongest { node, max_ms } => {
-            let Some(t) = timeline(r, snap, node) else {
-                return no_node(e, node);
-            };
+            let t = timeline(snap, id);
             let stays = t.stays(ErrorState::BusOff);
             let longest = stays
                 .iter()
@@ -358,9 +352,7 @@ fn one(e: &Expect, r: &Running, snap: &Snapshot, books: &Books) -> Verdict {
             from_s,
             to_s,
         } => {
-            let Some(t) = timeline(r, snap, node) else {
-                return no_node(e, node);
-            };
+            let t = timeline(snap, id);
             let rec = matches!(e, Expect::RecMax { .. });
             let name = if rec { "REC" } else { "TEC" };
             let counter = |p: super::states::Point| if rec { p.rec } else { p.tec };
@@ -425,14 +417,12 @@ fn one(e: &Expect, r: &Running, snap: &Snapshot, books: &Books) -> Verdict {
     }
 }
 
-/// A node's error history, by name.
-fn timeline<'a>(r: &Running, snap: &'a Snapshot, node: &str) -> Option<Timeline<'a>> {
-    let id = r.node(node)?;
-    Some(Timeline::new(snap.stats.nodes.get(id.index()).map(|h| &h.spans)))
-}
-
-fn no_node(e: &Expect, node: &str) -> Verdict {
-    verdict(e, false, None, format!("no node {node} in the harvester"))
+/// A node's error history, by its id (none: no history, as for a node that never erred).
+fn timeline(snap: &Snapshot, id: Option<NodeId>) -> Timeline<'_> {
+    Timeline::new(
+        id.and_then(|id| snap.stats.nodes.get(id.index()))
+            .map(|h| &h.spans),
+    )
 }
 
 /// A window in bus time, both ends included.

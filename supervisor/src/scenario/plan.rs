@@ -1,10 +1,12 @@
-//! The resolved timeline: what a run carries out, in the order it falls due, with every name,
-//! frame and number already checked and turned into what the bus and the nodes take.
+//! The resolved scenario: what a run carries out, in the order it falls due, with every name,
+//! frame and number already checked and turned into what the bus and the nodes take; and the
+//! expectations with their nodes' ids.
 //!
 //! Contract: a [`Plan`] is made only by the validation (`validate::resolve`), which refuses what
 //! it cannot resolve; carrying out an [`Act`] needs no more checks of the input, only the running
 //! harvester's state (a node that is down).
 
+use super::model::Expect;
 use bus::Frame;
 use bus::engine::{NodeId, Rule};
 use bus::node::NodeFault;
@@ -63,11 +65,22 @@ pub enum Todo {
     EndBabble,
 }
 
-/// A resolved timeline.
+/// An expectation, with the node it names (if it names one) resolved to its id on the bus.
+#[derive(Clone, Debug)]
+pub struct Check {
+    /// The expectation, as written.
+    pub expect: Expect,
+    /// The id of the node it names.
+    pub node: Option<NodeId>,
+}
+
+/// A resolved scenario: its timeline and its expectations.
 #[derive(Clone, Debug, Default)]
 pub struct Plan {
     /// What falls due and when, by time, then by step (a step's start before its end).
     pub todo: Vec<(BusTime, Todo)>,
+    /// The expectations, in the scenario's order.
+    pub checks: Vec<Check>,
 }
 
 /// A resolved step, before it is put in order.
@@ -81,8 +94,8 @@ pub(crate) struct Resolved {
 }
 
 impl Plan {
-    /// The steps in the order they fall due.
-    pub(crate) fn new(steps: Vec<Resolved>) -> Plan {
+    /// The steps in the order they fall due, and the checks.
+    pub(crate) fn new(steps: Vec<Resolved>, checks: Vec<Check>) -> Plan {
         let mut todo = Vec::new();
         for s in steps {
             todo.push((
@@ -102,6 +115,7 @@ impl Plan {
         todo.sort_by_key(|(t, i, _)| (*t, *i));
         Plan {
             todo: todo.into_iter().map(|(t, _, what)| (t, what)).collect(),
+            checks,
         }
     }
 }

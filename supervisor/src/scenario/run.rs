@@ -134,7 +134,7 @@ async fn play(
         .node("F5")
         .zip(running.display.as_ref().map(|d| d.borrow().tally));
     let books = Books::gather(&snap, monitor, tally.map(|t| *t.borrow()));
-    let mut verdicts = check::all(s, &running, &snap, &books);
+    let mut verdicts = check::all(&l.plan.checks, &running, &snap, &books);
     if let Some(signal) = interrupted {
         verdicts.push(Verdict {
             expectation: "the run completes".into(),

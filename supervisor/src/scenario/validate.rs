@@ -14,7 +14,7 @@ mod expect;
 mod timeline;
 
 use super::model::{Scenario, Step};
-use super::plan::{Plan, Resolved};
+use super::plan::{Check, Plan, Resolved};
 use super::{junit, random};
 use crate::harvester::Harvester;
 use bus::engine::NodeId;
@@ -84,11 +84,17 @@ pub fn resolve(file: &str, s: &Scenario, h: &Harvester) -> Result<Plan, Vec<Prob
         .enumerate()
         .filter_map(|(i, step)| timeline::step(&mut c, &format!("timeline[{i}]"), i, step))
         .collect();
-    for (i, e) in s.expect.iter().enumerate() {
-        expect::expectation(&mut c, &format!("expect[{i}]"), e, h);
-    }
+    let checks: Vec<Check> = s
+        .expect
+        .iter()
+        .enumerate()
+        .map(|(i, e)| Check {
+            expect: e.clone(),
+            node: expect::expectation(&mut c, &format!("expect[{i}]"), e, h),
+        })
+        .collect();
     if c.found.is_empty() {
-        Ok(Plan::new(steps))
+        Ok(Plan::new(steps, checks))
     } else {
         Err(c.found)
     }
@@ -112,7 +118,7 @@ pub fn action(
     };
     let resolved = timeline::step(&mut c, "action", index, step);
     match resolved {
-        Some(r) if c.found.is_empty() => Ok(Plan::new(vec![r])),
+        Some(r) if c.found.is_empty() => Ok(Plan::new(vec![r], Vec::new())),
         _ => Err(c.found),
     }
 }

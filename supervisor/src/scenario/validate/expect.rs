@@ -4,6 +4,7 @@
 use super::Checks;
 use crate::harvester::Harvester;
 use crate::scenario::model::Expect;
+use bus::engine::NodeId;
 use bus::text::quote;
 
 /// Bits a bus-off node must see recessive before it is error active again (128 sequences of 11):
@@ -13,15 +14,17 @@ const RECOVERY_BITS: u64 = bus::fault::RECOVERY_SEQUENCES as u64 * bus::fault::R
 /// TEC stops counting at bus off, at most one penalty (8) past the limit: no TEC is ever higher.
 const TEC_CEILING: u16 = bus::fault::BUS_OFF_LIMIT + 7;
 
-/// Checks expectation `at` (its field path, `expect[i]`) of a run on `h`.
-pub(super) fn expectation(c: &mut Checks, at: &str, e: &Expect, h: &Harvester) {
+/// Checks expectation `at` (its field path, `expect[i]`) of a run on `h`; the id of the node it
+/// names, if it names one that is there.
+pub(super) fn expectation(c: &mut Checks, at: &str, e: &Expect, h: &Harvester) -> Option<NodeId> {
+    let mut id = None;
     match e {
         Expect::AlarmRaised { node, after_s, .. } | Expect::AlarmCleared { node, after_s, .. } => {
-            c.node(format!("{at}.node"), node);
+            id = c.node(format!("{at}.node"), node);
             c.time(format!("{at}.after_s"), *after_s);
         }
         Expect::NodeState { node, after_s, .. } => {
-            c.node(format!("{at}.node"), node);
+            id = c.node(format!("{at}.node"), node);
             c.time(format!("{at}.after_s"), *after_s);
         }
         Expect::NodeStateNever {
@@ -30,7 +33,7 @@ pub(super) fn expectation(c: &mut Checks, at: &str, e: &Expect, h: &Harvester) {
         | Expect::NodeStateHolds {
             node, from_s, to_s, ..
         } => {
-            c.node(format!("{at}.node"), node);
+            id = c.node(format!("{at}.node"), node);
             c.window(at, *from_s, *to_s);
         }
         Expect::RecMax {
@@ -45,7 +48,7 @@ pub(super) fn expectation(c: &mut Checks, at: &str, e: &Expect, h: &Harvester) {
             from_s,
             to_s,
         } => {
-            c.node(format!("{at}.node"), node);
+            id = c.node(format!("{at}.node"), node);
             c.window(at, *from_s, *to_s);
             let (name, ceiling) = if matches!(e, Expect::RecMax { .. }) {
                 ("REC", bus::fault::REC_MAX)
@@ -60,14 +63,14 @@ pub(super) fn expectation(c: &mut Checks, at: &str, e: &Expect, h: &Harvester) {
             }
         }
         Expect::BusOffCount { node, min, max } => {
-            c.node(format!("{at}.node"), node);
+            id = c.node(format!("{at}.node"), node);
             if min > max {
                 c.push(format!("{at}.min"), format!("min {min} is above max {max}"));
             }
             bus_offs_fit(c, at, *min, h.config.bitrate);
         }
         Expect::BusOffLongest { node, max_ms } => {
-            c.node(format!("{at}.node"), node);
+            id = c.node(format!("{at}.node"), node);
             if !(max_ms.is_finite() && *max_ms > 0.0) {
                 c.push(
                     format!("{at}.max_ms"),
@@ -76,7 +79,7 @@ pub(super) fn expectation(c: &mut Checks, at: &str, e: &Expect, h: &Harvester) {
             }
         }
         Expect::Restarts { node, .. } => {
-            c.node(format!("{at}.node"), node);
+            id = c.node(format!("{at}.node"), node);
         }
         Expect::Display { field, min, max } => {
             let fields = serde_json::to_value(nodes::monitor::Display::default()).unwrap_or_default();
@@ -116,6 +119,7 @@ pub(super) fn expectation(c: &mut Checks, at: &str, e: &Expect, h: &Harvester) {
     if needs_monitor && !h.config.monitor.enabled {
         c.push(at, "needs the emulated monitor, which the config switches off");
     }
+    id
 }
 
 /// Bounds of a value: numbers, the lower not above the upper.
