@@ -16,13 +16,13 @@ fuzz_target!(|input: &[u8]| {
     };
     match Harvester::from_text(Path::new(HARVESTER_PATH), text, script) {
         Ok(h) => {
-            assert_eq!(h.scripts.len(), h.config.nodes.len());
+            assert_eq!(h.scripts.len(), h.config.network.nodes.len());
             let addresses: BTreeSet<u8> = h.scripts.iter().map(|s| s.address).collect();
             assert_eq!(addresses.len(), h.scripts.len(), "distinct addresses");
             assert!(!addresses.contains(&Address::MONITOR.0));
             // The bus clock counts whole nanoseconds, so a bit must last a whole number of them.
-            assert!((1..=1_000_000).contains(&h.config.bitrate));
-            assert_eq!(3_456_000_000_000 % u64::from(h.config.bitrate), 0);
+            assert!((1..=1_000_000).contains(&h.config.network.bitrate));
+            assert_eq!(3_456_000_000_000 % u64::from(h.config.network.bitrate), 0);
             assert!(h.config.monitor.calibration_samples >= 1);
             // `start` runs the bus to the time relay before the field nodes power up.
             let _ = h.relay();

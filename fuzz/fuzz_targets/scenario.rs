@@ -51,8 +51,8 @@ fuzz_target!(|input: &[u8]| {
 fn check(l: &Loaded, seed: Option<u64>) {
     let s = &l.scenario;
     let h = &l.harvester;
-    let want = seed.or(s.seed).unwrap_or(harvester().config.seed);
-    assert_eq!(h.config.seed, want);
+    let want = seed.or(s.seed).unwrap_or(harvester().config.network.seed);
+    assert_eq!(h.config.network.seed, want);
     if let Some(c) = s.cruise_start_s {
         assert_eq!(
             h.config.monitor.cruise.start_s.map(f64::to_bits),

@@ -50,8 +50,8 @@ pub fn network(h: &Harvester) -> Network {
         }
     }
     Network {
-        name: h.config.name.clone(),
-        bitrate: h.config.bitrate,
+        name: h.config.network.name.clone(),
+        bitrate: h.config.network.bitrate,
         scripted,
     }
 }

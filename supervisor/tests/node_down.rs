@@ -39,7 +39,7 @@ fn a_node_down_by_itself_is_exit_4_and_an_injected_crash_is_not() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs/harvester.ron");
     let mut h = Harvester::load(&path).unwrap();
     // One crash is one too many: the first puts the node down.
-    h.config.restart.max_restarts = 0;
+    h.config.network.restart.max_restarts = 0;
     let system = System::with_tokio_rt(|| runtime(true).expect("a tokio runtime"));
     let (down, events) = system.block_on(async move {
         let mut running = harvester::start(&h, false, Vec::new()).await.unwrap();

@@ -37,9 +37,9 @@ fn lab(hex: &str) -> Harvester {
         .position(|f| f.name == "SENDER")
         .expect("SENDER");
     h.firmware[at] = firmware_spec("sender.ron", text, "crash.hex", hex);
-    h.config.restart.max_restarts = 3;
-    h.config.restart.window_s = 60.0;
-    h.config.restart.backoff_ms = BACKOFF_MS;
+    h.config.network.restart.max_restarts = 3;
+    h.config.network.restart.window_s = 60.0;
+    h.config.network.restart.backoff_ms = BACKOFF_MS;
     h
 }
 

@@ -18,7 +18,7 @@ pub fn run_on_this_thread(h: &Harvester, count: usize, first: u64, seconds: f64)
         let mut running = Vec::new();
         for i in 0..count as u64 {
             let mut h = h.clone();
-            h.config.seed = h.config.seed.wrapping_add(first + i);
+            h.config.network.seed = h.config.network.seed.wrapping_add(first + i);
             running.push(
                 harvester::start(&h, false, Vec::new())
                     .await

@@ -80,7 +80,7 @@ impl Campaign {
                 "a campaign draws its faults at random: this scenario has no random_faults section",
             )]));
         };
-        let seed = seed.unwrap_or(base.harvester.config.seed);
+        let seed = seed.unwrap_or(base.harvester.config.network.seed);
         base.scenario.timeline.truncate(base.fixed);
         for invariant in [Expect::TraceComplete, Expect::NoCrashes] {
             let key = format!("{invariant:?}");
@@ -121,7 +121,7 @@ impl Campaign {
     /// the run's seed and length and no random faults.
     fn unresolved(&self, seed: u64, h: &History) -> Loaded {
         let mut l = self.base.clone();
-        l.harvester.config.seed = seed;
+        l.harvester.config.network.seed = seed;
         let s = &mut l.scenario;
         s.seed = Some(seed);
         s.duration_s = h.duration_s;

@@ -135,8 +135,8 @@ pub(super) fn build(
         }
         Spec::Firmware(spec) => {
             let env: SharedEnv = plant.clone();
-            let mut node =
-                FirmwareNode::new(spec.clone(), power_on, f64::from(h.config.bitrate)).with_plant(env);
+            let mut node = FirmwareNode::new(spec.clone(), power_on, f64::from(h.config.network.bitrate))
+                .with_plant(env);
             if let Some(t) = cpu_trace.filter(|t| t.node == spec.name) {
                 let out = t.out.clone();
                 node.trace_cpu(nodes::firmware::CpuTrace {
@@ -149,7 +149,7 @@ pub(super) fn build(
         }
         Spec::Script(script) => {
             let env: SharedEnv = plant.clone();
-            let seed = h.config.seed ^ (u64::from(script.address) << 32) ^ power_on.as_nanos();
+            let seed = h.config.network.seed ^ (u64::from(script.address) << 32) ^ power_on.as_nanos();
             Box::new(ScriptedNode::new((**script).clone(), env, power_on, seed))
         }
     }
@@ -170,12 +170,12 @@ pub async fn start(h: &Harvester, paced: bool, sinks: Vec<Box<dyn Sink>>) -> cra
 /// stretch of the run, which a caller can stop at any moment (a huge time relay, a signal).
 pub async fn begin(h: &Harvester, paced: bool, sinks: Vec<Box<dyn Sink>>) -> crate::Result<Running> {
     let c = &h.config;
-    let bitrate =
-        BitRate::new(c.bitrate).ok_or_else(|| crate::Error::BadInput(format!("bit rate {}", c.bitrate)))?;
+    let bitrate = BitRate::new(c.network.bitrate)
+        .ok_or_else(|| crate::Error::BadInput(format!("bit rate {}", c.network.bitrate)))?;
     let mut hub_config = HubConfig {
         bus: BusConfig {
             bitrate,
-            seed: c.seed,
+            seed: c.network.seed,
             latency_class: protocol::ident::latency_class,
         },
         ..HubConfig::new(paced)
@@ -184,7 +184,7 @@ pub async fn begin(h: &Harvester, paced: bool, sinks: Vec<Box<dyn Sink>>) -> cra
         hub_config.epoch = epoch;
     }
     let hub = Hub::new(hub_config, sinks)?.start();
-    let plant: PlantHandle = Rc::new(RefCell::new(Plant::new(c.plant.clone(), c.seed)));
+    let plant: PlantHandle = Rc::new(RefCell::new(Plant::new(c.plant.clone(), c.network.seed)));
     let display: Option<DisplayHandle> = c.monitor.enabled.then(DisplayHandle::default);
     let mut running = Running {
         hub,
@@ -346,7 +346,7 @@ impl Running {
         let h = self.harvester.clone();
         for script in &h.scripts {
             let spec = Spec::Script(Box::new(script.clone()));
-            self.attach(&script.name, spec, h.config.reaction_us, relay)
+            self.attach(&script.name, spec, h.config.network.reaction_us, relay)
                 .await?;
         }
         // A firmware node's reaction is its own code's: the hub hands it everything at once.

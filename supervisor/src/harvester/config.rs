@@ -2,6 +2,7 @@
 //! and the checks that refuse a config whose nodes would be mistaken for one another.
 
 use crate::configs::Source;
+pub use crate::network::{NetworkConfig, RestartPolicy};
 use bus::bits::BitRate;
 use bus::engine::NodeId;
 use bus::time::BusTime;
@@ -15,32 +16,72 @@ use serde::Deserialize;
 use std::path::Path;
 use std::sync::Arc;
 
-/// `configs/harvester.ron`.
-#[derive(Clone, Debug, Deserialize)]
-#[serde(deny_unknown_fields, rename = "Harvester")]
+/// A harvester: a plain network ([`NetworkConfig`]: its name, bit rate, seed, field nodes and
+/// restarts) with the monitor, the time relay and the plant around it. A `Network(...)` file is
+/// one with none of these ([`HarvesterConfig::around`]).
+#[derive(Clone, Debug)]
 pub struct HarvesterConfig {
-    /// Machine name.
-    pub name: String,
-    /// Bit rate, bit/s: 10000 to 1000000, with an exact bit time on the bus clock
-    /// (`BitRate::RULE`: 30000, 125000, 250000, 500000 and 1000000 among them).
-    pub bitrate: u32,
-    /// The run's seed.
-    pub seed: u64,
+    /// The network under it; its reaction time is the field nodes'.
+    pub network: NetworkConfig,
     /// Delay from monitor power-up to field-node power-up, ms.
     pub time_relay_ms: u64,
-    /// Reaction time of the field nodes, µs (at most [`MAX_REACTION_US`]).
-    pub reaction_us: u64,
     /// The monitor.
-    #[serde(default)]
     pub monitor: MonitorConfig,
-    /// Node script files, relative to the config file.
-    pub nodes: Vec<String>,
     /// The plant.
-    #[serde(default)]
     pub plant: PlantConfig,
-    /// How crashed nodes are restarted.
+}
+
+impl HarvesterConfig {
+    /// A plain network as a harvester config: no monitor, no time relay (its nodes power up at
+    /// once), the default plant.
+    pub fn around(network: NetworkConfig) -> HarvesterConfig {
+        HarvesterConfig {
+            network,
+            time_relay_ms: 0,
+            monitor: MonitorConfig {
+                enabled: false,
+                ..MonitorConfig::default()
+            },
+            plant: PlantConfig::default(),
+        }
+    }
+}
+
+/// `configs/harvester.ron` as written: one flat section.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields, rename = "Harvester")]
+struct HarvesterFile {
+    /// Machine name.
+    name: String,
+    bitrate: u32,
+    seed: u64,
+    time_relay_ms: u64,
+    reaction_us: u64,
     #[serde(default)]
-    pub restart: RestartPolicy,
+    monitor: MonitorConfig,
+    nodes: Vec<String>,
+    #[serde(default)]
+    plant: PlantConfig,
+    #[serde(default)]
+    restart: RestartPolicy,
+}
+
+impl From<HarvesterFile> for HarvesterConfig {
+    fn from(f: HarvesterFile) -> HarvesterConfig {
+        HarvesterConfig {
+            network: NetworkConfig {
+                name: f.name,
+                bitrate: f.bitrate,
+                nodes: f.nodes,
+                seed: f.seed,
+                reaction_us: f.reaction_us,
+                restart: f.restart,
+            },
+            time_relay_ms: f.time_relay_ms,
+            monitor: f.monitor,
+            plant: f.plant,
+        }
+    }
 }
 
 /// A loaded, validated harvester.
@@ -109,23 +150,23 @@ impl Harvester {
     ) -> Result<Harvester, Error> {
         let file = source.to_string();
         let network = nodes::script::top_name(text) == Some("Network");
-        let config: HarvesterConfig = match nodes::script::top_name(text) {
-            Some("Network") => nodes::parse_ron::<crate::network::NetworkConfig>(&file, text)?.into(),
-            _ => nodes::parse_ron(&file, text)?,
+        let config = match nodes::script::top_name(text) {
+            Some("Network") => HarvesterConfig::around(nodes::parse_ron::<NetworkConfig>(&file, text)?),
+            _ => nodes::parse_ron::<HarvesterFile>(&file, text)?.into(),
         };
         let mut problems = Vec::new();
-        if BitRate::for_bus(config.bitrate).is_none() {
+        if BitRate::for_bus(config.network.bitrate).is_none() {
             problems.push(Problem::at(
                 &file,
                 "bitrate",
-                format!("{} bit/s: {}", config.bitrate, BitRate::RULE),
+                format!("{} bit/s: {}", config.network.bitrate, BitRate::RULE),
             ));
         }
-        if config.nodes.is_empty() {
+        if config.network.nodes.is_empty() {
             problems.push(Problem::at(&file, "nodes", "no nodes"));
         }
         for (field, us) in [
-            ("reaction_us", config.reaction_us),
+            ("reaction_us", config.network.reaction_us),
             ("monitor.reaction_us", config.monitor.reaction_us),
         ] {
             if us > MAX_REACTION_US {
@@ -146,7 +187,7 @@ impl Harvester {
                 .into_iter()
                 .map(|(field, m)| Problem::at(&file, format!("monitor.{field}"), m)),
         );
-        let restart = &config.restart;
+        let restart = &config.network.restart;
         if !(restart.window_s.is_finite() && restart.window_s >= 0.0) {
             problems.push(Problem::at(
                 &file,
@@ -163,7 +204,7 @@ impl Harvester {
         let mut places = Vec::new();
         let mut firmware = Vec::new();
         let mut firmware_places = Vec::new();
-        for (i, rel) in config.nodes.iter().enumerate() {
+        for (i, rel) in config.network.nodes.iter().enumerate() {
             match script(&source.beside(rel)) {
                 Ok(NodeFile::Script(s)) => {
                     scripts.push(*s);
@@ -367,28 +408,6 @@ fn firmware_clashes(
         }
     }
     problems
-}
-
-/// How crashed nodes are restarted (the `restart` section of the harvester config).
-#[derive(Clone, Debug, Deserialize, serde::Serialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct RestartPolicy {
-    /// Restarts allowed within `window_s`; beyond that the node stays down.
-    pub max_restarts: u32,
-    /// The window, s.
-    pub window_s: f64,
-    /// Delay from a crash to the restart, ms.
-    pub backoff_ms: u64,
-}
-
-impl Default for RestartPolicy {
-    fn default() -> Self {
-        RestartPolicy {
-            max_restarts: 3,
-            window_s: 60.0,
-            backoff_ms: 100,
-        }
-    }
 }
 
 #[cfg(test)]

@@ -90,7 +90,7 @@ impl Running {
     pub(super) async fn supervise(&mut self) -> crate::Result<()> {
         let now = self.now;
         let crashed = self.hub.send(GetCrashed).await?;
-        let policy = self.harvester.config.restart.clone();
+        let policy = self.harvester.config.network.restart.clone();
         for m in &mut self.members {
             let why = crashed
                 .iter()

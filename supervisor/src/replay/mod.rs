@@ -262,7 +262,7 @@ pub fn run(args: &Args) -> crate::Result<Ended> {
         args.file.display(),
         counts.read,
         counts.per_pass,
-        h.config.name,
+        h.config.network.name,
         h.source,
         if args.fast {
             "virtual time"

@@ -114,7 +114,7 @@ pub fn run(args: &Args) -> crate::Result<Ended> {
     }
     let mut h = Harvester::load(&args.config)?;
     if let Some(seed) = args.seed {
-        h.config.seed = seed;
+        h.config.network.seed = seed;
     }
     h.without(&args.without)?;
     if args.fast && args.iface.is_some() {
@@ -150,10 +150,10 @@ pub fn run(args: &Args) -> crate::Result<Ended> {
     let end = args.duration.map(BusTime::from_duration);
     eprintln!(
         "harvemu: {} ({} nodes) from {}, seed {}, {}",
-        h.config.name,
+        h.config.network.name,
         h.scripts.len() + h.firmware.len() + usize::from(h.config.monitor.enabled),
         h.source,
-        h.config.seed,
+        h.config.network.seed,
         if args.fast {
             "virtual time"
         } else {
@@ -162,7 +162,7 @@ pub fn run(args: &Args) -> crate::Result<Ended> {
     );
     let fast = args.fast;
     let dump_state = args.dump_state.clone();
-    let (tui, machine) = (args.tui, h.config.name.clone());
+    let (tui, machine) = (args.tui, h.config.network.name.clone());
     let socketcand = args.socketcand;
     if fast && socketcand.is_some() {
         eprintln!(

@@ -90,7 +90,7 @@ fn parse(
     }
     let mut harvester = harvester(&source.beside(&scenario.config))?;
     if let Some(s) = seed.or(scenario.seed) {
-        harvester.config.seed = s;
+        harvester.config.network.seed = s;
     }
     let fixed = scenario.timeline.len();
     let names = harvester.node_names();
@@ -104,7 +104,7 @@ fn parse(
         // Ordinary steps from here on: the runner, the report and the checks see no difference.
         // (With a problem in the section, or in the length, nothing is drawn: the validation
         // lists the problem.)
-        let seed = r.seed.unwrap_or(harvester.config.seed);
+        let seed = r.seed.unwrap_or(harvester.config.network.seed);
         scenario.timeline.extend(random::expand(r, seed, length, &names));
     }
     let plan = resolve(&file, &scenario, &harvester).map_err(Error::Invalid)?;

@@ -146,7 +146,7 @@ async fn play(
     series.finish(&snap);
     Ok(Outcome {
         verdicts,
-        seed: h.config.seed,
+        seed: h.config.network.seed,
         events: running.events.clone(),
         wall_seconds: 0.0,
         interrupted: interrupted.is_some(),

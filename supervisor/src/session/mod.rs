@@ -115,7 +115,7 @@ impl Session {
         h.without(&o.without)?;
         let epoch = *h.epoch.get_or_insert_with(|| default_epoch(o.paced));
         if let Some(seed) = o.seed {
-            h.config.seed = seed;
+            h.config.network.seed = seed;
         }
         let name = if o.name.is_empty() {
             "program".to_string()

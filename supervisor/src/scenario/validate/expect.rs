@@ -67,7 +67,7 @@ pub(super) fn expectation(c: &mut Checks, at: &str, e: &Expect, h: &Harvester) -
             if min > max {
                 c.push(format!("{at}.min"), format!("min {min} is above max {max}"));
             }
-            bus_offs_fit(c, at, *min, h.config.bitrate);
+            bus_offs_fit(c, at, *min, h.config.network.bitrate);
         }
         Expect::BusOffLongest { node, max_ms } => {
             id = c.node(format!("{at}.node"), node);
