@@ -131,6 +131,14 @@ impl Driver {
         ids
     }
 
+    /// A node "tx" that sends `frame` every `period_ms` from `first_ms`.
+    fn sender(&mut self, first_ms: u64, period_ms: u64, frame: &str) {
+        let probe = Probe::new(&Heard::default())
+            .ticking(first_ms, period_ms)
+            .sending(frame);
+        self.attach(&["tx"], 0, Some(probe));
+    }
+
     /// Runs to `t`, answering every wake at once; the time the run stopped at.
     fn run_until(&mut self, t: BusTime) -> BusTime {
         self.sched.run_until(t);
@@ -198,13 +206,9 @@ fn nodes_are_woken_at_their_deadlines_in_time_order() {
 
 #[test]
 fn a_receiver_is_woken_its_reaction_time_after_the_frame_ends() {
-    let (tx_heard, rx_heard) = (Heard::default(), Heard::default());
+    let rx_heard = Heard::default();
     let mut d = Driver::new();
-    d.attach(
-        &["tx"],
-        0,
-        Some(Probe::new(&tx_heard).ticking(1, 1000).sending("123#11")),
-    );
+    d.sender(1, 1000, "123#11");
     let rx = d.attach(&["rx"], 250, Some(Probe::new(&rx_heard)))[0];
     d.run_until(ms(5));
     let heard = rx_heard.borrow();
@@ -220,13 +224,9 @@ fn a_receiver_is_woken_its_reaction_time_after_the_frame_ends() {
 
 #[test]
 fn frames_that_can_wait_leave_the_fifo_and_reach_the_logic_at_its_deadline() {
-    let (tx_heard, rx_heard) = (Heard::default(), Heard::default());
+    let rx_heard = Heard::default();
     let mut d = Driver::new();
-    d.attach(
-        &["tx"],
-        0,
-        Some(Probe::new(&tx_heard).ticking(1, 2).sending("123#11")),
-    );
+    d.sender(1, 2, "123#11");
     let mut probe = Probe::new(&rx_heard).ticking(10, 10);
     probe.can_wait = true;
     let rx = d.attach(&["rx"], 100, Some(probe))[0];
@@ -260,13 +260,9 @@ fn frames_that_can_wait_leave_the_fifo_and_reach_the_logic_at_its_deadline() {
 
 #[test]
 fn a_new_logic_drops_the_frames_the_old_one_held() {
-    let (tx_heard, rx_heard) = (Heard::default(), Heard::default());
+    let rx_heard = Heard::default();
     let mut d = Driver::new();
-    d.attach(
-        &["tx"],
-        0,
-        Some(Probe::new(&tx_heard).ticking(1, 2).sending("123#11")),
-    );
+    d.sender(1, 2, "123#11");
     let mut probe = Probe::new(&rx_heard).ticking(100, 100);
     probe.can_wait = true;
     let rx = d.attach(&["rx"], 0, Some(probe))[0];
@@ -300,17 +296,9 @@ fn a_crash_stops_the_run_at_its_moment_and_the_node_is_never_woken_again() {
 
 #[test]
 fn a_hung_node_is_not_woken_and_its_fifo_overruns_until_it_is_woken_again() {
-    let (tx_heard, rx_heard) = (Heard::default(), Heard::default());
+    let rx_heard = Heard::default();
     let mut d = Driver::new();
-    d.attach(
-        &["tx"],
-        0,
-        Some(
-            Probe::new(&tx_heard)
-                .ticking(1, 1)
-                .sending("00000123#1122334455667788"),
-        ),
-    );
+    d.sender(1, 1, "00000123#1122334455667788");
     let rx = d.attach(&["rx"], 0, Some(Probe::new(&rx_heard)))[0];
     d.run_until(BusTime::from_micros(500));
     d.sched.set_hung(rx, true).unwrap();
@@ -365,13 +353,9 @@ fn a_register_level_node_is_woken_by_its_confirmation_a_plain_one_is_not() {
 
 #[test]
 fn a_node_with_two_controllers_is_woken_once_with_the_inputs_of_both() {
-    let (tx_heard, rx_heard) = (Heard::default(), Heard::default());
+    let rx_heard = Heard::default();
     let mut d = Driver::new();
-    d.attach(
-        &["tx"],
-        0,
-        Some(Probe::new(&tx_heard).ticking(1, 1000).sending("123#11")),
-    );
+    d.sender(1, 1000, "123#11");
     let ids = d.attach(&["rx0", "rx1"], 0, Some(Probe::new(&rx_heard)));
     d.run_until(ms(2));
     let wakes: Vec<&(usize, BusTime, Vec<usize>)> =
@@ -383,13 +367,9 @@ fn a_node_with_two_controllers_is_woken_once_with_the_inputs_of_both() {
 
 #[test]
 fn a_report_that_ends_at_a_crash_counts_the_other_controllers_frames_as_lost() {
-    let (tx_heard, rx_heard) = (Heard::default(), Heard::default());
+    let rx_heard = Heard::default();
     let mut d = Driver::new();
-    d.attach(
-        &["tx"],
-        0,
-        Some(Probe::new(&tx_heard).ticking(1, 1000).sending("123#11")),
-    );
+    d.sender(1, 1000, "123#11");
     let ids = d.attach(&["rx0", "rx1"], 0, Some(Probe::new(&rx_heard)));
     d.sched.run_until(ms(2));
     d.sched.advance(0);
