@@ -108,6 +108,7 @@ impl Scheduler {
         }
         slot.switches.counters = (tec, rec);
         slot.input(at, Some(ControllerEvent::Counters { tec, rec }), true);
+        self.queue_due(i);
     }
 
     /// [`Scheduler::counters_to`] with the controller's present counters.

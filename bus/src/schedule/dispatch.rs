@@ -86,8 +86,14 @@ impl Scheduler {
                 _ => continue,
             };
             if let Some(slot) = self.slots.get_mut(node.index()) {
+                let before = slot.due();
                 slot.input(at, input, wakes);
-                if let Some(d) = slot.due() {
+                let after = slot.due();
+                // Unchanged (a node already waiting for an input), its queue entry stands.
+                if let Some(d) = after {
+                    if after != before {
+                        self.due_queue.push(std::cmp::Reverse((d, node.index())));
+                    }
                     due = Some(due.map_or(d, |x| x.min(d)));
                 }
             }
@@ -145,7 +151,30 @@ impl Scheduler {
         self.round += 1;
         self.crashed_in_round = false;
         self.stop_in_round = false;
-        for i in 0..self.slots.len() {
+        // The slots queued as due by `at` (the earliest due time: none is earlier), in slot
+        // order; entries a later change made stale are dropped here.
+        let mut due_now = std::mem::take(&mut self.due_now);
+        while let Some(&std::cmp::Reverse((t, i))) = self.due_queue.peek() {
+            if t > at {
+                break;
+            }
+            self.due_queue.pop();
+            due_now.push(i);
+        }
+        due_now.sort_unstable();
+        due_now.dedup();
+        debug_assert_eq!(
+            due_now
+                .iter()
+                .copied()
+                .filter(|&i| self.slots[i].due() == Some(at))
+                .collect::<Vec<_>>(),
+            (0..self.slots.len())
+                .filter(|&i| self.slots[i].due() == Some(at))
+                .collect::<Vec<_>>(),
+            "the due queue lost a slot due at {at}"
+        );
+        for &i in &due_now {
             if self.slots[i].due() != Some(at) {
                 continue;
             }
@@ -167,12 +196,14 @@ impl Scheduler {
                 // What the node's receive interrupt does: the frames leave the FIFO now (so it
                 // does not overrun), and the logic gets them, in order, at its next deadline.
                 slot.buffered.extend(drained);
+                self.queue_due(i);
                 continue;
             }
             if drained.is_empty() && slot.buffered.is_empty() && slot.events.is_empty() && !timeout_due {
                 // Nothing for the logic (a frame it was due for went with a reset): no round
                 // trip; its deadline stands.
                 slot.event_wake = false;
+                self.queue_due(i);
                 continue;
             }
             let frames = if slot.buffered.is_empty() {
@@ -185,6 +216,10 @@ impl Scheduler {
             slot.next_timeout = None;
             slot.event_wake = false;
             slot.handover.in_flight += frames.len() as u64;
+            // Due again for a frame still arriving; its deadline comes with its answer.
+            if let Some(t) = slot.due() {
+                self.due_queue.push(std::cmp::Reverse((t, i)));
+            }
             let inputs = Inputs {
                 slot: i,
                 controller: slot.controller,
@@ -207,6 +242,8 @@ impl Scheduler {
                 }
             }
         }
+        due_now.clear();
+        self.due_now = due_now;
         self.waiting > 0
     }
 

@@ -75,7 +75,8 @@ use crate::time::{BusDuration, BusTime};
 use crate::trace::{Kind, Reorder, Sink};
 use slot::Slot;
 use smallvec::SmallVec;
-use std::collections::VecDeque;
+use std::cmp::Reverse;
+use std::collections::{BinaryHeap, VecDeque};
 
 /// A frame as an observer of the bus sees it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -198,6 +199,13 @@ pub struct Scheduler {
     register_level: usize,
     woken: VecDeque<Wake>,
     notices: VecDeque<Notice>,
+    /// When slots fall due, earliest first. Every slot that is due has an entry at its due
+    /// time: one is pushed whenever a slot's due time may have changed, and checked against the
+    /// slot when it comes up (a later change makes it stale). Keeps the nodes' next due time
+    /// without scanning every slot at every wake.
+    due_queue: BinaryHeap<Reverse<(BusTime, usize)>>,
+    /// The slots due at a wake's moment (kept to reuse its allocation).
+    due_now: Vec<usize>,
 }
 
 /// How a scheduler is set up.
@@ -244,6 +252,8 @@ impl Scheduler {
             register_level: 0,
             woken: VecDeque::new(),
             notices: VecDeque::new(),
+            due_queue: BinaryHeap::new(),
+            due_now: Vec::new(),
         })
     }
 
@@ -280,6 +290,7 @@ impl Scheduler {
             slot.next_timeout = (k == 0).then_some(now);
             ids.push(self.bus.attach(controller));
             self.slots.push(slot);
+            self.queue_due(self.slots.len() - 1);
         }
         Ok(ids)
     }
@@ -289,6 +300,7 @@ impl Scheduler {
         let mut slot = Slot::new(controller.name.clone(), logic, self.slots.len(), 0, reaction);
         slot.next_timeout = Some(self.present());
         self.slots.push(slot);
+        self.queue_due(self.slots.len() - 1);
         self.bus.attach(controller)
     }
 
@@ -458,8 +470,31 @@ impl Scheduler {
         self.pacer.bus_time(wall_ns)
     }
 
-    fn next_due(&self) -> Option<BusTime> {
-        self.slots.iter().filter_map(Slot::due).min()
+    /// The earliest time a node is due, from the due queue (dropping its stale entries).
+    fn next_due(&mut self) -> Option<BusTime> {
+        let next = loop {
+            match self.due_queue.peek() {
+                Some(&Reverse((t, i))) if self.slots[i].due() == Some(t) => break Some(t),
+                Some(_) => drop(self.due_queue.pop()),
+                None => break None,
+            }
+        };
+        debug_assert_eq!(
+            next,
+            self.slots.iter().filter_map(Slot::due).min(),
+            "the due queue lost a slot"
+        );
+        next
+    }
+
+    /// Queues slot `i` at its due time, if it has one, after a change that may have moved it;
+    /// answers with that time.
+    fn queue_due(&mut self, i: usize) -> Option<BusTime> {
+        let due = self.slots[i].due();
+        if let Some(t) = due {
+            self.due_queue.push(Reverse((t, i)));
+        }
+        due
     }
 
     /// The slots of the node slot `i` belongs to: its controllers, first to last.
@@ -526,6 +561,7 @@ impl Scheduler {
                 t
             }
         });
+        self.queue_due(first);
         if report.frames_can_wait != self.slots[i].frames_can_wait {
             for j in self.group(i) {
                 self.slots[j].frames_can_wait = report.frames_can_wait;
@@ -622,6 +658,7 @@ impl Scheduler {
                 if slot.first == j {
                     slot.next_timeout = Some(now);
                 }
+                self.queue_due(j);
             }
         }
         Ok(())
@@ -651,6 +688,7 @@ impl Scheduler {
         let now = self.present();
         let slot = self.slots.get_mut(node.index()).ok_or(Error::NoNode(node.0))?;
         slot.next_timeout = Some(slot.next_timeout.map_or(now, |t| t.min(now)));
+        self.queue_due(node.index());
         Ok(())
     }
 
@@ -672,6 +710,7 @@ impl Scheduler {
             slot.hung = false;
             slot.clear();
             slot.next_timeout = (slot.first == j).then_some(now);
+            self.queue_due(j);
         }
         self.dispatch();
         Ok(first)

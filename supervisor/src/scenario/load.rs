@@ -25,7 +25,8 @@ pub struct Loaded {
     /// How many of the timeline's steps are the file's own: the rest were drawn from its
     /// `random_faults`.
     pub fixed: usize,
-    /// The timeline resolved: what the run carries out.
+    /// The scenario resolved: what the run carries out and checks. A change to `scenario`
+    /// reaches the run only through [`Loaded::resolved`].
     pub plan: Plan,
 }
 
