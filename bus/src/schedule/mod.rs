@@ -50,7 +50,9 @@
 //! counters, recovery, tuning) act at its wake's time (`commands.rs`).
 //! Such a node may have several controllers on the bus ([`Scheduler::attach`]), each a slot of its
 //! own (arbitration, acknowledgement, error counters, bus off); a node is woken once per moment,
-//! with the inputs of each of its controllers that is due ([`Wake::inputs`]), and answers once.
+//! with the inputs of each of its controllers that is due ([`Wake::inputs`]), and reports on
+//! each in turn ([`Scheduler::handle_answer`]). A node due with nothing for its logic (the frame
+//! it was due for went with a reset) is not woken at all.
 //! The node's deadline, crashes, hangs and replacements are the node's, shared by all its
 //! controllers. A hung node (fault injection) is never woken, so its FIFO fills and overruns as a
 //! real one would.
