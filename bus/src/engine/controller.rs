@@ -351,13 +351,22 @@ impl Controller {
     /// one) and clears the overrun flag (CDO). A frame the engine committed ahead, still on the
     /// wire at `until`, stays.
     pub(crate) fn drain(&mut self, until: BusTime) -> (Vec<Received>, bool) {
+        let mut frames = Vec::new();
+        let overrun = self.drain_into(until, &mut frames);
+        (frames, overrun)
+    }
+
+    /// [`Controller::drain`] onto the end of `out` (a buffer of the caller's, so that taking
+    /// frames allocates nothing of its own); whether an overrun happened since the last drain.
+    pub(crate) fn drain_into(&mut self, until: BusTime, out: &mut Vec<Received>) -> bool {
         let overrun = std::mem::take(&mut self.overrun_flag);
         let n = self.rx.iter().take_while(|r| r.at <= until).count();
-        let frames: Vec<Received> = self.rx.drain(..n).collect();
-        let released: usize = frames.iter().map(|r| fifo_bytes(&r.frame)).sum();
+        let start = out.len();
+        out.extend(self.rx.drain(..n));
+        let released: usize = out[start..].iter().map(|r| fifo_bytes(&r.frame)).sum();
         self.rx_bytes = self.rx_bytes.saturating_sub(released);
-        self.counters.rx_read += frames.len() as u64;
-        (frames, overrun)
+        self.counters.rx_read += n as u64;
+        overrun
     }
 
     /// Empties the receive FIFO at a reset: the frames in it are lost, and counted.

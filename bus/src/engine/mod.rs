@@ -523,6 +523,17 @@ impl Bus {
         Ok(self.get_mut(node)?.drain(until))
     }
 
+    /// [`Bus::drain_rx`] onto the end of `out`: whether an overrun happened since the last
+    /// drain.
+    pub fn drain_rx_into(
+        &mut self,
+        node: NodeId,
+        until: BusTime,
+        out: &mut Vec<Received>,
+    ) -> Result<bool, Error> {
+        Ok(self.get_mut(node)?.drain_into(until, out))
+    }
+
     /// End of the oldest frame waiting in a node's receive FIFO.
     pub fn rx_front(&self, node: NodeId) -> Option<BusTime> {
         self.controllers.get(node.index()).and_then(Controller::rx_front)

@@ -178,41 +178,35 @@ impl Scheduler {
             if self.slots[i].due() != Some(at) {
                 continue;
             }
+            let slot = &self.slots[i];
+            let timeout_due = slot.next_timeout.is_some_and(|t| t <= at);
+            // What the node's receive interrupt does: the frames leave the FIFO now (so it does
+            // not overrun), and the logic gets them, in order, at its next deadline.
+            let buffering = slot.frames_can_wait && !timeout_due && !slot.event_wake;
+            // The frames held so far, then those the FIFO has now.
+            let mut frames = std::mem::take(&mut self.slots[i].buffered);
             // Every slot has its controller (attached together): an error here is a bug, told.
-            let drained = match self.bus.drain_rx(NodeId(i as u16), at) {
-                Ok((frames, _overrun)) => frames,
-                Err(error) => {
-                    let node = self.slots[i].name.clone();
-                    self.notices.push_back(Notice::CommandFailed { node, error });
-                    Vec::new()
-                }
-            };
+            if let Err(error) = self.bus.drain_rx_into(NodeId(i as u16), at, &mut frames) {
+                let node = self.slots[i].name.clone();
+                self.notices.push_back(Notice::CommandFailed { node, error });
+            }
             let still_arriving = self.bus.rx_front(NodeId(i as u16));
             let slot = &mut self.slots[i];
             // A frame still on the wire is the next input, from its end.
             slot.pending_since = still_arriving;
-            let timeout_due = slot.next_timeout.is_some_and(|t| t <= at);
-            if slot.frames_can_wait && !timeout_due && !slot.event_wake {
-                // What the node's receive interrupt does: the frames leave the FIFO now (so it
-                // does not overrun), and the logic gets them, in order, at its next deadline.
-                slot.buffered.extend(drained);
+            if buffering {
+                slot.buffered = frames;
                 self.queue_due(i);
                 continue;
             }
-            if drained.is_empty() && slot.buffered.is_empty() && slot.events.is_empty() && !timeout_due {
+            if frames.is_empty() && slot.events.is_empty() && !timeout_due {
                 // Nothing for the logic (a frame it was due for went with a reset): no round
                 // trip; its deadline stands.
+                slot.buffered = frames;
                 slot.event_wake = false;
                 self.queue_due(i);
                 continue;
             }
-            let frames = if slot.buffered.is_empty() {
-                drained
-            } else {
-                let mut frames = std::mem::take(&mut slot.buffered);
-                frames.extend(drained);
-                frames
-            };
             slot.next_timeout = None;
             slot.event_wake = false;
             slot.handover.in_flight += frames.len() as u64;
