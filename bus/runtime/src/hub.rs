@@ -13,7 +13,7 @@
 //!   consulted at all, so a run costs no timers and is deterministic. Runtimes made by
 //!   [`runtime`] tell hubs made on their thread which to be.
 //! - A wake is one message to the node's actor with the inputs of each of its controllers that
-//!   is due, and one answer back; a node whose actor is gone answers as a crash
+//!   is due, and an answer back for each of them; a node whose actor is gone answers as a crash
 //!   ([`crate::node::Reply`]).
 //! - The trace ends ([`FlushTrace`]) or the hub stops: every record still held goes to the sinks.
 //! - Observers ([`Subscribe`]) get every frame through a bounded channel; a slow one loses
