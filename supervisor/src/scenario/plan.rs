@@ -2,9 +2,10 @@
 //! frame and number already checked and turned into what the bus and the nodes take; and the
 //! expectations with their nodes' ids.
 //!
-//! Contract: a [`Plan`] is made only by the validation (`validate::resolve`), which refuses what
-//! it cannot resolve; carrying out an [`Act`] needs no more checks of the input, only the running
-//! harvester's state (a node that is down).
+//! Contract: a [`Plan`] comes from the validation (`validate::resolve` for a scenario,
+//! `validate::action` for one action), which refuses what it cannot resolve; the run carries out
+//! what it is given, checking no more of the input, only the running harvester's state (a node
+//! that is down).
 
 use super::model::Expect;
 use bus::Frame;
@@ -75,7 +76,7 @@ pub struct Check {
 }
 
 /// A resolved scenario: its timeline and its expectations.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct Plan {
     /// What falls due and when, by time, then by step (a step's start before its end).
     pub todo: Vec<(BusTime, Todo)>,
