@@ -153,24 +153,18 @@ impl Hub {
 
     /// Sends the scheduler's wakes, tells its notices, and arms the timer it asks for.
     fn carry_out(&mut self, ctx: &mut Context<Self>) {
-        if let Some(wake) = self.sched.poll_wake() {
+        while let Some(wake) = self.sched.poll_wake() {
             let me = self
                 .me
-                .get_or_insert_with(|| std::sync::Arc::new(ctx.address().recipient()))
-                .clone();
-            let mut next = Some(wake);
-            while let Some(wake) = next {
-                let reply = Reply::new(me.clone(), wake.node, wake.round);
-                let message = Wake {
-                    now: wake.now,
-                    inputs: wake.inputs,
-                    reply,
-                };
-                // A node whose actor is gone answers at once: its reply is dropped with the wake.
-                if let Some(Some(actor)) = self.actors.get(wake.node) {
-                    actor.do_send(message);
-                }
-                next = self.sched.poll_wake();
+                .get_or_insert_with(|| std::sync::Arc::new(ctx.address().recipient()));
+            let message = Wake {
+                now: wake.now,
+                inputs: wake.inputs,
+                reply: Reply::new(me.clone(), wake.node, wake.round),
+            };
+            // A node whose actor is gone answers at once: its reply is dropped with the wake.
+            if let Some(Some(actor)) = self.actors.get(wake.node) {
+                actor.do_send(message);
             }
         }
         while let Some(notice) = self.sched.poll_notice() {
@@ -294,8 +288,7 @@ impl Handler<Attach> for Hub {
         let id = self
             .sched
             .attach_one(msg.controller, reaction, msg.node.is_some());
-        self.actors.resize(id.index() + 1, None);
-        self.actors[id.index()] = msg.node;
+        self.place(id, 1, msg.node);
         self.pump(ctx);
         MessageResult(id)
     }
@@ -337,10 +330,17 @@ impl Hub {
     ) -> Result<Vec<NodeId>, Error> {
         let reaction = BusDuration::from_std(reaction);
         let ids = self.sched.attach(controllers, reaction, node.is_some())?;
-        let first = ids.first().map_or(self.actors.len(), |id| id.index());
-        self.actors.resize(first + ids.len(), None);
-        self.actors[first] = node;
+        if let Some(&first) = ids.first() {
+            self.place(first, ids.len(), node);
+        }
         Ok(ids)
+    }
+
+    /// Keeps the actor of the node just attached with `count` controllers from `first` on, at
+    /// its first slot (where its wakes go).
+    fn place(&mut self, first: NodeId, count: usize, node: Option<Recipient<Wake>>) {
+        self.actors.resize(first.index() + count, None);
+        self.actors[first.index()] = node;
     }
 }
 

@@ -92,7 +92,7 @@ impl Scheduler {
                 // Unchanged (a node already waiting for an input), its queue entry stands.
                 if let Some(d) = after {
                     if after != before {
-                        self.due_queue.push(std::cmp::Reverse((d, node.index())));
+                        self.push_due(d, node.index());
                     }
                     due = Some(due.map_or(d, |x| x.min(d)));
                 }
@@ -210,10 +210,6 @@ impl Scheduler {
             slot.next_timeout = None;
             slot.event_wake = false;
             slot.handover.in_flight += frames.len() as u64;
-            // Due again for a frame still arriving; its deadline comes with its answer.
-            if let Some(t) = slot.due() {
-                self.due_queue.push(std::cmp::Reverse((t, i)));
-            }
             let inputs = Inputs {
                 slot: i,
                 controller: slot.controller,
@@ -221,6 +217,8 @@ impl Scheduler {
                 events: std::mem::take(&mut slot.events),
             };
             let first = slot.first;
+            // Due again for a frame still arriving; its deadline comes with its answer.
+            self.queue_due(i);
             // A node's controllers are neighbours: a further one joins its node's wake.
             match self.woken.back_mut() {
                 Some(wake) if wake.node == first && wake.round == self.round => wake.inputs.push(inputs),

@@ -259,11 +259,6 @@ impl Scheduler {
         })
     }
 
-    /// The engine, to read.
-    pub fn bus(&self) -> &Bus {
-        &self.bus
-    }
-
     /// The present: the last committed event or wake.
     pub fn present(&self) -> BusTime {
         self.now.max(self.bus.committed())
@@ -282,25 +277,33 @@ impl Scheduler {
         if controllers.is_empty() {
             return Err(Error::NoControllers);
         }
-        let now = self.present();
         let first = self.slots.len();
-        let mut ids = Vec::with_capacity(controllers.len());
-        for (k, controller) in controllers.into_iter().enumerate() {
-            let mut slot = Slot::new(controller.name.clone(), logic, first, k, reaction);
-            // A first wake tells the node the time and collects its first deadline (which the
-            // first controller's slot keeps).
-            slot.next_timeout = (k == 0).then_some(now);
-            ids.push(self.bus.attach(controller));
-            self.slots.push(slot);
-            self.queue_due(self.slots.len() - 1);
-        }
-        Ok(ids)
+        Ok(controllers
+            .into_iter()
+            .enumerate()
+            .map(|(k, controller)| self.add_slot(controller, reaction, logic, first, k))
+            .collect())
     }
 
     /// [`Scheduler::attach`] for a node with one controller.
     pub fn attach_one(&mut self, controller: ControllerConfig, reaction: BusDuration, logic: bool) -> NodeId {
-        let mut slot = Slot::new(controller.name.clone(), logic, self.slots.len(), 0, reaction);
-        slot.next_timeout = Some(self.present());
+        let first = self.slots.len();
+        self.add_slot(controller, reaction, logic, first, 0)
+    }
+
+    /// Puts controller `k` of the node whose first slot is `first` on the bus.
+    fn add_slot(
+        &mut self,
+        controller: ControllerConfig,
+        reaction: BusDuration,
+        logic: bool,
+        first: usize,
+        k: usize,
+    ) -> NodeId {
+        let mut slot = Slot::new(controller.name.clone(), logic, first, k, reaction);
+        // A first wake tells the node the time and collects its first deadline (which the
+        // first controller's slot keeps).
+        slot.next_timeout = (k == 0).then(|| self.present());
         self.slots.push(slot);
         self.queue_due(self.slots.len() - 1);
         self.bus.attach(controller)
@@ -339,11 +342,6 @@ impl Scheduler {
     /// [`Scheduler::advance`]) to advance again at.
     pub fn poll_timeout(&self) -> Option<u64> {
         self.timeout
-    }
-
-    /// True while woken nodes have not all answered.
-    pub fn is_waiting(&self) -> bool {
-        self.waiting > 0
     }
 
     /// Runs the bus as far as it can without hearing from a node, at wall time `wall_ns` (ns
@@ -494,9 +492,14 @@ impl Scheduler {
     fn queue_due(&mut self, i: usize) -> Option<BusTime> {
         let due = self.slots[i].due();
         if let Some(t) = due {
-            self.due_queue.push(Reverse((t, i)));
+            self.push_due(t, i);
         }
         due
+    }
+
+    /// Queues slot `i` as due at `t`.
+    fn push_due(&mut self, t: BusTime, i: usize) {
+        self.due_queue.push(Reverse((t, i)));
     }
 
     /// The slots of the node slot `i` belongs to: its controllers, first to last.

@@ -7,7 +7,7 @@
 use super::model::Scenario;
 use super::plan::Plan;
 use super::random;
-use super::validate::{MAX_DURATION_S, resolve};
+use super::validate::{duration_problem, resolve};
 use crate::configs::Source;
 use crate::harvester::Harvester;
 use nodes::Error;
@@ -97,9 +97,7 @@ fn parse(
     let names = harvester.node_names();
     let length = scenario.duration_s;
     if let Some(r) = &scenario.random_faults
-        && length.is_finite()
-        && length > 0.0
-        && length <= MAX_DURATION_S
+        && duration_problem(length).is_none()
         && random::problems(r, length, &names).is_empty()
     {
         // Ordinary steps from here on: the runner, the report and the checks see no difference.

@@ -30,6 +30,19 @@ pub const MAX_DURATION_S: f64 = 30.0 * 24.0 * 3600.0;
 /// delay the next data or remote frame.
 pub const MAX_OVERLOAD_FRAMES: u8 = 2;
 
+/// What is wrong with a run's length of `duration_s`, if anything.
+pub(super) fn duration_problem(duration_s: f64) -> Option<String> {
+    if !(duration_s.is_finite() && duration_s > 0.0) {
+        Some("must be a positive number of seconds".into())
+    } else if duration_s > MAX_DURATION_S {
+        Some(format!(
+            "{duration_s} s is longer than the longest run, {MAX_DURATION_S} s (30 days of virtual time)"
+        ))
+    } else {
+        None
+    }
+}
+
 /// Checks names, times and values of a scenario against its harvester: every problem, none when
 /// it is good.
 pub fn validate(file: &str, s: &Scenario, h: &Harvester) -> Vec<Problem> {
@@ -64,16 +77,8 @@ pub fn resolve(file: &str, s: &Scenario, h: &Harvester) -> Result<Plan, Vec<Prob
             c.push(field, message);
         }
     }
-    if !(s.duration_s.is_finite() && s.duration_s > 0.0) {
-        c.push("duration_s", "must be a positive number of seconds");
-    } else if s.duration_s > MAX_DURATION_S {
-        c.push(
-            "duration_s",
-            format!(
-                "{} s is longer than the longest run, {MAX_DURATION_S} s (30 days of virtual time)",
-                s.duration_s
-            ),
-        );
+    if let Some(problem) = duration_problem(s.duration_s) {
+        c.push("duration_s", problem);
     }
     if s.expect.is_empty() {
         c.push("expect", "a scenario needs at least one expectation");
