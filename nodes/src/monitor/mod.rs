@@ -240,13 +240,16 @@ impl Monitor {
     fn flow_sensor(&mut self, d: &Decoded, at: BusTime, group: Option<Group>) {
         let row = usize::from(d.node.0 - 0xD0);
         if d.message.name == "flow.status" {
-            let state = d.get("state").and_then(|v| v.label()).unwrap_or("?").to_string();
+            let state = d.get("state").and_then(|v| v.label()).unwrap_or("?");
             if state == "no acknowledgement" || state == "fault" {
                 self.raise(d.node, "flow sensor stopped", at);
             } else {
                 self.clear(d.node, "flow sensor stopped", at);
             }
-            self.display.borrow_mut().rows[row].sensor_state = state;
+            let shown = &mut self.display.borrow_mut().rows[row].sensor_state;
+            if shown != state {
+                *shown = state.to_string();
+            }
         }
         let calibrated = self.sessions.get(&d.node).is_some_and(|s| s.calibrated);
         let phase_running = self.sessions.values().all(|s| s.calibrated);
@@ -254,7 +257,11 @@ impl Monitor {
             let mut disp = self.display.borrow_mut();
             disp.rows[row].calibrated = calibrated;
             disp.broken_groups = self.sessions.values().map(|s| s.broken).sum();
-            disp.phase = if phase_running { "running" } else { "calibrating" }.to_string();
+            let phase = if phase_running { "running" } else { "calibrating" };
+            // Set only when it changes: every flow frame passes here.
+            if disp.phase != phase {
+                disp.phase = phase.to_string();
+            }
         }
         let Some(g) = group.filter(|g| g.code == flow::FLOW_GROUP) else {
             return;

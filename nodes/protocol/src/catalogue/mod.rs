@@ -311,7 +311,7 @@ impl MessageDef {
     }
 
     /// Decodes a payload of this message.
-    pub fn decode(&'static self, data: &[u8]) -> Result<Vec<Value>, Error> {
+    pub fn decode(&'static self, data: &[u8]) -> Result<Values, Error> {
         if data.len() != usize::from(self.dlc) {
             return Err(self.error(format!("DLC is {}, expected {}", data.len(), self.dlc)));
         }
@@ -401,6 +401,10 @@ impl MessageDef {
     }
 }
 
+/// A decoded payload's fields, in order. Up to eight are held inline, so decoding a message of
+/// the catalogue allocates nothing (none has more; a test checks it).
+pub type Values = smallvec::SmallVec<[Value; 8]>;
+
 /// A decoded field.
 #[derive(Clone, Copy, PartialEq, Debug)]
 pub struct Value {
@@ -431,7 +435,7 @@ pub struct Decoded {
     /// The field node at the other end from the monitor.
     pub node: Address,
     /// Data1–Data7, field by field.
-    pub values: Vec<Value>,
+    pub values: Values,
 }
 
 impl Decoded {

@@ -230,6 +230,8 @@ fn every_message_is_found_again_for_every_node() {
                 .unwrap_or_else(|| panic!("{} from {node} not found", m.name));
             assert_eq!((d.message.name, d.node), (m.name, node));
             assert!(d.values.iter().all(|v| v.in_range()), "{}", m.name);
+            // `Values` holds this many inline: decoding the catalogue does not allocate.
+            assert!(!d.values.spilled(), "{} has {} fields", m.name, d.values.len());
         }
     }
 }
