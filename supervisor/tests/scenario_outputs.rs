@@ -15,8 +15,10 @@
 //! take it: each is replayed with `--fast` for 100 ms, and that replay's own recording and output
 //! are digested and checked for order too.
 //!
-//! HARVEMU_OUTPUT_SEEDS=N runs seeds 1 to N (1 to 5). `scripts/test` runs seed 1 in the debug
-//! build of the workspace tests and all five in the optimised build, where the runs take seconds.
+//! HARVEMU_OUTPUT_SEEDS=N runs seeds 1 to N (1 to 5). A plain `cargo test` leaves this test out
+//! (`test = false` in Cargo.toml); `scripts/test` runs it by name, all five seeds, in the
+//! optimised build, where the runs take seconds (every shipped scenario also runs in the debug
+//! build, in `tests/tests/scenarios.rs`).
 
 mod common;
 
