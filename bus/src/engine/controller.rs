@@ -361,9 +361,8 @@ impl Controller {
     pub(crate) fn drain_into(&mut self, until: BusTime, out: &mut Vec<Received>) -> bool {
         let overrun = std::mem::take(&mut self.overrun_flag);
         let n = self.rx.iter().take_while(|r| r.at <= until).count();
-        let start = out.len();
-        out.extend(self.rx.drain(..n));
-        let released: usize = out[start..].iter().map(|r| fifo_bytes(&r.frame)).sum();
+        let mut released = 0;
+        out.extend(self.rx.drain(..n).inspect(|r| released += fifo_bytes(&r.frame)));
         self.rx_bytes = self.rx_bytes.saturating_sub(released);
         self.counters.rx_read += n as u64;
         overrun

@@ -67,6 +67,7 @@ use crate::time::{BusDuration, BusTime};
 use crate::{Error, Frame};
 use controller::Pending;
 use episode::{Flip, Plan, Who};
+use smallvec::SmallVec;
 
 /// Intermission.
 const INTERMISSION_BITS: u64 = wire::INTERMISSION_BITS as u64;
@@ -1033,7 +1034,7 @@ impl Bus {
             // Starters sending another frame lose arbitration; the rest go out together.
             let mut lost_at = Vec::new();
             // Each loser with the token of the frame it tried.
-            let mut losers: Vec<(usize, u64)> = Vec::new();
+            let mut losers: SmallVec<[(usize, u64); 8]> = SmallVec::new();
             let mut k = 0;
             while k < starters.len() {
                 let c = &mut self.controllers[starters[k]];
