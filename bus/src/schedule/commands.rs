@@ -1,7 +1,7 @@
 //! What a register-level node (firmware) asks of its controller, and the events it hears of
 //! as they happen ([`crate::node::NodeLogic::wants_every_event`]).
 
-use super::{Notice, Scheduler};
+use super::Scheduler;
 use crate::engine::{BitPosition, Effect, NodeId, Rule, RuleId, Schedule, SeenBy, Target};
 use crate::node::{ControllerCommand, ControllerEvent};
 use crate::time::BusTime;
@@ -61,8 +61,7 @@ impl Scheduler {
             }
         };
         if let Err(error) = result {
-            let node = self.slots[i].name.clone();
-            self.notices.push_back(Notice::CommandFailed { node, error });
+            self.command_failed(i, error);
         }
     }
 

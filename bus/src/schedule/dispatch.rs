@@ -15,37 +15,19 @@ impl Scheduler {
         let mut scratch = std::mem::take(&mut self.scratch);
         scratch.extend(self.bus.take_events());
         for event in scratch.drain(..) {
-            // Into the reorder window; names are looked up as records go out (`hand_over`).
-            if !self.sinks.is_empty()
-                && let Some(record) = Record::of_event(&self.iface, |_| "", &event)
-            {
-                let node = match record.source {
-                    Source::Bus => None,
-                    Source::Controller { node, .. } => Some(node),
-                };
-                if let Err(e) = self.order.push(record.at, (node, record.kind)) {
-                    if self.order_error.is_none() {
-                        self.notices.push_back(Notice::TraceOrder(e.clone()));
-                    }
-                    self.order_error.get_or_insert(e);
-                }
+            if !self.sinks.is_empty() {
+                self.record_event(&event);
             }
-            if let Event::Frame { end, node, frame, .. } = event {
+            if let Event::Frame { end, node, frame, .. } = event
+                && !self.observers.is_empty()
+            {
                 let seen = Observed { at: end, node, frame };
                 self.observers.retain_mut(|o| o(&seen));
             }
-            if self.register_level > 0 {
-                self.counters_of(&event);
-                // Counters wake register-level nodes (at most a handful): keep `due` whole.
-                if let Some(d) = self
-                    .slots
-                    .iter()
-                    .filter(|s| s.every_event)
-                    .filter_map(Slot::due)
-                    .min()
-                {
-                    due = Some(due.map_or(d, |x| x.min(d)));
-                }
+            if self.register_level > 0
+                && let Some(d) = self.tell_register_level(&event)
+            {
+                due = Some(due.map_or(d, |x| x.min(d)));
             }
             // No register-level node (the usual case): no slot lookup on the per-frame path.
             let every = |n: NodeId| {
@@ -101,6 +83,33 @@ impl Scheduler {
         self.scratch = scratch;
         self.hand_over(false);
         due
+    }
+
+    /// Puts an event's record into the reorder window; names are looked up as records go out
+    /// (`hand_over`). Out of line: a run without a trace does not carry the code in its path.
+    #[inline(never)]
+    fn record_event(&mut self, event: &Event) {
+        let Some(record) = Record::of_event(&self.iface, |_| "", event) else {
+            return;
+        };
+        let node = match record.source {
+            Source::Bus => None,
+            Source::Controller { node, .. } => Some(node),
+        };
+        if let Err(e) = self.order.push(record.at, (node, record.kind)) {
+            if self.order_error.is_none() {
+                self.notices.push_back(Notice::TraceOrder(e.clone()));
+            }
+            self.order_error.get_or_insert(e);
+        }
+    }
+
+    /// Tells register-level nodes the counters an event changed; answers with the earliest due
+    /// time among them (at most a handful: the whole set is kept, not a queue).
+    #[inline(never)]
+    fn tell_register_level(&mut self, event: &Event) -> Option<BusTime> {
+        self.counters_of(event);
+        self.slots.iter().filter(|s| s.every_event).filter_map(Slot::due).min()
     }
 
     /// Hands the trace's records that are due to the sinks, in time order: those a reorder
@@ -187,8 +196,7 @@ impl Scheduler {
             let mut frames = std::mem::take(&mut self.slots[i].buffered);
             // Every slot has its controller (attached together): an error here is a bug, told.
             if let Err(error) = self.bus.drain_rx_into(NodeId(i as u16), at, &mut frames) {
-                let node = self.slots[i].name.clone();
-                self.notices.push_back(Notice::CommandFailed { node, error });
+                self.command_failed(i, error);
             }
             let still_arriving = self.bus.rx_front(NodeId(i as u16));
             let slot = &mut self.slots[i];

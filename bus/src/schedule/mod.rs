@@ -521,25 +521,11 @@ impl Scheduler {
         h.crashed += sent - handled;
         let first = self.slots[i].first;
         if let Some(cause) = report.crashed {
-            if self.slots[i].crashed.is_none() {
-                let node = self.slots[i].name.clone();
-                self.notices.push_back(Notice::Crashed {
-                    node,
-                    cause: cause.clone(),
-                });
-                // One logic behind all of a node's controllers: they go down together.
-                for j in self.group(i) {
-                    self.slots[j].crashed = Some(cause.clone());
-                }
-            }
+            self.crash(i, cause);
             return true;
         }
         if report.every_event != self.slots[i].every_event {
-            for j in self.group(i) {
-                self.slots[j].every_event = report.every_event;
-            }
-            self.register_level = self.slots.iter().filter(|s| s.every_event).count();
-            self.bus.report_arbitration(self.register_level > 0);
+            self.set_every_event(i, report.every_event);
         }
         for (k, command) in report.commands {
             let target = if k == self.slots[i].controller {
@@ -575,16 +561,51 @@ impl Scheduler {
         false
     }
 
+    /// Slot `i`'s logic crashed: all of its node's controllers go down with it (one logic
+    /// behind them), told once. Out of line, as the other rare turns of a wake's path are, so
+    /// that the path itself stays small.
+    #[cold]
+    #[inline(never)]
+    fn crash(&mut self, i: usize, cause: CrashCause) {
+        if self.slots[i].crashed.is_some() {
+            return;
+        }
+        let node = self.slots[i].name.clone();
+        self.notices.push_back(Notice::Crashed {
+            node,
+            cause: cause.clone(),
+        });
+        for j in self.group(i) {
+            self.slots[j].crashed = Some(cause.clone());
+        }
+    }
+
+    /// Slot `i`'s node starts or stops hearing of every event (register level).
+    #[cold]
+    #[inline(never)]
+    fn set_every_event(&mut self, i: usize, on: bool) {
+        for j in self.group(i) {
+            self.slots[j].every_event = on;
+        }
+        self.register_level = self.slots.iter().filter(|s| s.every_event).count();
+        self.bus.report_arbitration(self.register_level > 0);
+    }
+
     /// Queues a frame of slot `i`'s logic; a full queue is told back as refused.
     fn submit_for(&mut self, i: usize, frame: Frame, now: BusTime, single_shot: bool) {
         match self.bus.submit_with(NodeId(i as u16), frame, now, single_shot) {
             Ok(Some(_)) => {}
             Ok(None) => self.slots[i].input(now, Some(ControllerEvent::Refused(frame)), false),
-            Err(error) => {
-                let node = self.slots[i].name.clone();
-                self.notices.push_back(Notice::CommandFailed { node, error });
-            }
+            Err(error) => self.command_failed(i, error),
         }
+    }
+
+    /// Tells that a command of slot `i`'s logic failed.
+    #[cold]
+    #[inline(never)]
+    fn command_failed(&mut self, i: usize, error: Error) {
+        let node = self.slots[i].name.clone();
+        self.notices.push_back(Notice::CommandFailed { node, error });
     }
 
     fn flush_sinks(&mut self) {
