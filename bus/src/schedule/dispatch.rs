@@ -109,7 +109,11 @@ impl Scheduler {
     #[inline(never)]
     fn tell_register_level(&mut self, event: &Event) -> Option<BusTime> {
         self.counters_of(event);
-        self.slots.iter().filter(|s| s.every_event).filter_map(Slot::due).min()
+        self.slots
+            .iter()
+            .filter(|s| s.every_event)
+            .filter_map(Slot::due)
+            .min()
     }
 
     /// Hands the trace's records that are due to the sinks, in time order: those a reorder
