@@ -204,7 +204,8 @@ pub struct Scheduler {
     /// When slots fall due, earliest first. Every slot that is due has an entry at its due
     /// time: one is pushed whenever a slot's due time may have changed, and checked against the
     /// slot when it comes up (a later change makes it stale). Keeps the nodes' next due time
-    /// without scanning every slot at every wake.
+    /// without scanning every slot at every wake. Rebuilt from the slots when stale entries
+    /// outnumber them ([`Scheduler::push_due`]), so it stays the size of the bus.
     due_queue: BinaryHeap<Reverse<(BusTime, usize)>>,
     /// The slots due at a wake's moment (kept to reuse its allocation).
     due_now: Vec<usize>,
@@ -497,9 +498,17 @@ impl Scheduler {
         due
     }
 
-    /// Queues slot `i` as due at `t`.
+    /// Queues slot `i` as due at `t`. A stale entry waits for its time to come, and a node
+    /// woken often with a far deadline leaves one at every wake: once the entries outnumber the
+    /// slots a few times over, the queue is rebuilt from the slots' due times (a cost of one
+    /// scan per that many pushes).
     fn push_due(&mut self, t: BusTime, i: usize) {
         self.due_queue.push(Reverse((t, i)));
+        if self.due_queue.len() > 4 * self.slots.len() + 64 {
+            self.due_queue = (self.slots.iter().enumerate())
+                .filter_map(|(i, s)| s.due().map(|t| Reverse((t, i))))
+                .collect();
+        }
     }
 
     /// The slots of the node slot `i` belongs to: its controllers, first to last.

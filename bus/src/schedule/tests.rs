@@ -438,3 +438,24 @@ fn a_paced_scheduler_waits_for_the_wall_clock_and_asks_to_be_advanced_then() {
     sched.advance(10_000_000);
     assert_eq!(sched.poll_wake().map(|w| w.now), Some(ms(10)));
 }
+
+#[test]
+fn the_due_queue_stays_the_size_of_the_bus() {
+    // A receiver with a deadline an hour away, woken by a frame every millisecond: each
+    // answer queues that deadline again.
+    let mut d = Driver::new();
+    d.sender(1, 1, "123#11");
+    let rx = d.attach(
+        &["rx"],
+        0,
+        Some(Probe::new(&Heard::default()).ticking(3_600_000, 1)),
+    )[0];
+    d.run_until(ms(500));
+    assert!(d.wakes_of(rx).len() > 400, "{} wakes", d.wakes_of(rx).len());
+    let bound = 4 * d.sched.slots.len() + 64;
+    assert!(
+        d.sched.due_queue.len() <= bound,
+        "{} entries",
+        d.sched.due_queue.len()
+    );
+}

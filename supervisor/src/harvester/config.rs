@@ -150,9 +150,10 @@ impl Harvester {
     ) -> Result<Harvester, Error> {
         let file = source.to_string();
         let network = nodes::script::top_name(text) == Some("Network");
-        let config = match nodes::script::top_name(text) {
-            Some("Network") => HarvesterConfig::around(nodes::parse_ron::<NetworkConfig>(&file, text)?),
-            _ => nodes::parse_ron::<HarvesterFile>(&file, text)?.into(),
+        let config = if network {
+            HarvesterConfig::around(nodes::parse_ron::<NetworkConfig>(&file, text)?)
+        } else {
+            nodes::parse_ron::<HarvesterFile>(&file, text)?.into()
         };
         let mut problems = Vec::new();
         if BitRate::for_bus(config.network.bitrate).is_none() {
