@@ -160,7 +160,7 @@ pub(crate) enum Opnd {
 
 impl Opnd {
     /// Bytes the operand takes after the opcode.
-    const fn bytes(self) -> u8 {
+    pub(crate) const fn bytes(self) -> u8 {
         use Opnd::*;
         match self {
             Direct | Imm | Bit | NotBit | Rel | Addr11(_) => 1,

@@ -51,11 +51,18 @@
 //! Idle skipping: [`Cpu::run`] executes a `DJNZ Rn,$` or `DJNZ direct,$` delay loop in closed
 //! form, never past `until` and, when interrupts are enabled, never past the next timer overflow
 //! or serial event nor while a request waits out the instruction after RETI or an IE/IP write,
-//! so the result is exactly that of stepping (pins change only between calls). For other idle loops (polling a
-//! flag that only an interrupt or a pin changes) a caller can compare the core with a copy taken
-//! at the loop head ([`Cpu::same_state`]: equal snapshots, pins, no timer or serial event under
-//! way): then the loop repeats unchanged until an input changes something, and
-//! [`Cpu::skip_cycles`] moves the cycle count over as many turns as it likes.
+//! so the result is exactly that of stepping (pins change only between calls). For other idle loops
+//! (polling a flag that only an interrupt, a timer or a pin changes) a caller compares the core
+//! after one turn with a copy taken at the loop head and let the same cycles pass
+//! ([`Cpu::idle`], [`Cpu::same_but_time`]): when they agree, no timer count was read
+//! ([`Cpu::time_reads`]) and no event fell due on the way ([`Cpu::next_event`]), every later
+//! turn does the same until the next event, and [`Cpu::idle`] passes as many whole turns as come
+//! before it.
+//!
+//! Watched inputs and outputs: a caller that drives pins and analog inputs from a world it
+//! brings up to date only now and then names them ([`Cpu::watch`]); [`Cpu::run`] then stops
+//! before an instruction would read them once their levels no longer hold, and after an
+//! instruction changes a watched latch ([`RunEnd::InputsDue`], [`RunEnd::OutputChanged`]).
 
 #![warn(missing_docs)]
 
@@ -66,7 +73,7 @@ mod error;
 pub mod hex;
 
 pub use cpu::cc03::XRAM_BYTES;
-pub use cpu::{Cpu, RunEnd, Snapshot, Step, XAccess};
+pub use cpu::{ADC_LEAD, Cpu, RunEnd, Snapshot, Step, Watched, XAccess};
 pub use disasm::disasm;
 pub use error::Error;
 pub use hex::Image;

@@ -236,19 +236,39 @@ fn adc_conversion_time_result_and_interrupt() {
 }
 
 #[test]
-fn a_loop_waiting_for_adeoc_is_not_idle_during_the_conversion() {
+fn a_loop_waiting_for_adeoc_turns_the_same_until_the_conversion_ends() {
     // MOV ADCON,#28h; wait: MOV A,ADCON; JNB ACC.4,wait; SJMP $.
     let mut c = cpu(&[(0, &[0x75, 0xF3, 0x28, 0xE5, 0xF3, 0x30, 0xE4, 0xFB, 0x80, 0xFE])]);
-    c.step(&mut NoXdata).unwrap();
+    // The start, then a first turn (which loads A).
+    steps(&mut c, &mut NoXdata, 3);
     let head = c.clone();
     steps(&mut c, &mut NoXdata, 2);
     assert_eq!(c.pc(), head.pc());
-    assert!(!c.same_state(&head), "a conversion is under way");
-    // After the end (PRS 0: 11 * 4 * 32 / 6 = 235 cycles), the SJMP $ loop is idle.
-    c.run(&mut NoXdata, 400).unwrap();
+    // One turn is 3 cycles, and the same as 3 cycles passing idle: the conversion's end
+    // (PRS 0: 11 * 4 * 32 / 6 = 235 cycles after the start, which the write makes after the
+    // first of its two cycles) is the next event.
+    let mut idle = head.clone();
+    idle.idle(3);
+    assert!(c.same_but_time(&idle));
+    assert_eq!(head.next_event(), 1 + 235);
+    // Passing whole turns up to the event and stepping on gives what stepping all the way does.
+    let mut skipped = c.clone();
+    skipped.idle(3 * 75);
+    while skipped.cycles() < 260 {
+        skipped.step(&mut NoXdata).unwrap();
+    }
+    while c.cycles() < skipped.cycles() {
+        c.step(&mut NoXdata).unwrap();
+    }
+    assert_eq!(c.snapshot(), skipped.snapshot());
+    assert_eq!(c.pc(), 8, "out of the loop at SJMP $");
+    // After the end the SJMP $ loop turns with nothing under way.
     let head = c.clone();
     c.step(&mut NoXdata).unwrap();
-    assert!(c.same_state(&head));
+    let mut idle = head.clone();
+    idle.idle(2);
+    assert!(c.same_but_time(&idle));
+    assert_eq!(c.next_event(), u64::MAX);
 }
 
 #[test]

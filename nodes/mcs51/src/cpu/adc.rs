@@ -13,6 +13,8 @@
 //!
 //! The analog inputs are codes 0..=1023 the caller sets ([`Cpu::set_analog`], or
 //! [`Cpu::set_analog_millivolts`] with VREF). A conversion samples its channel when it ends.
+//! A channel may have an analog multiplexer in front of it ([`Cpu::set_analog_mux`]): a port
+//! pin's latch then selects which of two inputs the conversion samples, as it ends.
 //! A start with ADEN clear converts nothing (ADSST reads 0). ADCF (which P1 pins are analog) is
 //! stored; a channel converts whatever ADCF says. PSIDLE (pseudo-idle during the conversion for
 //! best precision) is stored: the CPU is not stopped, results and timing are the same.
@@ -85,7 +87,16 @@ impl Cpu {
         }
         self.adc_end = u64::MAX;
         let con = self.sfr[(ADCON - 0x80) as usize];
-        let code = self.analog[(con & 7) as usize];
+        let channel = (con & 7) as usize;
+        let code = match self.mux[channel] {
+            Some((port, bit)) if self.sfr[usize::from(port) * 0x10] >> bit & 1 != 0 => {
+                self.analog_high[channel]
+            }
+            _ => self.analog[channel],
+        };
+        if self.watched.channels & (1 << channel) != 0 {
+            self.input_reads += 1;
+        }
         self.sfr[(ADDH - 0x80) as usize] = (code >> 2) as u8;
         self.sfr[(ADDL - 0x80) as usize] = (code & 3) as u8;
         self.sfr[(ADCON - 0x80) as usize] = (con & !ADSST) | ADEOC;

@@ -4,6 +4,8 @@
 //! Addresses and bits follow the AT89C51CC03 data sheet (SFR mapping table; sections "Expanded
 //! RAM (XRAM)", "X2 Feature", "Hardware Watchdog Timer", "Interrupt System").
 
+use std::sync::Arc;
+
 use super::{Cpu, IE, IP, P1, P3, SBUF, SCON, TCON, TH0, TH1, TL0, TL1, TMOD, XAccess};
 use super::{adc, timer2};
 use crate::Xdata;
@@ -124,6 +126,16 @@ impl Cpu {
         clocks + cycle.saturating_sub(cycles) * self.clocks_per_cycle()
     }
 
+    /// Oscillator clocks at machine cycle `cycle` at the present X2 setting (`u64::MAX` past
+    /// the end of the count).
+    pub fn clocks_at_cycle(&self, cycle: u64) -> u64 {
+        let (cycles, clocks) = self.clock_base;
+        cycle
+            .saturating_sub(cycles)
+            .saturating_mul(self.clocks_per_cycle())
+            .saturating_add(clocks)
+    }
+
     /// How many times the watchdog has reset the core.
     pub fn watchdog_resets(&self) -> u64 {
         self.wdt_resets
@@ -156,7 +168,9 @@ impl Cpu {
 
     pub(crate) fn movx_write(&mut self, x: &mut dyn Xdata, addr: u16, value: u8) {
         if self.in_xram(addr) {
-            self.xram[addr as usize] = value;
+            if self.xram[addr as usize] != value {
+                Arc::make_mut(&mut self.xram)[addr as usize] = value;
+            }
             return;
         }
         x.write(addr, value);

@@ -78,9 +78,12 @@ impl Cpu {
     fn cc03_choice(&self) -> Option<(usize, u8)> {
         let r = |a: u8| self.sfr[(a - 0x80) as usize];
         let (tcon, scon, ext) = (r(TCON), r(SCON), self.ext_irq);
+        // Most instructions find no request flag up at all: they pay only for this.
+        if (tcon & 0xAA) | (scon & 0x03) | (r(T2CON) & 0xC0) | (r(ADCON) & 0x10) | ext == 0 {
+            return None;
+        }
         let bit = |on: bool, n: u8| u8::from(on) << n;
-        // Requests at their enable bits' positions in IEN0 and IEN1: most instructions find
-        // none enabled, and pay only for this.
+        // Requests at their enable bits' positions in IEN0 and IEN1.
         let ien0 = bit(tcon & 0x02 != 0, 0)
             | bit(tcon & 0x20 != 0, 1)
             | bit(tcon & 0x08 != 0, 2)

@@ -9,9 +9,11 @@ mod sfrs;
 mod timer2;
 mod timers;
 mod types;
+mod watch;
 
 pub(crate) use sfrs::*;
 pub use types::{RunEnd, Snapshot, Step, XAccess};
+pub use watch::{ADC_LEAD, Watched};
 
 use crate::decode::{Ins, OPS};
 use crate::{Error, Image, Variant, Xdata};
@@ -59,7 +61,7 @@ pub struct Cpu {
     /// SFRs brought up to date with the timers before an access.
     pub(crate) timed: &'static [bool; 128],
     /// On-chip XRAM (AT89C51CC03), empty otherwise; its presence marks that variant.
-    pub(crate) xram: Vec<u8>,
+    pub(crate) xram: Arc<Vec<u8>>,
     /// Outside interrupt requests ([`Xdata::irq`]) as last read.
     pub(crate) ext_irq: u8,
     /// The executing instruction reached an SFR through the hook.
@@ -67,6 +69,23 @@ pub struct Cpu {
     /// Cycle at which the ADC conversion under way ends (u64::MAX: none).
     pub(crate) adc_end: u64,
     pub(crate) analog: [u16; 8],
+    /// Each channel's multiplexer: the port and bit whose latch selects `analog_high`.
+    pub(crate) mux: [Option<(u8, u8)>; 8],
+    pub(crate) analog_high: [u16; 8],
+    /// What the caller drives and reads (see [`watch`]).
+    pub(crate) watched: Watched,
+    /// The first machine cycle at which the watched inputs no longer hold (u64::MAX: always).
+    pub(crate) stale_from: u64,
+    /// The last instruction changed a watched latch bit.
+    pub(crate) output_changed: bool,
+    pub(crate) input_reads: u64,
+    pub(crate) time_reads: u64,
+    /// [`Cpu::run`] stops when an instruction leaves the PC here (u32::MAX: never).
+    pub(crate) stop_pc: u32,
+    /// The cycle of the last timer, serial, ADC or watchdog event that took effect.
+    pub(crate) last_event: u64,
+    /// The cycle at which the caller last set the watched inputs.
+    pub(crate) served_at: u64,
     /// Cycle at which the watchdog resets the core (u64::MAX: not running).
     pub(crate) wdt_deadline: u64,
     /// The last WDTRST write was 1Eh.
@@ -113,15 +132,26 @@ impl Cpu {
             } else {
                 &TIMED
             },
-            xram: if variant == Variant::At89c51cc03 {
+            // Shared by the copies a caller keeps, copied on the first write after one is taken.
+            xram: Arc::new(if variant == Variant::At89c51cc03 {
                 vec![0; cc03::XRAM_BYTES]
             } else {
                 Vec::new()
-            },
+            }),
             ext_irq: 0,
             hooked: false,
             adc_end: u64::MAX,
             analog: [0; 8],
+            mux: [None; 8],
+            analog_high: [0; 8],
+            watched: Watched::default(),
+            stale_from: u64::MAX,
+            output_changed: false,
+            input_reads: 0,
+            time_reads: 0,
+            stop_pc: u32::MAX,
+            last_event: 0,
+            served_at: 0,
             wdt_deadline: u64::MAX,
             wdt_armed: false,
             wdt_resets: 0,
@@ -203,41 +233,9 @@ impl Cpu {
             iram: self.iram,
             sfr: self.sfr(),
             in_service: self.in_service,
-            xram: self.xram.clone(),
+            xram: self.xram.to_vec(),
             analog: self.analog,
         }
-    }
-
-    /// True when `other` is in the same state as `self` but for the cycle count: the same
-    /// [`Snapshot`] (XRAM and analog inputs included), pin levels, outside interrupt requests
-    /// and interrupt inhibit, and neither has a timer, the serial port, an ADC conversion or
-    /// the watchdog under way (each is an event to come). A loop that comes back to such a state repeats for ever until an input
-    /// changes it, so its cycles can be skipped ([`Cpu::skip_cycles`]).
-    pub fn same_state(&self, other: &Cpu) -> bool {
-        self.next_event == u64::MAX
-            && other.next_event == u64::MAX
-            && self.tx == Tx::Idle
-            && other.tx == Tx::Idle
-            && self.fault == other.fault
-            && self.ext == other.ext
-            && self.inhibit == other.inhibit
-            && self.ext_irq == other.ext_irq
-            && self.pc == other.pc
-            && self.in_service == other.in_service
-            && self.iram == other.iram
-            && self.sfr() == other.sfr()
-            && self.xram == other.xram
-            && self.analog == other.analog
-    }
-
-    /// Moves the cycle count on by `cycles` with nothing else changing, for a caller that found
-    /// the core in a loop that changes nothing ([`Cpu::same_state`]). Counted in
-    /// [`Cpu::skipped_cycles`].
-    pub fn skip_cycles(&mut self, cycles: u64) {
-        self.sync(self.cycles);
-        self.cycles = self.cycles.saturating_add(cycles);
-        self.synced = self.cycles;
-        self.skipped = self.skipped.saturating_add(cycles);
     }
 
     /// Bytes written to SBUF since the last call.
@@ -303,16 +301,28 @@ impl Cpu {
                 self.watchdog_reset();
                 return Ok(RunEnd::WatchdogReset);
             }
+            if self.cycles >= self.stale_from && self.inputs_due() {
+                self.sync(self.cycles);
+                return Ok(RunEnd::InputsDue);
+            }
             self.xaccess = None;
             self.hooked = false;
             if self.poll_interrupt()?.is_some() {
                 continue;
             }
             let op = self.code[self.pc as usize];
-            if matches!(OPS[op as usize].ins, Ins::Djnz) && self.skip_delay_loop(until) {
+            if matches!(OPS[op as usize].ins, Ins::Djnz) && self.skip_delay_loop(self.djnz_bound(until)) {
                 continue;
             }
             self.execute(x)?;
+            if let Some(end) = self.watch_stop() {
+                self.sync(self.cycles);
+                return Ok(end);
+            }
+            if u32::from(self.pc) == self.stop_pc {
+                self.sync(self.cycles);
+                return Ok(RunEnd::AtPc);
+            }
             if let Some(XAccess::Write { addr, value }) = self.xaccess {
                 self.sync(self.cycles);
                 return Ok(RunEnd::XdataWrite { addr, value });
@@ -360,9 +370,18 @@ impl Cpu {
         }
         if self.timed[i] {
             self.sync(self.effect_at);
+            if matches!(addr, TL0 | TH0 | TL1 | TH1 | timer2::TL2 | timer2::TH2) {
+                self.time_reads += 1;
+            }
         }
         match addr {
-            P0 | P1 | P2 | P3 if pins => self.pins(((addr - 0x80) >> 4) as usize),
+            P0 | P1 | P2 | P3 if pins => {
+                let port = ((addr - 0x80) >> 4) as usize;
+                if self.watched.pins[port] != 0 {
+                    self.input_reads += 1;
+                }
+                self.pins(port)
+            }
             PSW => self.psw(),
             _ => self.sfr[(addr - 0x80) as usize],
         }
@@ -378,6 +397,9 @@ impl Cpu {
             return;
         }
         if !self.timed[i] {
+            if addr & 0xCF == 0x80 {
+                self.port_written(((addr - 0x80) >> 4) as usize, self.sfr[i], v);
+            }
             self.sfr[i] = v;
             if cc03::is_interrupt_register(addr) {
                 self.inhibit = true;
@@ -389,6 +411,7 @@ impl Cpu {
             SBUF => self.transmit(v),
             P3 => {
                 let before = self.pins(3);
+                self.port_written(3, self.sfr[i], v);
                 self.sfr[i] = v;
                 self.p3_changed(before);
             }

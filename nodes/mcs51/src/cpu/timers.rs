@@ -38,6 +38,9 @@ impl Cpu {
 
     /// Brings timers and the serial transmitter up to cycle `to`.
     pub(crate) fn sync(&mut self, to: u64) {
+        if to >= self.next_event {
+            self.last_event = self.next_event;
+        }
         if to > self.synced {
             let n = to - self.synced;
             self.synced = to;

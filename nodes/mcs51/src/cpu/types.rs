@@ -49,6 +49,13 @@ pub enum RunEnd {
     /// The instruction just executed switched X2 mode: [`Cpu::clocks_per_cycle`] changed, so
     /// a caller that maps cycles to time recomputes its target (AT89C51CC03).
     ClockChanged,
+    /// The next instruction would read watched inputs whose levels no longer hold
+    /// ([`crate::Cpu::inputs_due`]): the caller sets them, then runs on.
+    InputsDue,
+    /// The instruction just executed changed a watched latch bit ([`crate::Watched`]).
+    OutputChanged,
+    /// The instruction just executed left the PC where [`crate::Cpu::stop_at_pc`] asked.
+    AtPc,
 }
 
 /// The state that decides what the core does next (everything but the cycle count and the
