@@ -17,6 +17,9 @@ impl Environment for Plant {
     fn write(&mut self, port: Port, value: f64) -> bool {
         self.write_port(port, value)
     }
+    fn next_change(&self, t: BusTime) -> BusTime {
+        Plant::next_step(self, t)
+    }
 }
 
 /// The plant's signal names, for validating scripts.

@@ -68,6 +68,11 @@ impl CanController {
         self.pending.take()
     }
 
+    /// The time of the last [`set_time`](CanController::set_time), in CAN clock periods.
+    pub fn time(&self) -> u64 {
+        self.now
+    }
+
     /// The time now, in CAN clock periods since power-on. The CAN timer counts while the
     /// controller is enabled, one tick every 6 · (CANTCON + 1) periods; passing 0xFFFF to 0
     /// sets OVRTIM. Times earlier than the last one are ignored.

@@ -4,9 +4,10 @@
 //! give the same state.
 
 use super::spec::{CHIP_WINDOW, ChipSpec, FirmwareSpec};
-use bus::at89c51cc::CanController;
+use bus::at89c51cc::{CanController, sfr};
 use bus::sja1000::{Action, BusSide, Sja1000};
 use mcs51::{Cpu, RunEnd, Xdata};
+use smallvec::SmallVec;
 
 /// A CAN controller where the CPU reaches it.
 #[derive(Clone, Debug, PartialEq)]
@@ -108,11 +109,12 @@ pub(crate) struct Request {
 /// stopped.
 #[derive(Clone, Debug)]
 pub(crate) struct Board {
-    pub chips: Vec<Chip>,
+    /// Inline: a machine is copied at every look and checkpoint, and most have one chip.
+    pub chips: SmallVec<[Chip; 1]>,
     pub actions: Vec<Request>,
     /// Each chip's interrupt outputs ([`Chip::requests`]) as of its last change: the core asks
     /// for them after every hooked access, and working them out takes a look at every channel.
-    requests: Vec<u8>,
+    requests: SmallVec<[u8; 2]>,
     /// The bus's bit rate, to tell whether a controller's timing reads it.
     bitrate_hz: f64,
     /// Something the CPU must see before it goes on: a chip asked for the bus or moved its
@@ -121,6 +123,13 @@ pub(crate) struct Board {
     /// Writes to the on-chip controller's registers since power-on: where two states show the
     /// same count, the firmware configured nothing in between.
     pub can_writes: u64,
+    /// Writes to the registers that decide which frames the on-chip controller takes (CANGCON,
+    /// and a channel's CANCONCH, CANIDT, CANIDM) since power-on: where two states show the same
+    /// count, a frame is taken or not alike in both.
+    pub filter_writes: u64,
+    /// Reads of the on-chip controller's timers (CANTIM, CANTTC) since power-on: a loop that
+    /// reads one does not turn the same way twice.
+    pub time_reads: u64,
 }
 
 /// The state, the write count aside (a loop that writes the same values repeats all the same).
@@ -199,6 +208,9 @@ impl Xdata for Board {
     fn sfr_read(&mut self, addr: u8) -> Option<u8> {
         let (i, can) = self.on_chip()?;
         let value = can.sfr_read(addr)?;
+        if matches!(addr, sfr::CANTIML | sfr::CANTIMH | sfr::CANTTCL | sfr::CANTTCH) {
+            self.time_reads += 1;
+        }
         self.after(i);
         Some(value)
     }
@@ -211,6 +223,9 @@ impl Xdata for Board {
             return false;
         }
         self.can_writes += 1;
+        if matches!(addr, sfr::CANGCON | sfr::CANCONCH | 0xBC..=0xBF | 0xC4..=0xC7) {
+            self.filter_writes += 1;
+        }
         self.after(i);
         true
     }
@@ -245,6 +260,21 @@ pub(crate) struct Machine {
     pub board: Board,
     /// The CPU's writes to chip registers since the log was last taken, when they are logged.
     pub writes: Option<Vec<Write>>,
+    /// The CPU stopped for its wires to the plant: the next instruction reads inputs whose
+    /// levels no longer hold, or the last one changed an output ([`mcs51::Watched`]).
+    pub plant_stop: bool,
+}
+
+/// One turn of a loop that turns the same way until something happens
+/// ([`Machine::repeats`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Turn {
+    /// Its length, oscillator clocks.
+    pub clocks: u64,
+    /// Its length, machine cycles.
+    pub cycles: u64,
+    /// It reads wired inputs: it turns the same way only while their levels hold.
+    pub reads_inputs: bool,
 }
 
 impl Machine {
@@ -253,7 +283,7 @@ impl Machine {
     pub fn new(spec: &FirmwareSpec, bitrate_hz: f64) -> Machine {
         let mut cpu = Cpu::new(spec.variant, &spec.image);
         cpu.set_pc(spec.entry);
-        let chips: Vec<Chip> = spec.chips.iter().map(|c| Chip::new(c, spec.clock_hz)).collect();
+        let chips: SmallVec<[Chip; 1]> = spec.chips.iter().map(|c| Chip::new(c, spec.clock_hz)).collect();
         let mut m = Machine {
             cpu,
             board: Board {
@@ -263,8 +293,11 @@ impl Machine {
                 bitrate_hz,
                 stop: false,
                 can_writes: 0,
+                filter_writes: 0,
+                time_reads: 0,
             },
             writes: None,
+            plant_stop: false,
         };
         m.sync_pins();
         m
@@ -275,10 +308,63 @@ impl Machine {
         self.cpu.clocks()
     }
 
-    /// The same state, the clock count aside: a loop that comes back to it repeats for ever
-    /// until an input changes something.
-    pub fn same_state(&self, other: &Machine) -> bool {
-        self.cpu.same_state(&other.cpu) && self.board == other.board
+    /// `self` being `head` one turn of a loop later: the turn, when every later turn will do
+    /// the same as this one up to the next event ([`Machine::next_change`]). That holds when
+    /// the turn read no timer count (the CPU's or the CAN controller's), no event fell due
+    /// during it, and the state is the head's with the turn's time passed on it, nothing
+    /// executed (the timers counted; both told the on-chip controller the time).
+    pub fn repeats(&mut self, head: Machine) -> Option<Turn> {
+        if self.cpu.time_reads() != head.cpu.time_reads()
+            || self.board.time_reads != head.board.time_reads
+            || self.board.can_writes != head.board.can_writes
+            || head.next_change() <= self.clocks()
+            || self.plant_stop
+        {
+            return None;
+        }
+        let turn = Turn {
+            clocks: self.clocks() - head.clocks(),
+            cycles: self.cpu.cycles() - head.cpu.cycles(),
+            reads_inputs: self.cpu.input_reads() != head.cpu.input_reads(),
+        };
+        let mut passed = head;
+        passed.pass(turn, 1);
+        self.sync_chip_time();
+        (passed.cpu.same_but_time(&self.cpu) && passed.board == self.board).then_some(turn)
+    }
+
+    /// Passes `turns` turns of a loop found by [`Machine::repeats`] without executing them:
+    /// only for a machine at the loop's head, and not up to [`Machine::next_change`].
+    pub fn pass(&mut self, turn: Turn, turns: u64) {
+        self.cpu.idle(turn.cycles.saturating_mul(turns));
+        self.sync_chip_time();
+    }
+
+    /// Tells the on-chip controller the time. Its time moves lazily, when the CPU reaches it,
+    /// and nothing it shows depends on when it was told: two machines at one clock compare
+    /// alike once both were told.
+    pub fn sync_chip_time(&mut self) {
+        let clocks = self.cpu.clocks();
+        if let Some((i, can)) = self.board.on_chip() {
+            // F_CAN = F_OSC / 2.
+            can.set_time(clocks / 2);
+            self.board.refresh(i);
+        }
+    }
+
+    /// The first oscillator clock at which something may change what a loop does: the CPU's
+    /// next timer, serial, ADC or watchdog event, or the CAN timer's overflow
+    /// ([`Machine::timer_due`]); `u64::MAX` when none is coming.
+    pub fn next_change(&self) -> u64 {
+        let cpu = match self.cpu.next_event() {
+            u64::MAX => u64::MAX,
+            cycle => self.cpu.clocks().saturating_add(
+                cycle
+                    .saturating_sub(self.cpu.cycles())
+                    .saturating_mul(self.cpu.clocks_per_cycle()),
+            ),
+        };
+        cpu.min(self.timer_due().unwrap_or(u64::MAX))
     }
 
     /// The oscillator clock at which the on-chip controller's CAN timer next overflows while
@@ -306,14 +392,6 @@ impl Machine {
             can.set_time(clocks / 2);
             self.board.refresh(i);
         }
-    }
-
-    /// Moves the clock count on by `clocks` without executing anything: only for a machine in a
-    /// loop whose whole state repeats (see [`Machine::same_state`]), and not past
-    /// [`Machine::timer_due`].
-    pub fn skip_clocks(&mut self, clocks: u64) {
-        let cycles = clocks / self.cpu.clocks_per_cycle();
-        self.cpu.skip_cycles(cycles);
     }
 
     /// Drives the interrupt pins from the SJA1000s' INT outputs, and tells the on-chip
@@ -375,6 +453,21 @@ impl Machine {
             if let RunEnd::XdataWrite { addr, value } = end {
                 self.log(Some((addr, value)));
             }
+            if end == RunEnd::AtPc {
+                self.catch_up_timer();
+                if self.board.stop {
+                    self.sync_pins();
+                }
+                return Ok(());
+            }
+            if matches!(end, RunEnd::InputsDue | RunEnd::OutputChanged) {
+                self.plant_stop = true;
+                self.catch_up_timer();
+                if self.board.stop {
+                    self.sync_pins();
+                }
+                return Ok(());
+            }
             self.catch_up_timer();
             if self.board.stop {
                 self.sync_pins();
@@ -389,11 +482,22 @@ impl Machine {
         Ok(())
     }
 
+    /// [`Machine::run`], stopping also after an instruction that leaves the PC at `pc`.
+    pub fn run_to_pc(&mut self, until: u64, pc: u16) -> Result<(), mcs51::Error> {
+        self.cpu.stop_at_pc(Some(pc));
+        let r = self.run(until);
+        self.cpu.stop_at_pc(None);
+        r
+    }
+
     /// Executes one instruction (or enters an interrupt), as [`Machine::run`] would.
     pub fn step(&mut self) -> Result<mcs51::Step, mcs51::Error> {
         self.catch_up_timer();
         let step = self.cpu.step(&mut self.board)?;
         self.catch_up_timer();
+        if self.cpu.take_output_changed() {
+            self.plant_stop = true;
+        }
         if let Some(mcs51::XAccess::Write { addr, value }) = step.xdata {
             self.log(Some((addr, value)));
         }
@@ -445,6 +549,7 @@ mod tests {
         code[..READ_P3.len()].copy_from_slice(&READ_P3);
         let spec = FirmwareSpec {
             name: "BENCH".into(),
+            address: None,
             file: "bench.ron".into(),
             image: Arc::new(mcs51::Image {
                 code,
@@ -465,6 +570,7 @@ mod tests {
             vref_mv: 0,
             analog: Vec::new(),
             pins: Vec::new(),
+            dacs: Vec::new(),
             skip_idle_loops: false,
         };
         let mut m = Machine::new(&spec, 30_000.0);

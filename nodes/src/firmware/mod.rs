@@ -27,6 +27,7 @@ mod wiring;
 pub use dump::hex;
 pub use node::{CHUNK, CpuTrace, FirmwareNode};
 pub use spec::{
-    CHIP_WINDOW, ChipSpec, FirmwareSpec, MAX_CLOCK_HZ, MAX_VREF_MV, MAX_XTAL_HZ, Pin, Reader, load,
+    CHIP_WINDOW, ChipSpec, FirmwareSpec, MAX_CLOCK_HZ, MAX_CONFIG, MAX_VREF_MV, MAX_XTAL_HZ, Pin, Reader,
+    load,
 };
-pub use wires::{AnalogWire, Direction, PinWire};
+pub use wires::{AnalogWire, DacWire, Direction, PinWire};

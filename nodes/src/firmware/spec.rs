@@ -2,7 +2,7 @@
 //! (SJA1000s in its external data space, each in a window of its own, and the AT89C51CC03's
 //! own), and which plant signals its analog inputs and port pins are wired to.
 
-use super::wires::{self, AnalogFile, AnalogWire, At, PinFile, PinWire};
+use super::wires::{self, AnalogFile, AnalogWire, At, DacFile, DacWire, PinFile, PinWire};
 use crate::{Error, Problem, parse_ron};
 use bus::time::BusDuration;
 use serde::Deserialize;
@@ -14,9 +14,13 @@ use std::sync::Arc;
 #[serde(deny_unknown_fields, rename = "Firmware")]
 struct File {
     name: String,
+    #[serde(default)]
+    address: Option<u8>,
     image: String,
     #[serde(default)]
     entry: Option<u16>,
+    #[serde(default)]
+    config: Option<ConfigFile>,
     cpu: CpuFile,
     #[serde(default)]
     controllers: Vec<ControllerFile>,
@@ -24,7 +28,21 @@ struct File {
     analog: Vec<AnalogFile>,
     #[serde(default)]
     pins: Vec<PinFile>,
+    #[serde(default)]
+    dacs: Vec<DacFile>,
 }
+
+/// Bytes the node file places in code memory beside the image: the node's own settings
+/// (address, identifiers, channel wiring) for an image that serves every node of its kind.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ConfigFile {
+    at: u16,
+    bytes: Vec<u8>,
+}
+
+/// The longest configuration block taken, bytes.
+pub const MAX_CONFIG: usize = 256;
 
 #[derive(Clone, Copy, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -122,9 +140,12 @@ pub const CHIP_WINDOW: u32 = 0x100;
 pub struct FirmwareSpec {
     /// Node name (traces, `--without`, state dumps).
     pub name: String,
+    /// The harvester address its firmware uses, when the node file says: no two nodes of a
+    /// harvester may claim one.
+    pub address: Option<u8>,
     /// The node file, for messages.
     pub file: String,
-    /// The image.
+    /// The image, with the node file's configuration block in place.
     pub image: Arc<mcs51::Image>,
     /// Where execution starts after reset.
     pub entry: u16,
@@ -143,6 +164,8 @@ pub struct FirmwareSpec {
     pub analog: Vec<AnalogWire>,
     /// Port pins wired to the plant.
     pub pins: Vec<PinWire>,
+    /// DACs on whole ports driving plant inputs.
+    pub dacs: Vec<DacWire>,
     /// Skip work that changes nothing: loops whose whole state repeats, and frames the
     /// on-chip controller would not take (always, but for a benchmark or a test that measures
     /// or checks what the skipping saves).
@@ -228,6 +251,20 @@ pub fn load(file: &str, path: &Path, text: &str, read: Reader) -> Result<Firmwar
         })
         .collect();
     let pins = wires::pins(&f.pins, &irq_pins, text, &at, &mut problems);
+    // A multiplexer's select pin is the firmware's: no plant signal may drive it.
+    let mut taken: Vec<(u8, u8)> = pins.iter().map(|p| (p.port, p.bit)).collect();
+    for (i, a) in analog.iter().enumerate() {
+        if let Some((port, bit, _)) = &a.while_high {
+            if taken.contains(&(*port, *bit)) || irq_pins.contains(&(*port, *bit)) {
+                problems.push(at(
+                    &format!("analog[{i}].while_high.pin"),
+                    format!("P{port}.{bit} is wired to something else already"),
+                ));
+            }
+            taken.push((*port, *bit));
+        }
+    }
+    let dacs = wires::dacs(&f.dacs, &taken, text, &at, &mut problems);
     let image_path = path.parent().unwrap_or(Path::new("")).join(&f.image);
     let image = match read(&image_path) {
         Err(e) => {
@@ -235,7 +272,7 @@ pub fn load(file: &str, path: &Path, text: &str, read: Reader) -> Result<Firmwar
             None
         }
         Ok((name, hex)) => match mcs51::hex::parse(&hex, code_bytes.clamp(1, 0x10000) as usize) {
-            Ok(image) => Some(image),
+            Ok(image) => configure(image, f.config.as_ref(), &name, &at, &mut problems),
             Err(e) => {
                 problems.push(Problem {
                     node: Some(f.name.clone()),
@@ -248,6 +285,7 @@ pub fn load(file: &str, path: &Path, text: &str, read: Reader) -> Result<Firmwar
     match (image, clock) {
         (Some(image), Some(clock)) if problems.is_empty() => Ok(FirmwareSpec {
             name: f.name,
+            address: f.address,
             file: file.to_string(),
             image: Arc::new(image),
             entry: f.entry.unwrap_or(0),
@@ -258,10 +296,66 @@ pub fn load(file: &str, path: &Path, text: &str, read: Reader) -> Result<Firmwar
             vref_mv,
             analog,
             pins,
+            dacs,
             skip_idle_loops: true,
         }),
         _ => Err(Error::Invalid(problems)),
     }
+}
+
+/// Places the configuration block in the image: it must fit the code memory and leave every
+/// byte the image writes alone (a block over code would patch the program).
+fn configure(
+    mut image: mcs51::Image,
+    config: Option<&ConfigFile>,
+    image_name: &str,
+    at: At,
+    problems: &mut Vec<Problem>,
+) -> Option<mcs51::Image> {
+    let Some(c) = config else {
+        return Some(image);
+    };
+    let start = u32::from(c.at);
+    let end = start + c.bytes.len() as u32;
+    let size = image.code.len() as u32;
+    if c.bytes.is_empty() || c.bytes.len() > MAX_CONFIG {
+        problems.push(at(
+            "config.bytes",
+            format!(
+                "{} bytes: a configuration block is 1 to {MAX_CONFIG} bytes",
+                c.bytes.len()
+            ),
+        ));
+        return None;
+    }
+    if end > size {
+        problems.push(at(
+            "config.at",
+            format!(
+                "{:04X}h to {:04X}h: past the end of the chip's {size}-byte code memory",
+                start,
+                end - 1
+            ),
+        ));
+        return None;
+    }
+    if let Some(r) = image.written.iter().find(|r| r.start < end && start < r.end) {
+        problems.push(at(
+            "config.at",
+            format!(
+                "{:04X}h to {:04X}h overlaps what {image_name} writes at {:04X}h to {:04X}h",
+                start,
+                end - 1,
+                r.start,
+                r.end - 1
+            ),
+        ));
+        return None;
+    }
+    image.code[start as usize..end as usize].copy_from_slice(&c.bytes);
+    image.written.push(start..end);
+    image.written.sort_by_key(|r| r.start);
+    Some(image)
 }
 
 /// The highest ADC reference taken, mV.

@@ -192,6 +192,15 @@ impl Plant {
         }
     }
 
+    /// The first grid time after `t`: when the outputs next change.
+    pub fn next_step(&self, t: BusTime) -> BusTime {
+        if t == BusTime::NEVER {
+            return BusTime::NEVER;
+        }
+        let next = (t.elapsed() / self.step).saturating_add(1);
+        self.step.checked_mul(next).map_or(BusTime::NEVER, BusTime::at)
+    }
+
     /// The last grid time reached.
     pub fn now(&self) -> BusTime {
         BusTime::at(self.step * self.model.state.steps)

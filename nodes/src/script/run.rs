@@ -24,6 +24,11 @@ pub trait Environment {
     fn read(&self, port: Port) -> Option<f64>;
     /// Sets an input; false when the port is not an input's or the value not one it takes.
     fn write(&mut self, port: Port, value: f64) -> bool;
+    /// The first time after `t` at which a signal may change on its own (the plant's next
+    /// step); `BusTime::NEVER` when signals change only when someone writes or overrides them.
+    fn next_change(&self, _t: BusTime) -> BusTime {
+        BusTime::NEVER
+    }
 }
 
 /// A signal of an [`Environment`], resolved from its name ([`Environment::port`]): a number

@@ -361,8 +361,8 @@ pub enum NodeFile {
     Firmware(Arc<FirmwareSpec>),
 }
 
-/// Firmware nodes whose names (or their further chips' names on the bus) clash with each other,
-/// with a script's or with the monitor's.
+/// Firmware nodes whose names (or their further chips' names on the bus) or claimed addresses
+/// clash with each other, with a script's or with the monitor's.
 fn firmware_clashes(
     file: &str,
     scripts: &[NodeScript],
@@ -376,6 +376,8 @@ fn firmware_clashes(
         .zip(places)
         .map(|(s, p)| (s.name.as_str(), p))
         .collect();
+    // Addresses firmware nodes claim (`address:` in their files), with where and who.
+    let mut claimed: std::collections::BTreeMap<u8, (&String, &str)> = Default::default();
     for (f, place) in firmware.iter().zip(firmware_places) {
         let problem = |message: String| Problem {
             file: file.to_string(),
@@ -391,6 +393,23 @@ fn firmware_clashes(
             problems.push(problem(format!(
                 "{other} has the same name: every node needs a name of its own"
             )));
+        }
+        if let Some(address) = f.address {
+            if address == Address::MONITOR.0 {
+                problems.push(problem("takes the monitor's address F5".into()));
+            }
+            let owner = scripts
+                .iter()
+                .zip(places)
+                .find(|(s, _)| s.address == address)
+                .map(|(s, p)| (p, s.name.as_str()))
+                .or_else(|| claimed.get(&address).copied());
+            if let Some((other, name)) = owner {
+                problems.push(problem(format!(
+                    "{other} (node {name}) has the same address {address:02X}"
+                )));
+            }
+            claimed.entry(address).or_insert((place, f.name.as_str()));
         }
     }
     // A firmware node's further chips are controllers on the bus with names of their own.

@@ -5,34 +5,46 @@
 //! the AT89C51CC03's X2 mode. The CPU runs ahead of the bus optimistically: after every input
 //! it runs on from the present, keeping a copy of its state every [`CHUNK`] clocks or more
 //! (about sixteen copies a run), until a chip asks the bus for something (a transmit request, a
-//! mode change), until a horizon, or until it is found in a loop whose whole state repeats. It asks
-//! to be woken when it stopped. An input that arrives before that moment (a frame, a
-//! confirmation) sends it back to the last copy before the input, from where it runs to the
-//! input's moment again: so it never acts on what it could not yet have read, and a run is the
-//! same every time. A frame that the on-chip controller would not take, while the run ahead
-//! writes none of its registers, changes nothing and sends nothing back.
+//! mode change), until the CPU stops for the plant (below), until a horizon, or until it is found
+//! in a loop whose turns repeat. It asks to be woken when it stopped. An input that arrives
+//! before that moment (a frame, a confirmation) sends it back to the last copy before the
+//! input, from where it runs to the input's moment again: so it never acts on what it could not
+//! yet have read, and a run is the same every time. A frame that the on-chip controller would
+//! not take, while the run ahead writes none of the registers that decide which frames it takes,
+//! changes nothing and sends nothing back.
 //!
-//! A loop whose whole state (CPU, internal RAM, SFRs, the chips) comes back after `P` clocks
-//! changes nothing until an input arrives or the on-chip controller's CAN timer overflows
-//! (OVRTIM): such a node asks to be woken at that overflow only (no wake at all without one),
-//! and an input at clock `n` finds it where `n − c₀` mod `P` clocks into the loop puts it
-//! (whole turns are skipped up to the overflow, the rest is run).
+//! Loops that wait: after an input, and then at growing gaps, the node looks for a loop whose
+//! turns repeat ([`Machine::repeats`]): it runs until the PC comes back, and compares the state
+//! with the one it left with the turn's time passed on it, timers counting. Such a loop does the
+//! same turn after turn until its next change: the CPU's next timer, serial, ADC or watchdog
+//! event, the CAN timer's overflow, or, for a loop that reads the plant, the plant's next step.
+//! The node asks to be woken at the first instruction boundary at or after that change, and an
+//! input or a wake at clock `n` finds it after the whole turns that end before the change (passed
+//! in closed form: timers, the CAN timer and every register exactly as if each cycle had run),
+//! and the rest run. So skipping changes no output, no trace and no state dump.
 //!
 //! Several chips: each is a controller of its own on the bus, controller `k` being chip `k` of
 //! the node file. An input of controller `k` reaches chip `k` at its moment, and each chip's
 //! requests become commands for its own controller; the CPU, its run ahead and its deadline are
 //! the node's, one for all the chips.
 //!
-//! Plant wiring: a node whose ADC channels or port pins are wired to the plant reads them when
-//! an input arrives and at least every [`SAMPLE_MS`] ms (it asks to be woken for it), and
-//! between those moments sees them unchanged; its output pins reach the plant at the same
-//! moments.
+//! Plant wiring: the node serves its wires to the plant when the CPU stops for them
+//! ([`mcs51::Watched`]): before an instruction that may read a wired input pin (one that names
+//! the pin or its port), and at the first instruction boundary within [`mcs51::ADC_LEAD`]
+//! machine cycles of the end of a conversion of a wired ADC channel, once the levels it last
+//! read no longer hold (the plant has stepped since: [`crate::script::Environment::next_change`]);
+//! and after an instruction that changed a wired output latch (an output pin, a DAC's port). It
+//! then drives the plant inputs from its output latches and reads every wired input, at the bus
+//! time of that instruction boundary. So the firmware reads the plant as it stands at that
+//! moment and drives it from the moment its latch changes, whatever its run ahead or its
+//! skipping did; a value a scenario forces between two plant steps reaches it at its first read
+//! after the next step.
 
 mod trace;
 
 pub use trace::CpuTrace;
 
-use super::machine::{Machine, Request};
+use super::machine::{Machine, Request, Turn};
 use super::spec::FirmwareSpec;
 use super::wiring::Wiring;
 use crate::script::SharedEnv;
@@ -40,7 +52,7 @@ use bus::Frame;
 use bus::fault::ErrorState;
 use bus::node::{ControllerCommand, ControllerEvent, HardwareState, NodeLogic};
 use bus::sja1000::{Action, BusSide, ecc_segment};
-use bus::time::{BusDuration, BusTime};
+use bus::time::BusTime;
 use std::collections::VecDeque;
 use std::sync::Arc;
 
@@ -48,18 +60,25 @@ use std::sync::Arc;
 /// that sends the run back costs at most that much again. A long run ahead keeps about
 /// sixteen.
 pub const CHUNK: u64 = 1_200;
-/// Longest stretch of bus time a node wired to the plant goes without reading it, ms.
-pub const SAMPLE_MS: u64 = 1;
 /// Copies kept of a run ahead at its longest horizon.
 const COPIES: u64 = 16;
-/// Most chunks between two looks for a loop whose state repeats, when looks keep finding none.
-const LOOK_BACKOFF: u32 = 64;
+/// The first and the longest gap between two looks for a loop whose turns repeat, oscillator
+/// clocks (100 and 6 400 machine cycles): after an input the node looks at once, then after
+/// gaps that double while looks find none, so that a busy node pays for few looks and one that
+/// goes idle soon after an input is found soon.
+const LOOK_GAP: (u64, u64) = (1_200, 76_800);
 /// The shortest and longest horizon of a run ahead, oscillator clocks (1000 and 64 000 machine
 /// cycles): it doubles while runs ahead are not cut short by an input and halves when they
 /// are, so a node that hears frames often wastes little and a quiet one is seldom woken.
 const HORIZON: (u64, u64) = (12_000, 768_000);
-/// Instructions watched at the start of every chunk for a loop whose state repeats.
-const LOOP_WATCH: usize = 64;
+/// The shortest wait a node parks for, oscillator clocks (1000 machine cycles): a loop that
+/// waits less is run, which costs less than being woken.
+const PARK_MIN: u64 = 12_000;
+/// Turns a look follows, each from where the last came back, before it gives up.
+const LOOK_TURNS: usize = 8;
+/// Longest turn a look waits for, oscillator clocks (50 machine cycles): a PC that has not come
+/// back by then is looked at again from where the CPU got to.
+const LOOK_SPAN: u64 = 600;
 /// Longest piece of a serial line the log takes at once: a longer line goes out in pieces.
 const SERIAL_LINE: usize = 256;
 
@@ -70,8 +89,12 @@ enum Stop {
     Actions,
     /// The horizon.
     Horizon,
-    /// In a loop of this many clocks that changes nothing.
-    Parked(u64),
+    /// In a loop whose turns do the same until the clock `until` (`u64::MAX`: until an input);
+    /// the node asks to be woken at `wake`, the first instruction boundary at or after it.
+    Parked { turn: Turn, until: u64, wake: u64 },
+    /// The CPU waits for the plant: it would read wired inputs whose levels no longer hold, or
+    /// it changed an output.
+    Plant,
     /// The CPU stopped with this fault.
     Failed(String),
 }
@@ -115,14 +138,10 @@ pub struct FirmwareNode {
     states: Vec<ErrorState>,
     serial: Vec<u8>,
     trace: Option<CpuTrace>,
-    /// Chunks to run before the next look for a repeating loop, and how many to wait after a
-    /// look that finds none: a node that is busy (delay loops count their registers down) pays
-    /// for a look seldom, one that idles is found at once.
-    look_in: u32,
-    look_backoff: u32,
-    /// The plant, when its signals are wired to the node, and the next time to read them.
+    /// The plant, when its signals are wired to the node.
     wiring: Option<Wiring>,
-    next_sample: BusTime,
+    /// The run ahead parked: the machine at its wake, as the look for the wake found it.
+    at_wake: Option<Machine>,
 }
 
 impl FirmwareNode {
@@ -150,38 +169,46 @@ impl FirmwareNode {
             states: vec![ErrorState::Active; chips],
             serial: Vec::new(),
             trace: None,
-            look_in: 0,
-            look_backoff: 1,
             wiring: None,
-            next_sample: power_on,
+            at_wake: None,
         };
         node.run_ahead();
         node
     }
 
-    /// Wires the node's ADC channels and port pins to the plant (when its file wires any): it
-    /// reads them now and then at least every [`SAMPLE_MS`] ms of bus time.
+    /// Wires the node's ADC channels, port pins and DACs to the plant (when its file wires
+    /// any): the CPU stops for them as the module docs say.
     pub fn with_plant(mut self, env: SharedEnv) -> FirmwareNode {
-        if self.spec.analog.is_empty() && self.spec.pins.is_empty() {
+        let watched = Wiring::watched(&self.spec);
+        if watched == mcs51::Watched::default() {
             return self;
         }
         self.wiring = Some(Wiring::new(env, &self.spec));
-        let at = self.power_on;
-        self.sample(at);
+        self.now.cpu.watch(watched);
         self.run_ahead();
         self
     }
 
-    /// Reads the plant into `now` when it is time.
-    fn sample(&mut self, at: BusTime) {
+    /// Serves the plant where the CPU stopped for it, at the bus time of that clock.
+    fn serve_plant(&mut self) {
+        self.now.plant_stop = false;
+        let at = self.time_of(self.now.clocks());
         let Some(w) = self.wiring.as_mut() else {
             return;
         };
-        if at < self.next_sample {
-            return;
-        }
-        w.sample(&self.spec, &mut self.now, at);
-        self.next_sample = at.saturating_add(BusDuration::from_millis(SAMPLE_MS));
+        let next = w.serve(&self.spec, &mut self.now, at);
+        // The first machine cycle whose time is at or after the plant's next step.
+        let cycle = if next == BusTime::NEVER {
+            u64::MAX
+        } else {
+            let clock = next
+                .since(self.power_on)
+                .as_ticks()
+                .div_ceil(self.spec.clock.as_ticks().max(1));
+            let per = self.now.cpu.clocks_per_cycle();
+            self.now.cpu.cycles() + clock.saturating_sub(self.now.clocks()).div_ceil(per)
+        };
+        self.now.cpu.inputs_hold_until(cycle);
     }
 
     /// Its spec.
@@ -202,39 +229,61 @@ impl FirmwareNode {
     /// Runs ahead from `now` (see the module docs).
     fn run_ahead(&mut self) {
         self.checkpoints.clear();
+        self.at_wake = None;
         if self.failed.is_some() {
             self.ahead = self.now.clone();
-            self.stop = Stop::Parked(0);
+            self.stop = Stop::Failed(String::new());
             return;
         }
         let mut m = self.now.clone();
         let limit = m.clocks().saturating_add(self.horizon);
         let chunk = (self.horizon / COPIES).max(CHUNK);
-        // An input may have moved the firmware on to a loop that waits: look at once.
-        self.look_in = 0;
+        // An input may have moved the firmware on to a loop that waits: look at once, then
+        // after gaps that double while looks find none.
+        let mut gap = LOOK_GAP.0;
+        let mut look_at = m.clocks();
         self.stop = loop {
             self.checkpoints.push(m.clone());
-            if self.look_in == 0 && self.spec.skip_idle_loops {
-                match find_loop(&mut m) {
+            let target = m.clocks().saturating_add(chunk).min(limit);
+            if self.spec.skip_idle_loops && m.clocks() >= look_at {
+                match find_loop(&mut m, target) {
                     Err(e) => break Stop::Failed(e.to_string()),
-                    Ok(Some(period)) => {
-                        self.look_backoff = 1;
-                        break Stop::Parked(period);
+                    Ok(Some(turn)) => {
+                        let fresh = if turn.reads_inputs {
+                            m.cpu.clocks_at_cycle(m.cpu.stale_from())
+                        } else {
+                            u64::MAX
+                        };
+                        let until = m.next_change().min(fresh);
+                        if until.saturating_sub(m.clocks()) < PARK_MIN {
+                            // A short wait (an ADC conversion) costs less run than a wake.
+                            look_at = m.clocks().saturating_add(gap);
+                            continue;
+                        }
+                        self.at_wake = wake_of(&m, turn, until);
+                        let wake = self.at_wake.as_ref().map_or(until, Machine::clocks);
+                        break Stop::Parked { turn, until, wake };
                     }
-                    Ok(None) if !m.board.actions.is_empty() => break Stop::Actions,
                     Ok(None) => {
-                        self.look_backoff = (self.look_backoff * 2).min(LOOK_BACKOFF);
-                        self.look_in = self.look_backoff;
+                        look_at = m.clocks().saturating_add(gap);
+                        gap = (gap * 2).min(LOOK_GAP.1);
                     }
                 }
-            }
-            self.look_in = self.look_in.saturating_sub(1);
-            let target = m.clocks().saturating_add(chunk).min(limit);
-            if let Err(e) = m.run(target) {
-                break Stop::Failed(e.to_string());
+            } else {
+                let target = if self.spec.skip_idle_loops {
+                    target.min(look_at.max(m.clocks() + 1))
+                } else {
+                    target
+                };
+                if let Err(e) = m.run(target) {
+                    break Stop::Failed(e.to_string());
+                }
             }
             if !m.board.actions.is_empty() {
                 break Stop::Actions;
+            }
+            if m.plant_stop {
+                break Stop::Plant;
             }
             if m.clocks() >= limit {
                 break Stop::Horizon;
@@ -250,12 +299,19 @@ impl FirmwareNode {
         let reached = self.ahead.clocks();
         let (mut machine, path) = match self.stop {
             _ if n <= self.now.clocks() => (self.now.clone(), Path::Here),
-            Stop::Parked(period) if n >= reached && period > 0 => {
-                // Whole turns up to the CAN timer's overflow at most: from there it runs.
-                let skip_to = self.ahead.timer_due().map_or(n, |due| due.min(n));
-                let loops = skip_to.saturating_sub(reached) / period;
+            Stop::Parked { wake, .. } if n == wake && self.at_wake.is_some() => {
+                // Found when it parked: the whole turns, then the rest to the wake.
+                (
+                    self.at_wake.clone().unwrap_or_else(|| self.ahead.clone()),
+                    Path::Skipped,
+                )
+            }
+            Stop::Parked { turn, until, .. } if n >= reached => {
+                // Whole turns that end before the next change: from there it runs.
+                let skip_to = n.min(until.saturating_sub(1));
+                let turns = skip_to.saturating_sub(reached) / turn.clocks.max(1);
                 let mut m = self.ahead.clone();
-                m.skip_clocks(loops * period);
+                m.pass(turn, turns);
                 (m, Path::Skipped)
             }
             _ if n >= reached => (self.ahead.clone(), Path::Ahead),
@@ -273,7 +329,7 @@ impl FirmwareNode {
             _ => None,
         };
         let mut actions = machine.take_actions();
-        while machine.clocks() < n && failed.is_none() {
+        while machine.clocks() < n && failed.is_none() && !machine.plant_stop {
             if let Err(e) = machine.run(n) {
                 failed = Some(e.to_string());
             }
@@ -397,7 +453,19 @@ impl FirmwareNode {
     fn input(&mut self, at: BusTime, chip: usize, events: &[BusSide]) {
         let n = self.clock_at(at);
         self.advance_to(n);
-        self.sample(at);
+        // Stopped for the plant on the way (normally at `n` itself, the wake it asked for), or
+        // woken where the CPU would stop for it.
+        if self.wiring.is_some() && self.now.cpu.inputs_due() {
+            self.now.plant_stop = true;
+        }
+        while self.now.plant_stop && self.failed.is_none() {
+            self.serve_plant();
+            if self.now.clocks() >= n {
+                break;
+            }
+            self.run_ahead();
+            self.advance_to(n);
+        }
         for &e in events {
             self.now.input(chip, e);
         }
@@ -409,44 +477,80 @@ impl FirmwareNode {
 
 impl FirmwareNode {
     /// Whether a frame at `at` would find the controllers as they are now, and not be taken:
-    /// the run ahead got past `at` (or idles in a loop) without writing a controller register,
-    /// and no controller takes such a frame now. Such a frame changes nothing, so the run ahead
+    /// the run ahead got past `at` (or idles in a loop) without writing a register that decides
+    /// which frames the controller takes, and no controller takes such a frame now. Such a frame changes nothing, so the run ahead
     /// stands; the hub hears about every frame on the bus, and the chip keeps few.
     fn changes_nothing(&self, at: BusTime, frame: &Frame) -> bool {
         let n = self.clock_at(at);
-        let covered = n <= self.ahead.clocks() || matches!(self.stop, Stop::Parked(_));
+        let covered = n <= self.ahead.clocks() || matches!(self.stop, Stop::Parked { .. });
         covered
             && self.spec.skip_idle_loops
             && self.failed.is_none()
             && self.trace.is_none()
-            && self.ahead.board.can_writes == self.now.board.can_writes
+            && self.ahead.board.filter_writes == self.now.board.filter_writes
             && self.now.ignores(frame)
     }
 }
 
 impl FirmwareNode {
-    /// A loop that changes nothing does change when the on-chip controller's CAN timer
-    /// overflows (OVRTIM, the CAN timer interrupt): the node is woken then.
-    fn timer_wake(&self) -> Option<BusTime> {
-        if self.failed.is_some() {
-            return None;
-        }
-        self.ahead.timer_due().map(|clock| self.time_of(clock))
+    /// A loop whose turns do the same changes when its next change comes (a timer, the ADC,
+    /// the CAN timer, the plant's next step for a loop that reads it): the node is woken at the
+    /// instruction boundary where the CPU first sees it.
+    fn parked_wake(&self, wake: u64) -> Option<BusTime> {
+        (self.failed.is_none() && wake != u64::MAX).then(|| self.time_of(wake))
     }
 }
 
-/// Watches the first instructions of a chunk for a loop whose whole state repeats: the loop's
-/// length in clocks, with `m` one loop further on; `None` (with `m` moved on as far as it ran)
-/// if none was seen or a chip asked for the bus.
-fn find_loop(m: &mut Machine) -> Result<Option<u64>, mcs51::Error> {
-    let head = m.clone();
-    for _ in 0..LOOP_WATCH {
-        m.step()?;
-        if !m.board.actions.is_empty() {
+/// Looks for a loop whose turns do the same until something changes ([`Machine::repeats`]):
+/// runs `m` until its PC comes back to where it is (for [`LOOK_SPAN`] clocks at most, not past
+/// `until`) and compares; while the PC comes back to a state that differs, or does not come
+/// back in time, looks again from where it got, [`LOOK_TURNS`] times at most (an interrupt, or
+/// the work before an idle loop, ends a turn that differs). The turn,
+/// with `m` one turn further on; `None` (with `m` moved on as far as it ran) if none was seen,
+/// a chip asked for the bus or the CPU stopped for the plant.
+/// `m` parked in a loop of `turn`, at the first instruction boundary at or after `until`: where
+/// [`FirmwareNode::project`] finds it when woken then (or where it stops first for the bus or
+/// the plant); `None` when nothing is coming, or the CPU fails on the way.
+///
+/// When the change is an event shortly before the wired inputs go stale, the wake is the first
+/// boundary after they do instead (or where the CPU first asks the bus for something): the
+/// node then reads the plant at that wake, where it would stop to read it soon after, and is
+/// woken once rather than twice.
+fn wake_of(m: &Machine, turn: Turn, until: u64) -> Option<Machine> {
+    if until == u64::MAX {
+        return None;
+    }
+    let mut trial = m.clone();
+    let turns = until.saturating_sub(1).saturating_sub(m.clocks()) / turn.clocks.max(1);
+    trial.pass(turn, turns);
+    // An error here is met again, and reported, when the node runs there.
+    if trial.run(until).is_err() {
+        return None;
+    }
+    let stale = trial.cpu.clocks_at_cycle(trial.cpu.stale_from());
+    let quiet = trial.board.actions.is_empty() && !trial.plant_stop;
+    if quiet && stale > trial.clocks() && stale - trial.clocks() <= LOOK_SPAN && trial.run(stale).is_err() {
+        return None;
+    }
+    Some(trial)
+}
+
+fn find_loop(m: &mut Machine, until: u64) -> Result<Option<Turn>, mcs51::Error> {
+    for _ in 0..LOOK_TURNS {
+        if m.cpu.inputs_due() {
+            m.plant_stop = true;
             return Ok(None);
         }
-        if m.cpu.pc() == head.cpu.pc() && m.same_state(&head) {
-            return Ok(Some(m.clocks() - head.clocks()));
+        let head = m.clone();
+        m.run_to_pc(until.min(head.clocks().saturating_add(LOOK_SPAN)), head.cpu.pc())?;
+        if !m.board.actions.is_empty() || m.plant_stop || m.clocks() >= until {
+            return Ok(None);
+        }
+        if m.cpu.pc() == head.cpu.pc()
+            && m.clocks() > head.clocks()
+            && let Some(turn) = m.repeats(head)
+        {
+            return Ok(Some(turn));
         }
     }
     Ok(None)
@@ -535,20 +639,16 @@ impl NodeLogic for FirmwareNode {
     }
 
     fn poll_timeout(&self) -> Option<BusTime> {
-        let ahead = match self.stop {
+        match self.stop {
             // A traced node is woken now and then even in a loop that changes nothing, so that
             // its trace keeps up with the run.
-            Stop::Parked(_) if self.trace_open() => {
+            Stop::Parked { wake, .. } if self.trace_open() => {
                 let traced = self.time_of(self.now.clocks().saturating_add(self.horizon));
-                Some(self.timer_wake().map_or(traced, |t| t.min(traced)))
+                Some(self.parked_wake(wake).map_or(traced, |t| t.min(traced)))
             }
-            Stop::Parked(_) => self.timer_wake(),
+            Stop::Parked { wake, .. } => self.parked_wake(wake),
+            Stop::Failed(_) if self.failed.is_some() => None,
             _ => Some(self.time_of(self.ahead.clocks())),
-        };
-        let sample = self.wiring.as_ref().map(|_| self.next_sample);
-        match (ahead, sample) {
-            (Some(a), Some(s)) => Some(a.min(s)),
-            (a, s) => a.or(s),
         }
     }
 
@@ -568,8 +668,12 @@ impl NodeLogic for FirmwareNode {
         }
     }
 
+    /// The machine at `at`, the on-chip controller told the time: its CAN timer shows that
+    /// moment, however lately the firmware last reached it.
     fn hardware(&self, at: BusTime) -> Option<HardwareState> {
-        Some(super::dump::state(&self.project(self.clock_at(at)).machine))
+        let mut machine = self.project(self.clock_at(at)).machine;
+        machine.sync_chip_time();
+        Some(super::dump::state(&machine))
     }
 }
 

@@ -53,7 +53,11 @@ impl FirmwareNode {
         let code = &self.spec.image.code;
         let mut m = self.now.clone();
         let mut actions = Vec::new();
-        while m.clocks() < last {
+        while m.clocks() < last && !m.plant_stop {
+            if m.cpu.inputs_due() {
+                m.plant_stop = true;
+                break;
+            }
             let (pc, start, clock) = (m.cpu.pc(), m.cpu.cycles(), m.clocks());
             let step = match m.step() {
                 Ok(step) => step,
