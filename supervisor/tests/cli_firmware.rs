@@ -355,6 +355,81 @@ fn bad_wiring_is_refused_with_file_and_line() {
     );
 }
 
+#[test]
+fn bad_blocks_dacs_multiplexers_and_addresses_are_refused() {
+    let hex = shipped_hex();
+    // The image writes 4000h–4002h and from 4080h: a block there would patch the program.
+    let wires = "    config: (at: 0x4081, bytes: [1, 2]),\n";
+    let out = run_bad("block-over-code", &cc03_receiver("OnChip", wires), &hex);
+    assert_refused(&out, &["config.at", "4081h to 4082h overlaps what", "at 4080h"]);
+
+    // Past the end of a 32 KiB code memory; an empty block.
+    let text = cc03_receiver("OnChip", "    config: (at: 0x7FFF, bytes: [1, 2]),\n")
+        .replace(
+            "At89c51cc03(clock_hz: 12000000)",
+            "At89c51cc03(clock_hz: 12000000, code_bytes: 65536)",
+        )
+        .replace("entry: Some(0x4000)", "entry: Some(0x4000)");
+    let out = run_bad("block-past-end", &text.replace("0x7FFF", "0xFFFF"), &hex);
+    assert_refused(
+        &out,
+        &[
+            "config.at",
+            "FFFFh to 10000h: past the end of the chip's 65536-byte code memory",
+        ],
+    );
+    let out = run_bad(
+        "block-empty",
+        &cc03_receiver("OnChip", "    config: (at: 0xFF00, bytes: []),\n"),
+        &hex,
+    );
+    assert_refused(
+        &out,
+        &["config.bytes", "0 bytes: a configuration block is 1 to 256 bytes"],
+    );
+
+    // A DAC on a port that has a wired pin, one whose high port is its low one, one driving a
+    // signal the plant computes, and a multiplexer selected by a pin a plant signal drives.
+    let wires = "    analog: [(channel: 0, signal: \"duct.vacuum\", while_high: Some((pin: \"P2.0\", signal: \"clutch.pressure\")))],\n    \
+                 pins: [Input(pin: \"P2.0\", signal: \"door1.open\")],\n    \
+                 dacs: [(low: \"P2\", input: \"speed.setpoint\"), (low: \"P0\", high: Some(\"P0\"), input: \"row.correction\"),\n           \
+                 (low: \"P3\", input: \"duct.vacuum\")],\n";
+    let out = run_bad("dacs", &cc03_receiver("OnChip", wires), &hex);
+    assert_refused(
+        &out,
+        &[
+            "analog[0].while_high.pin",
+            "P2.0 is wired to something else already",
+            "dacs[0].low",
+            "P2: a pin of this port is wired already",
+            "dacs[1].high",
+            "P0: the port of the low byte",
+            "receiver.ron:10:",
+            "\"duct.vacuum\" is no plant input a DAC can drive",
+        ],
+    );
+
+    // Two nodes claiming one address.
+    let dir = lab_copy(
+        "address",
+        &["seed_lab.ron", "sender.ron", "receiver.ron", "can_seed.hex"],
+    );
+    for f in ["sender.ron", "receiver.ron"] {
+        let text = std::fs::read_to_string(dir.join(f)).expect("read");
+        let claimed = text.replacen("Firmware(\n", "Firmware(\n    address: 0xC1,\n", 1);
+        assert_ne!(claimed, text, "{f} starts as expected");
+        std::fs::write(dir.join(f), claimed).expect("write");
+    }
+    let out = harvemu(&[
+        "run",
+        dir.join("seed_lab.ron").to_str().unwrap(),
+        "--fast",
+        "--for",
+        "1s",
+    ]);
+    assert_refused(&out, &["node RECEIVER", "(node SENDER) has the same address C1"]);
+}
+
 /// The first instructions of the lab program, as the listing has them, with the cycle counts of
 /// the Intel MCS-51 User's Manual: LJMP, MOV direct,#data and LCALL take 2 cycles, MOV Rn,#data
 /// 1. At 12 MHz a machine cycle is 1 µs.

@@ -14,12 +14,12 @@ use std::sync::Arc;
 #[serde(deny_unknown_fields, rename = "Firmware")]
 struct File {
     name: String,
-    #[serde(default)]
+    #[serde(default, deserialize_with = "present")]
     address: Option<u8>,
     image: String,
     #[serde(default)]
     entry: Option<u16>,
-    #[serde(default)]
+    #[serde(default, deserialize_with = "present")]
     config: Option<ConfigFile>,
     cpu: CpuFile,
     #[serde(default)]
@@ -30,6 +30,11 @@ struct File {
     pins: Vec<PinFile>,
     #[serde(default)]
     dacs: Vec<DacFile>,
+}
+
+/// A field written as its value (`address: 0xD0`), absent when left out.
+fn present<'de, D: serde::Deserializer<'de>, T: Deserialize<'de>>(d: D) -> Result<Option<T>, D::Error> {
+    T::deserialize(d).map(Some)
 }
 
 /// Bytes the node file places in code memory beside the image: the node's own settings

@@ -1,0 +1,131 @@
+//! A firmware node file's configuration block, a 16-bit DAC and an analog multiplexer, on an
+//! AT89C51CC03 in C1's place in the harvester. The program (assembled in the test):
+//!
+//! - reads the two bytes the node file places at FF00h (MOVC) and writes them to P0 (low) and
+//!   P2 (high): the DAC on those ports drives the plant's `speed.setpoint` at 0.01 km/h a step;
+//! - every 10 ms of timer 0 converts ADC channel 0 twice, with P3.4 low and then high: the
+//!   multiplexer in front of the channel passes the duct vacuum, then half the clutch pressure;
+//!   it keeps the last codes in internal RAM 30h–33h (low byte first) and counts the loops in 34h.
+//!
+//! What the test knows independently: the set-point the block's bytes mean (01F4h = 500 steps of
+//! 0.01 km/h), the plant's signals at the end, and the ideal converter's code
+//! ⌊1024 · mV / 5000⌋.
+
+use actix::prelude::*;
+use bus::time::BusTime;
+use bus_runtime::hub::{RunUntil, runtime};
+use harvemu_e2e::{assemble, default_harvester};
+use std::path::Path;
+use std::sync::Arc;
+use supervisor::harvester;
+
+const PROGRAM: &str = "
+        .org    0000H
+        LJMP    START
+        .org    0040H
+START:  MOV     SP, #60H
+        MOV     DPTR, #0FF00H   ; the node file's block: the set-point, low byte first
+        CLR     A
+        MOVC    A, @A+DPTR
+        MOV     80H, A          ; P0: the DAC's low byte
+        MOV     A, #1
+        MOVC    A, @A+DPTR
+        MOV     0A0H, A         ; P2: its high byte
+        MOV     0F6H, #01H      ; ADCF: P1.0 analog
+        MOV     0F2H, #03H      ; ADCLK
+        MOV     89H, #01H       ; TMOD: timer 0 mode 1
+LOOP:   CLR     8CH             ; 10 ms: 65536 - 10000 = D8F0H
+        MOV     8CH, #0D8H
+        MOV     8AH, #0F0H
+        CLR     8DH
+        SETB    8CH
+WAIT:   JNB     8DH, WAIT
+        CLR     0B4H            ; P3.4 low: the multiplexer passes its low input
+        MOV     R0, #30H
+        ACALL   CONV
+        SETB    0B4H            ; P3.4 high: its other input
+        ACALL   CONV
+        INC     34H
+        SJMP    LOOP
+CONV:   MOV     0F3H, #28H      ; ADCON: ADEN, ADSST, channel 0
+BUSY:   MOV     A, 0F3H
+        JNB     0E4H, BUSY
+        MOV     0F3H, #20H
+        MOV     A, 0F5H         ; ADDH << 2 | ADDL, low byte
+        RL      A
+        RL      A
+        ANL     A, #0FCH
+        ORL     A, 0F4H
+        MOV     @R0, A
+        INC     R0
+        MOV     A, 0F5H         ; ADDH >> 6, high byte
+        SWAP    A
+        RR      A
+        RR      A
+        ANL     A, #03H
+        MOV     @R0, A
+        INC     R0
+        RET
+";
+
+const NODE: &str = "Firmware(
+    name: \"C1\",
+    address: 0xC1,
+    image: \"fw.hex\",
+    cpu: At89c51cc03(clock_hz: 12000000, vref_mv: 5000),
+    controllers: [OnChip],
+    // The set-point, 500 steps of 0.01 km/h, low byte first.
+    config: (at: 0xFF00, bytes: [0xF4, 0x01]),
+    analog: [(channel: 0, signal: \"duct.vacuum\", scale: 1.0,
+              while_high: Some((pin: \"P3.4\", signal: \"clutch.pressure\", scale: 0.5, offset_mv: 100.0)))],
+    dacs: [(low: \"P0\", high: Some(\"P2\"), input: \"speed.setpoint\", scale: 0.01)],
+)";
+
+fn code(mv: f64) -> f64 {
+    (1024.0 * mv / 5000.0).floor()
+}
+
+#[test]
+fn the_block_the_dac_and_the_multiplexer_reach_the_firmware_and_the_plant() {
+    let hex = assemble(PROGRAM);
+    let read = move |_: &Path| Ok(("fw.hex".to_string(), hex.clone()));
+    let spec = nodes::firmware::load("c1.ron", Path::new("c1.ron"), NODE, &read).expect("the node file");
+    assert_eq!(spec.address, Some(0xC1));
+    let mut h = default_harvester();
+    h.scripts.retain(|s| s.name != "C1");
+    h.firmware.push(Arc::new(spec));
+    let end = BusTime::from_secs(6);
+    let (hw, setpoint, vacuum, pressure) = System::with_tokio_rt(|| runtime(true).expect("runtime"))
+        .block_on(async move {
+            let running = harvester::start(&h, false, Vec::new()).await.expect("start");
+            running.hub.send(RunUntil(end)).await.expect("hub").expect("run");
+            let hw = running.hardware(end).await;
+            let plant = running.plant.borrow();
+            let signal = |n: &str| plant.signal(n).expect("a plant signal");
+            (
+                hw,
+                signal("speed.setpoint"),
+                signal("duct.vacuum"),
+                signal("clutch.pressure"),
+            )
+        });
+    assert!((setpoint - 5.0).abs() < 1e-9, "the DAC set {setpoint} km/h");
+    let (_, hw) = &hw[0];
+    let iram: Vec<u8> = (0..256)
+        .map(|i| u8::from_str_radix(&hw.cpu.iram[2 * i..2 * i + 2], 16).expect("hex"))
+        .collect();
+    assert_ne!(iram[0x34], 0, "the loop ran");
+    let low = f64::from(u16::from_le_bytes([iram[0x30], iram[0x31]]));
+    let high = f64::from(u16::from_le_bytes([iram[0x32], iram[0x33]]));
+    // The signals move little over the last loop: within two codes of the end's.
+    assert!(
+        (low - code(vacuum)).abs() <= 2.0,
+        "low input {low}, vacuum {vacuum:.1} mV"
+    );
+    let want = code(100.0 + 0.5 * pressure);
+    assert!(
+        (high - want).abs() <= 2.0,
+        "high input {high}, pressure {pressure:.1} mV gives {want}"
+    );
+    assert!((low - high).abs() > 50.0, "the two inputs differ: {low} {high}");
+}
