@@ -27,7 +27,7 @@ pub struct PlantSignals;
 
 impl Signals for PlantSignals {
     fn is_signal(&self, name: &str) -> bool {
-        Plant::signal_names().iter().any(|n| n == name)
+        Plant::is_signal(name)
     }
     fn is_input(&self, name: &str) -> bool {
         Plant::is_input(name)

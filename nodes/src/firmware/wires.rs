@@ -186,7 +186,7 @@ pub(super) fn analog(
                 format!("channel {} is wired twice", a.channel),
             ));
         }
-        if !Plant::signal_names().contains(&a.signal) {
+        if !Plant::is_signal(&a.signal) {
             problems.push(locate(
                 at(
                     &format!("{field}.signal"),
@@ -204,7 +204,7 @@ pub(super) fn analog(
         finite(at, &format!("{field}.offset_mv"), a.offset_mv, problems);
         let while_high = a.while_high.as_ref().and_then(|m| {
             let field = format!("{field}.while_high");
-            if !Plant::signal_names().contains(&m.signal) {
+            if !Plant::is_signal(&m.signal) {
                 problems.push(locate(
                     at(
                         &format!("{field}.signal"),
@@ -359,7 +359,7 @@ pub(super) fn pins(
             continue;
         };
         let known = match direction {
-            Direction::Input => Plant::signal_names().contains(signal),
+            Direction::Input => Plant::is_signal(signal),
             Direction::Output => Plant::is_input(signal),
         };
         if !known {

@@ -297,6 +297,11 @@ impl Plant {
         signals::names()
     }
 
+    /// Whether `name` is a signal of the plant, input or output.
+    pub fn is_signal(name: &str) -> bool {
+        signals::lookup(name).is_some()
+    }
+
     /// Whether `name` is a writable input (false for outputs and unknown names).
     pub fn is_input(name: &str) -> bool {
         matches!(signals::lookup(name), Some(Signal::In(_)))

@@ -162,6 +162,7 @@ impl Cpu {
         }
         let v = x.read(addr);
         self.xaccess = Some(XAccess::Read { addr });
+        self.attention = true;
         self.ext_irq = x.irq();
         v
     }
@@ -175,6 +176,7 @@ impl Cpu {
         }
         x.write(addr, value);
         self.xaccess = Some(XAccess::Write { addr, value });
+        self.attention = true;
         self.ext_irq = x.irq();
     }
 
@@ -186,6 +188,7 @@ impl Cpu {
                 if (self.sfr[i] ^ v) & 1 != 0 {
                     self.clock_base = (self.cycles, self.clocks());
                     self.clock_changed = true;
+                    self.attention = true;
                 }
                 self.sfr[i] = v;
             }

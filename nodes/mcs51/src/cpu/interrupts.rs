@@ -77,25 +77,30 @@ impl Cpu {
     /// above runs.
     fn cc03_choice(&self) -> Option<(usize, u8)> {
         let r = |a: u8| self.sfr[(a - 0x80) as usize];
-        let (tcon, scon, ext) = (r(TCON), r(SCON), self.ext_irq);
-        // Most instructions find no request flag up at all: they pay only for this.
-        if (tcon & 0xAA) | (scon & 0x03) | (r(T2CON) & 0xC0) | (r(ADCON) & 0x10) | ext == 0 {
-            return None;
-        }
+        let (ie, ien1) = (r(IE), r(IEN1));
         let bit = |on: bool, n: u8| u8::from(on) << n;
-        // Requests at their enable bits' positions in IEN0 and IEN1.
-        let ien0 = bit(tcon & 0x02 != 0, 0)
-            | bit(tcon & 0x20 != 0, 1)
-            | bit(tcon & 0x08 != 0, 2)
-            | bit(tcon & 0x80 != 0, 3)
-            | bit(scon & 0x03 != 0, 4)
-            | bit(r(T2CON) & 0xC0 != 0, 5)
-            | bit(ext & irq::PCA != 0, 6);
-        let ien1 = bit(ext & irq::CAN != 0, 0)
-            | bit(r(ADCON) & 0x10 != 0, 1)
-            | bit(ext & irq::CAN_TIMER != 0, 2)
-            | bit(ext & irq::SPI != 0, 3);
-        let wanted = [ien0 & r(IE), ien1 & r(IEN1)];
+        // Requests at their enable bits' positions in IEN0 and IEN1, of enabled sources only:
+        // most instructions find none, and pay only for this.
+        let mut wanted = [0, 0];
+        if ie & 0x7F != 0 {
+            let (tcon, scon) = (r(TCON), r(SCON));
+            wanted[0] = ie
+                & (bit(tcon & 0x02 != 0, 0)
+                    | bit(tcon & 0x20 != 0, 1)
+                    | bit(tcon & 0x08 != 0, 2)
+                    | bit(tcon & 0x80 != 0, 3)
+                    | bit(scon & 0x03 != 0, 4)
+                    | bit(r(T2CON) & 0xC0 != 0, 5)
+                    | bit(self.ext_irq & irq::PCA != 0, 6));
+        }
+        if ien1 & 0x0F != 0 {
+            let ext = self.ext_irq;
+            wanted[1] = ien1
+                & (bit(ext & irq::CAN != 0, 0)
+                    | bit(r(ADCON) & 0x10 != 0, 1)
+                    | bit(ext & irq::CAN_TIMER != 0, 2)
+                    | bit(ext & irq::SPI != 0, 3));
+        }
         if wanted == [0, 0] {
             return None;
         }

@@ -82,6 +82,9 @@ pub struct Cpu {
     pub(crate) time_reads: u64,
     /// [`Cpu::run`] stops when an instruction leaves the PC here (u32::MAX: never).
     pub(crate) stop_pc: u32,
+    /// The last instruction reached the outside (MOVX, a hooked SFR) or changed the clock or a
+    /// watched latch: [`Cpu::run`] looks at what it must stop for.
+    pub(crate) attention: bool,
     /// The cycle of the last timer, serial, ADC or watchdog event that took effect.
     pub(crate) last_event: u64,
     /// The cycle at which the caller last set the watched inputs.
@@ -150,6 +153,7 @@ impl Cpu {
             input_reads: 0,
             time_reads: 0,
             stop_pc: u32::MAX,
+            attention: false,
             last_event: 0,
             served_at: 0,
             wdt_deadline: u64::MAX,
@@ -315,7 +319,9 @@ impl Cpu {
                 continue;
             }
             self.execute(x)?;
-            if let Some(end) = self.watch_stop() {
+            if self.attention
+                && let Some(end) = self.attend(x)
+            {
                 self.sync(self.cycles);
                 return Ok(end);
             }
@@ -323,22 +329,30 @@ impl Cpu {
                 self.sync(self.cycles);
                 return Ok(RunEnd::AtPc);
             }
-            if let Some(XAccess::Write { addr, value }) = self.xaccess {
-                self.sync(self.cycles);
-                return Ok(RunEnd::XdataWrite { addr, value });
-            }
-            if (self.xaccess.is_some() || self.hooked) && x.wants_stop() {
-                self.sync(self.cycles);
-                return Ok(RunEnd::Peripheral);
-            }
-            if self.clock_changed {
-                self.clock_changed = false;
-                self.sync(self.cycles);
-                return Ok(RunEnd::ClockChanged);
-            }
         }
         self.sync(self.cycles);
         Ok(RunEnd::Reached)
+    }
+
+    /// What [`Cpu::run`] stops for after an instruction that asked for attention (it reached
+    /// the outside, or changed the clock or a watched latch), if anything.
+    #[cold]
+    fn attend(&mut self, x: &mut dyn Xdata) -> Option<RunEnd> {
+        self.attention = false;
+        if let Some(end) = self.watch_stop() {
+            return Some(end);
+        }
+        if let Some(XAccess::Write { addr, value }) = self.xaccess {
+            return Some(RunEnd::XdataWrite { addr, value });
+        }
+        if (self.xaccess.is_some() || self.hooked) && x.wants_stop() {
+            return Some(RunEnd::Peripheral);
+        }
+        if self.clock_changed {
+            self.clock_changed = false;
+            return Some(RunEnd::ClockChanged);
+        }
+        None
     }
 
     /// A fault: the core stops at `pc`.
@@ -365,6 +379,7 @@ impl Cpu {
             x.sfr_clock(self.clocks_at(self.effect_at));
             let v = x.sfr_read(addr);
             self.hooked = true;
+            self.attention = true;
             self.ext_irq = x.irq();
             return v.unwrap_or(0);
         }
@@ -393,6 +408,7 @@ impl Cpu {
             x.sfr_clock(self.clocks_at(self.effect_at));
             x.sfr_write(addr, v);
             self.hooked = true;
+            self.attention = true;
             self.ext_irq = x.irq();
             return;
         }

@@ -109,6 +109,7 @@ impl Cpu {
     pub(crate) fn port_written(&mut self, port: usize, old: u8, v: u8) {
         if self.watched.outputs[port] & (old ^ v) != 0 {
             self.output_changed = true;
+            self.attention = true;
         }
     }
 

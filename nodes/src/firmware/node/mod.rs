@@ -75,10 +75,10 @@ const HORIZON: (u64, u64) = (12_000, 768_000);
 /// waits less is run, which costs less than being woken.
 const PARK_MIN: u64 = 12_000;
 /// Turns a look follows, each from where the last came back, before it gives up.
-const LOOK_TURNS: usize = 8;
-/// Longest turn a look waits for, oscillator clocks (50 machine cycles): a PC that has not come
+const LOOK_TURNS: usize = 4;
+/// Longest turn a look waits for, oscillator clocks (300 machine cycles): a PC that has not come
 /// back by then is looked at again from where the CPU got to.
-const LOOK_SPAN: u64 = 600;
+const LOOK_SPAN: u64 = 3_600;
 /// Longest piece of a serial line the log takes at once: a longer line goes out in pieces.
 const SERIAL_LINE: usize = 256;
 
@@ -243,7 +243,10 @@ impl FirmwareNode {
         let mut gap = LOOK_GAP.0;
         let mut look_at = m.clocks();
         self.stop = loop {
-            self.checkpoints.push(m.clone());
+            // `now` is the first copy.
+            if m.clocks() > self.now.clocks() {
+                self.checkpoints.push(m.clone());
+            }
             let target = m.clocks().saturating_add(chunk).min(limit);
             if self.spec.skip_idle_loops && m.clocks() >= look_at {
                 match find_loop(&mut m, target) {
@@ -316,12 +319,10 @@ impl FirmwareNode {
             }
             _ if n >= reached => (self.ahead.clone(), Path::Ahead),
             _ => {
-                // An input came first: back to the last copy before it.
-                let i = self
-                    .checkpoints
-                    .partition_point(|c| c.clocks() <= n)
-                    .saturating_sub(1);
-                (self.checkpoints.get(i).unwrap_or(&self.now).clone(), Path::Back)
+                // An input came first: back to the last copy before it (`now` is the first).
+                let k = self.checkpoints.partition_point(|c| c.clocks() <= n);
+                let copy = k.checked_sub(1).and_then(|i| self.checkpoints.get(i));
+                (copy.unwrap_or(&self.now).clone(), Path::Back)
             }
         };
         let mut failed = match &self.stop {
@@ -351,7 +352,19 @@ impl FirmwareNode {
         if let Some(last) = self.traced_until(n) {
             self.step_traced(last);
         }
-        let p = self.project(n);
+        // Woken where the run ahead parked and looked for its wake: that machine, as it is.
+        let p = match (&self.stop, self.at_wake.take()) {
+            (Stop::Parked { wake, .. }, Some(mut m)) if n == *wake && n > self.now.clocks() => Projection {
+                actions: m.take_actions(),
+                machine: m,
+                failed: None,
+                path: Path::Skipped,
+            },
+            (_, kept) => {
+                self.at_wake = kept;
+                self.project(n)
+            }
+        };
         match p.path {
             Path::Here | Path::Skipped => {}
             Path::Ahead => self.horizon = (self.horizon * 2).min(HORIZON.1),
