@@ -256,8 +256,10 @@ pub fn load(file: &str, path: &Path, text: &str, read: Reader) -> Result<Firmwar
         })
         .collect();
     let pins = wires::pins(&f.pins, &irq_pins, text, &at, &mut problems);
-    // A multiplexer's select pin is the firmware's: no plant signal may drive it.
+    // A multiplexer's select pin is the firmware's: no plant signal may drive it. An analog
+    // channel k is pin P1.k.
     let mut taken: Vec<(u8, u8)> = pins.iter().map(|p| (p.port, p.bit)).collect();
+    taken.extend(analog.iter().map(|a| (1, a.channel)));
     for (i, a) in analog.iter().enumerate() {
         if let Some((port, bit, _)) = &a.while_high {
             if taken.contains(&(*port, *bit)) || irq_pins.contains(&(*port, *bit)) {
