@@ -75,6 +75,7 @@ impl Cpu {
     /// The AT89C51CC03 request to take now, as (polling index, level), if any: the highest
     /// level pending and enabled, first in polling order, if no handler of that level or
     /// above runs.
+    #[inline]
     fn cc03_choice(&self) -> Option<(usize, u8)> {
         let r = |a: u8| self.sfr[(a - 0x80) as usize];
         let (ie, ien1) = (r(IE), r(IEN1));
@@ -82,16 +83,27 @@ impl Cpu {
         // Requests at their enable bits' positions in IEN0 and IEN1, of enabled sources only:
         // most instructions find none, and pay only for this.
         let mut wanted = [0, 0];
-        if ie & 0x7F != 0 {
-            let (tcon, scon) = (r(TCON), r(SCON));
-            wanted[0] = ie
-                & (bit(tcon & 0x02 != 0, 0)
+        let e0 = ie & 0x7F;
+        if e0 != 0 {
+            // Each enabled source's flag, and only those: most programs enable one or two.
+            let mut w = 0;
+            if e0 & 0x0F != 0 {
+                let tcon = r(TCON);
+                w |= bit(tcon & 0x02 != 0, 0)
                     | bit(tcon & 0x20 != 0, 1)
                     | bit(tcon & 0x08 != 0, 2)
-                    | bit(tcon & 0x80 != 0, 3)
-                    | bit(scon & 0x03 != 0, 4)
-                    | bit(r(T2CON) & 0xC0 != 0, 5)
-                    | bit(self.ext_irq & irq::PCA != 0, 6));
+                    | bit(tcon & 0x80 != 0, 3);
+            }
+            if e0 & 0x10 != 0 && r(SCON) & 0x03 != 0 {
+                w |= 0x10;
+            }
+            if e0 & 0x20 != 0 && r(T2CON) & 0xC0 != 0 {
+                w |= 0x20;
+            }
+            if e0 & 0x40 != 0 && self.ext_irq & irq::PCA != 0 {
+                w |= 0x40;
+            }
+            wanted[0] = w & ie;
         }
         if ien1 & 0x0F != 0 {
             let ext = self.ext_irq;
