@@ -76,8 +76,11 @@ const NODE: &str = "Firmware(
     controllers: [OnChip],
     // The set-point, 500 steps of 0.01 km/h, low byte first.
     config: (at: 0xFF00, bytes: [0xF4, 0x01]),
+    // One select line to both multiplexers (channel 1 is not read).
     analog: [(channel: 0, signal: \"duct.vacuum\", scale: 1.0,
-              while_high: Some((pin: \"P3.4\", signal: \"clutch.pressure\", scale: 0.5, offset_mv: 100.0)))],
+              while_high: Some((pin: \"P3.4\", signal: \"clutch.pressure\", scale: 0.5, offset_mv: 100.0))),
+             (channel: 1, signal: \"basket.level\",
+              while_high: Some((pin: \"P3.4\", signal: \"supply.voltage\", scale: 0.1)))],
     dacs: [(low: \"P0\", high: Some(\"P2\"), input: \"speed.setpoint\", scale: 0.01)],
 )";
 

@@ -256,21 +256,26 @@ pub fn load(file: &str, path: &Path, text: &str, read: Reader) -> Result<Firmwar
         })
         .collect();
     let pins = wires::pins(&f.pins, &irq_pins, text, &at, &mut problems);
-    // A multiplexer's select pin is the firmware's: no plant signal may drive it. An analog
-    // channel k is pin P1.k.
+    // A multiplexer's select pin is the firmware's: no plant signal may drive it, nor a DAC. An
+    // analog channel k is pin P1.k.
     let mut taken: Vec<(u8, u8)> = pins.iter().map(|p| (p.port, p.bit)).collect();
     taken.extend(analog.iter().map(|a| (1, a.channel)));
+    // One select pin may switch several multiplexers (one line to every select input).
+    let selects: Vec<(u8, u8)> = analog
+        .iter()
+        .filter_map(|a| a.while_high.as_ref().map(|(port, bit, _)| (*port, *bit)))
+        .collect();
     for (i, a) in analog.iter().enumerate() {
-        if let Some((port, bit, _)) = &a.while_high {
-            if taken.contains(&(*port, *bit)) || irq_pins.contains(&(*port, *bit)) {
-                problems.push(at(
-                    &format!("analog[{i}].while_high.pin"),
-                    format!("P{port}.{bit} is wired to something else already"),
-                ));
-            }
-            taken.push((*port, *bit));
+        if let Some((port, bit, _)) = &a.while_high
+            && (taken.contains(&(*port, *bit)) || irq_pins.contains(&(*port, *bit)))
+        {
+            problems.push(at(
+                &format!("analog[{i}].while_high.pin"),
+                format!("P{port}.{bit} is wired to something else already"),
+            ));
         }
     }
+    taken.extend(selects);
     let dacs = wires::dacs(&f.dacs, &taken, text, &at, &mut problems);
     let image_path = path.parent().unwrap_or(Path::new("")).join(&f.image);
     let image = match read(&image_path) {

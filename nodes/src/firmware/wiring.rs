@@ -41,13 +41,38 @@ impl Wiring {
                 spec.dacs.iter().map(|d| e.port(&d.input)).collect(),
             )
         };
-        Wiring {
+        let mut w = Wiring {
             env,
             analog,
             pins,
             dacs,
-            written: vec![None; spec.pins.len() + spec.dacs.len()],
-        }
+            written: Vec::new(),
+        };
+        // What the ports' reset latches (FFh) would drive counts as written: an output reaches
+        // the plant when the firmware first changes it, not at power-on.
+        w.written = w.outputs(spec, &[0xFF; 128]).map(|(_, v)| Some(v)).collect();
+        w
+    }
+
+    /// Each output pin's and DAC's plant input (its port) and the value the latches in `sfr`
+    /// drive it to.
+    fn outputs<'a>(
+        &'a self,
+        spec: &'a FirmwareSpec,
+        sfr: &'a [u8; 128],
+    ) -> impl Iterator<Item = (Option<Port>, f64)> + 'a {
+        let pins = spec.pins.iter().zip(&self.pins).filter_map(|(p, port)| {
+            (p.direction == Direction::Output).then(|| {
+                let high = sfr[usize::from(p.port) * 0x10] >> p.bit & 1 != 0;
+                (*port, if high != p.active_low { 1.0 } else { 0.0 })
+            })
+        });
+        let dacs = spec
+            .dacs
+            .iter()
+            .zip(&self.dacs)
+            .map(|(d, port)| (*port, d.offset + d.scale * f64::from(d.code(sfr))));
+        pins.chain(dacs)
     }
 
     /// What the CPU must stop for: the input pins and channels the plant drives, and the latch
@@ -78,24 +103,17 @@ impl Wiring {
         let mut env = self.env.borrow_mut();
         env.advance_to(at);
         let latches = m.cpu.sfr();
-        let outputs = spec.pins.iter().zip(&self.pins).filter_map(|(p, port)| {
-            (p.direction == Direction::Output).then(|| {
-                let high = latches[usize::from(p.port) * 0x10] >> p.bit & 1 != 0;
-                (*port, if high != p.active_low { 1.0 } else { 0.0 })
-            })
-        });
-        let dacs = spec
-            .dacs
-            .iter()
-            .zip(&self.dacs)
-            .map(|(d, port)| (*port, d.offset + d.scale * f64::from(d.code(&latches))));
-        for (i, (port, value)) in outputs.chain(dacs).enumerate() {
-            if self.written[i] != Some(value) {
-                if let Some(port) = port {
-                    env.write(port, value);
-                }
-                self.written[i] = Some(value);
+        let changed: Vec<(usize, Option<Port>, f64)> = self
+            .outputs(spec, &latches)
+            .enumerate()
+            .filter(|(i, (_, v))| self.written[*i] != Some(*v))
+            .map(|(i, (port, v))| (i, port, v))
+            .collect();
+        for (i, port, value) in changed {
+            if let Some(port) = port {
+                env.write(port, value);
             }
+            self.written[i] = Some(value);
         }
         for (a, (port, other)) in spec.analog.iter().zip(&self.analog) {
             let mv = a.millivolts(port.and_then(|p| env.read(p)).unwrap_or(0.0));
