@@ -75,7 +75,6 @@ impl Cpu {
     /// The AT89C51CC03 request to take now, as (polling index, level), if any: the highest
     /// level pending and enabled, first in polling order, if no handler of that level or
     /// above runs.
-    #[inline]
     fn cc03_choice(&self) -> Option<(usize, u8)> {
         let r = |a: u8| self.sfr[(a - 0x80) as usize];
         let (ie, ien1) = (r(IE), r(IEN1));
@@ -131,6 +130,17 @@ impl Cpu {
         best.filter(|&(_, level)| self.in_service >> level == 0)
     }
 
+    /// Whether any AT89C51CC03 request flag is up, outside requests counted only when enabled
+    /// (a CAN timer overrun nobody enabled stays up for ever): most instructions find none.
+    #[inline(always)]
+    fn cc03_flag_up(&self, ie: u8) -> bool {
+        let r = |a: u8| self.sfr[(a - 0x80) as usize];
+        let ien1 = r(IEN1);
+        let outside = (if ie & 0x40 != 0 { irq::PCA } else { 0 }) | (ien1 & 0x01) << 1 | (ien1 & 0x0C);
+        (r(TCON) & 0xAA) | (r(SCON) & 0x03) | (r(T2CON) & 0xC0) | (r(ADCON) & 0x10) | (self.ext_irq & outside)
+            != 0
+    }
+
     /// Enters the highest-priority pending interrupt, if one may be taken now.
     #[inline(always)]
     pub(crate) fn poll_interrupt(&mut self) -> Result<Option<u16>, Error> {
@@ -140,6 +150,9 @@ impl Cpu {
             return Ok(None);
         }
         let (index, level, vector) = if self.cc03() {
+            if !self.cc03_flag_up(ie) {
+                return Ok(None);
+            }
             match self.cc03_choice() {
                 Some((k, level)) => (k, 1 << level, CC03_SOURCES[k].0),
                 None => return Ok(None),
