@@ -363,14 +363,12 @@ fn bad_blocks_dacs_multiplexers_and_addresses_are_refused() {
     let out = run_bad("block-over-code", &cc03_receiver("OnChip", wires), &hex);
     assert_refused(&out, &["config.at", "4081h to 4082h overlaps what", "at 4080h"]);
 
-    // Past the end of a 32 KiB code memory; an empty block.
-    let text = cc03_receiver("OnChip", "    config: (at: 0x7FFF, bytes: [1, 2]),\n")
-        .replace(
-            "At89c51cc03(clock_hz: 12000000)",
-            "At89c51cc03(clock_hz: 12000000, code_bytes: 65536)",
-        )
-        .replace("entry: Some(0x4000)", "entry: Some(0x4000)");
-    let out = run_bad("block-past-end", &text.replace("0x7FFF", "0xFFFF"), &hex);
+    // Past the end of the code memory; an empty block.
+    let text = cc03_receiver("OnChip", "    config: (at: 0xFFFF, bytes: [1, 2]),\n").replace(
+        "At89c51cc03(clock_hz: 12000000)",
+        "At89c51cc03(clock_hz: 12000000, code_bytes: 65536)",
+    );
+    let out = run_bad("block-past-end", &text, &hex);
     assert_refused(
         &out,
         &[

@@ -61,12 +61,15 @@ impl Wiring {
         spec: &'a FirmwareSpec,
         sfr: &'a [u8; 128],
     ) -> impl Iterator<Item = (Option<Port>, f64)> + 'a {
-        let pins = spec.pins.iter().zip(&self.pins).filter_map(|(p, port)| {
-            (p.direction == Direction::Output).then(|| {
+        let pins = spec
+            .pins
+            .iter()
+            .zip(&self.pins)
+            .filter(|(p, _)| p.direction == Direction::Output)
+            .map(|(p, port)| {
                 let high = sfr[usize::from(p.port) * 0x10] >> p.bit & 1 != 0;
                 (*port, if high != p.active_low { 1.0 } else { 0.0 })
-            })
-        });
+            });
         let dacs = spec
             .dacs
             .iter()

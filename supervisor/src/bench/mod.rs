@@ -327,12 +327,17 @@ pub fn run(args: &Args) -> crate::Result<()> {
         }
     }
     if wanted("firmware-c0") {
-        // The default harvester with C0 as its C firmware, against the same harvester all
-        // scripts, for the same virtual time.
-        let scripts = crate::harvester::Harvester::load(std::path::Path::new("configs/harvester.ron"))?;
-        let c0 =
-            crate::harvester::Harvester::load(std::path::Path::new("configs/harvester-firmware-c0.ron"))?;
-        for (name, h) in [("harvester-scripts", scripts), ("harvester-c0-fw", c0)] {
+        // The default harvester with C0 as its C firmware, and with every field node as
+        // firmware, against the same harvester all scripts, for the same virtual time.
+        let load = |p: &str| crate::harvester::Harvester::load(std::path::Path::new(p));
+        let scripts = load("configs/harvester.ron")?;
+        let c0 = load("configs/harvester-firmware-c0.ron")?;
+        let all = load("configs/harvester-firmware.ron")?;
+        for (name, h) in [
+            ("harvester-scripts", scripts),
+            ("harvester-c0-fw", c0),
+            ("harvester-all-fw", all),
+        ] {
             plan.push((
                 name,
                 Workload::Harvester(Arc::new(h)),
