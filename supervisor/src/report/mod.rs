@@ -243,6 +243,7 @@ mod tests {
             books: Default::default(),
             applied: Default::default(),
             snapshot: None,
+            hardware: Vec::new(),
         };
         let s = scenario("short");
         let page = html(&[("a.ron".into(), &s, &outcome)]);

@@ -46,6 +46,8 @@ pub struct Outcome {
     pub applied: BTreeMap<&'static str, u64>,
     /// The hub at the end.
     pub snapshot: Option<Snapshot>,
+    /// Each firmware node's hardware (CPU, controllers) at the end.
+    pub hardware: Vec<(String, bus::node::HardwareState)>,
 }
 
 impl Outcome {
@@ -135,6 +137,7 @@ async fn play(
         .zip(running.display.as_ref().map(|d| d.borrow().tally));
     let books = Books::gather(&snap, monitor, tally.map(|t| *t.borrow()));
     let mut verdicts = check::all(&l.plan.checks, &running, &snap, &books);
+    let hardware = running.hardware(snap.now).await;
     if let Some(signal) = interrupted {
         verdicts.push(Verdict {
             expectation: "the run completes".into(),
@@ -155,6 +158,7 @@ async fn play(
         books,
         applied,
         snapshot: Some(snap),
+        hardware,
     })
 }
 
