@@ -22,6 +22,9 @@ use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::mpsc;
 
+/// How long a client's writer waits after an `< ok >` before it writes anything else.
+const OK_PAUSE: std::time::Duration = std::time::Duration::from_millis(20);
+
 /// Kernel send buffer per client, bytes.
 const SEND_BUFFER: usize = 64 * 1024;
 
@@ -471,11 +474,16 @@ async fn serve(
         sh.stats.accepted += 1;
     }
     // The writer: one write per message, as python-can reads the greeting and each `< ok >`
-    // separately.
+    // separately; and a pause after each `< ok >`, since python-can takes the next read for the
+    // `< ok >` alone and fails when a frame came with it (TCP joins writes that a slow reader
+    // finds waiting together).
     let write = actix::spawn(async move {
         while let Some(line) = rx.recv().await {
             if writer.write_all(line.as_bytes()).await.is_err() {
                 break;
+            }
+            if line == "< ok >" {
+                tokio::time::sleep(OK_PAUSE).await;
             }
         }
     });
