@@ -490,12 +490,23 @@ impl FirmwareNode {
 
 impl FirmwareNode {
     /// Whether a frame at `at` would find the controllers as they are now, and not be taken:
-    /// the run ahead got past `at` (or idles in a loop) without writing a register that decides
-    /// which frames the controller takes, and no controller takes such a frame now. Such a frame changes nothing, so the run ahead
-    /// stands; the hub hears about every frame on the bus, and the chip keeps few.
+    /// the run ahead got past `at` (or waits in a loop that does the same until then) without
+    /// writing a register that decides which frames the controller takes, and no controller
+    /// takes such a frame now. Such a frame changes nothing, so the run ahead stands; the hub
+    /// hears about every frame on the bus, and the chip keeps few.
     fn changes_nothing(&self, at: BusTime, frame: &Frame) -> bool {
         let n = self.clock_at(at);
-        let covered = n <= self.ahead.clocks() || matches!(self.stop, Stop::Parked { .. });
+        let covered = match &self.stop {
+            // The loop does the same until its change; from there to the wake, the look for
+            // the wake ran it and saw what it wrote.
+            Stop::Parked { until, .. } => {
+                n < *until
+                    || self.at_wake.as_ref().is_some_and(|w| {
+                        n <= w.clocks() && w.board.filter_writes == self.now.board.filter_writes
+                    })
+            }
+            _ => n <= self.ahead.clocks(),
+        };
         covered
             && self.spec.skip_idle_loops
             && self.failed.is_none()
