@@ -123,7 +123,8 @@ impl Wiring {
             m.cpu.set_analog_millivolts(a.channel, mv, spec.vref_mv);
             if let Some((p, b, o)) = &a.while_high {
                 let mv = o.millivolts(other.and_then(|p| env.read(p)).unwrap_or(0.0));
-                m.cpu.set_analog_mux(a.channel, *p, *b, code(mv, spec.vref_mv));
+                m.cpu
+                    .set_analog_mux(a.channel, *p, *b, mcs51::Cpu::code_of(mv, spec.vref_mv));
             }
         }
         for (p, port) in spec.pins.iter().zip(&self.pins) {
@@ -134,13 +135,4 @@ impl Wiring {
         }
         env.next_change(at)
     }
-}
-
-/// The converter's code for `mv` against `vref_mv`, as [`mcs51::Cpu::set_analog_millivolts`]
-/// gives it.
-fn code(mv: u32, vref_mv: u32) -> u16 {
-    (1024 * u64::from(mv))
-        .checked_div(u64::from(vref_mv))
-        .unwrap_or(1023)
-        .min(1023) as u16
 }

@@ -46,10 +46,16 @@ impl Cpu {
     /// Sets analog input `channel` to `millivolts` against a reference of `vref_millivolts`:
     /// the code is ⌊1024 × mV / VREF⌋, clamped to 0..=1023 (an ideal converter).
     pub fn set_analog_millivolts(&mut self, channel: u8, millivolts: u32, vref_millivolts: u32) {
-        let code = (1024 * millivolts as u64)
+        self.set_analog(channel, Cpu::code_of(millivolts, vref_millivolts));
+    }
+
+    /// The ideal converter's code for `millivolts` against `vref_millivolts`:
+    /// ⌊1024 × mV / VREF⌋, clamped to 0..=1023 (1023 with no reference).
+    pub fn code_of(millivolts: u32, vref_millivolts: u32) -> u16 {
+        (1024 * millivolts as u64)
             .checked_div(vref_millivolts as u64)
-            .unwrap_or(1023);
-        self.set_analog(channel, code.min(1023) as u16);
+            .unwrap_or(1023)
+            .min(1023) as u16
     }
 
     /// The analog input codes of channels 0–7.
