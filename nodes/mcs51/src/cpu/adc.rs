@@ -106,5 +106,6 @@ impl Cpu {
         self.sfr[(ADDH - 0x80) as usize] = (code >> 2) as u8;
         self.sfr[(ADDL - 0x80) as usize] = (code & 3) as u8;
         self.sfr[(ADCON - 0x80) as usize] = (con & !ADSST) | ADEOC;
+        self.irq_quiet = false;
     }
 }

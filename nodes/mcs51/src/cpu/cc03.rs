@@ -163,7 +163,7 @@ impl Cpu {
         let v = x.read(addr);
         self.xaccess = Some(XAccess::Read { addr });
         self.attention = true;
-        self.ext_irq = x.irq();
+        self.set_ext_irq(x.irq());
         v
     }
 
@@ -177,7 +177,7 @@ impl Cpu {
         x.write(addr, value);
         self.xaccess = Some(XAccess::Write { addr, value });
         self.attention = true;
-        self.ext_irq = x.irq();
+        self.set_ext_irq(x.irq());
     }
 
     /// A write to one of the AT89C51CC03's timed SFRs (timers are up to date).

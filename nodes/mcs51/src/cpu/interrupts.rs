@@ -141,26 +141,65 @@ impl Cpu {
             != 0
     }
 
+    /// Notes that polling found nothing to take, and nothing: see [`Cpu::irq_quiet`].
+    fn quiet(&mut self) -> Option<u16> {
+        self.irq_quiet = true;
+        None
+    }
+
+    /// Sets `bits` of the flag register `reg`; a flag that goes up may start an interrupt.
+    #[inline(always)]
+    pub(crate) fn raise(&mut self, reg: u8, bits: u8) {
+        let r = &mut self.sfr[(reg - 0x80) as usize];
+        if *r & bits != bits {
+            *r |= bits;
+            self.irq_quiet = false;
+        }
+    }
+
+    /// The outside requests as the peripheral shows them now ([`crate::Xdata::irq`]).
+    #[inline(always)]
+    pub(crate) fn set_ext_irq(&mut self, v: u8) {
+        if v != self.ext_irq {
+            self.ext_irq = v;
+            self.irq_quiet = false;
+        }
+    }
+
     /// Enters the highest-priority pending interrupt, if one may be taken now.
     #[inline(always)]
     pub(crate) fn poll_interrupt(&mut self) -> Result<Option<u16>, Error> {
-        let ie = self.sfr[(IE - 0x80) as usize];
-        if ie & 0x80 == 0 || self.inhibit {
+        if self.irq_quiet {
+            debug_assert!(
+                !(self.interrupt_possible() && self.request_takeable()),
+                "a request became takeable at {:04X}h without clearing irq_quiet",
+                self.pc
+            );
             self.inhibit = false;
             return Ok(None);
         }
+        let ie = self.sfr[(IE - 0x80) as usize];
+        if self.inhibit {
+            self.inhibit = false;
+            return Ok(None);
+        }
+        // From here on, a poll that takes nothing finds the same until something it reads
+        // changes.
+        if ie & 0x80 == 0 {
+            return Ok(self.quiet());
+        }
         let (index, level, vector) = if self.cc03() {
             if !self.cc03_flag_up(ie) {
-                return Ok(None);
+                return Ok(self.quiet());
             }
             match self.cc03_choice() {
                 Some((k, level)) => (k, 1 << level, CC03_SOURCES[k].0),
-                None => return Ok(None),
+                None => return Ok(self.quiet()),
             }
         } else {
             let req = self.requests();
             if req == 0 {
-                return Ok(None);
+                return Ok(self.quiet());
             }
             let ip = self.sfr[(IP - 0x80) as usize];
             let (level, chosen) = if req & ip != 0 && self.in_service & 2 == 0 {
@@ -168,7 +207,7 @@ impl Cpu {
             } else if req & !ip != 0 && self.in_service == 0 {
                 (1, req & !ip)
             } else {
-                return Ok(None);
+                return Ok(self.quiet());
             };
             let index = chosen.trailing_zeros() as usize;
             (index, level, VECTORS[index])
@@ -186,6 +225,7 @@ impl Cpu {
             _ => {}
         }
         self.in_service |= level;
+        self.irq_quiet = false;
         self.pc = vector;
         self.cycles += self.entry_cycles as u64;
         if self.cycles >= self.next_event {
@@ -200,10 +240,12 @@ impl Cpu {
             self.in_service &= !(0x80 >> self.in_service.leading_zeros());
         }
         self.inhibit = true;
+        self.irq_quiet = false;
     }
 
     /// Level mode (ITx = 0): IEx follows the inverted INTx pin, it is not latched.
     pub(crate) fn sync_ext_ints(&mut self) {
+        self.irq_quiet = false;
         let pins = self.pins(3);
         let tcon = &mut self.sfr[(TCON - 0x80) as usize];
         for (it, ie, pin) in [(0x01, 0x02, 0x04), (0x04, 0x08, 0x08)] {
@@ -219,6 +261,7 @@ impl Cpu {
 
     /// P3 pins changed (latch write or external level): INT edges and counter edges.
     pub(crate) fn p3_changed(&mut self, before: u8) {
+        self.irq_quiet = false;
         let after = self.pins(3);
         let falling = before & !after;
         let tcon = &mut self.sfr[(TCON - 0x80) as usize];

@@ -64,6 +64,11 @@ pub struct Cpu {
     pub(crate) xram: Arc<Vec<u8>>,
     /// Outside interrupt requests ([`Xdata::irq`]) as last read.
     pub(crate) ext_irq: u8,
+    /// The last poll for interrupts took none, and nothing it reads has changed since: the
+    /// flags and enables (TCON, SCON, T2CON, ADCON, IE, IP and the AT89C51CC03's IEN1, IPL1,
+    /// IPH0, IPH1), the outside requests, the handlers in service. Whatever changes one of
+    /// them clears it, so the next poll looks again; the others cost the run loop one test.
+    pub(crate) irq_quiet: bool,
     /// The executing instruction reached an SFR through the hook.
     pub(crate) hooked: bool,
     /// Cycle at which the ADC conversion under way ends (u64::MAX: none).
@@ -142,6 +147,7 @@ impl Cpu {
                 Vec::new()
             }),
             ext_irq: 0,
+            irq_quiet: false,
             hooked: false,
             adc_end: u64::MAX,
             analog: [0; 8],
@@ -180,6 +186,7 @@ impl Cpu {
         self.pc = 0;
         self.in_service = 0;
         self.inhibit = false;
+        self.irq_quiet = false;
         self.tx = Tx::Idle;
         self.fault = None;
         if self.cc03() {
@@ -272,7 +279,7 @@ impl Cpu {
             return Err(Error::Stopped { pc });
         }
         self.xaccess = None;
-        self.ext_irq = x.irq();
+        self.set_ext_irq(x.irq());
         if self.watchdog_due() {
             self.watchdog_reset();
         }
@@ -299,7 +306,7 @@ impl Cpu {
         if let Some(pc) = self.fault {
             return Err(Error::Stopped { pc });
         }
-        self.ext_irq = x.irq();
+        self.set_ext_irq(x.irq());
         while self.cycles < until {
             if self.watchdog_due() {
                 self.watchdog_reset();
@@ -380,7 +387,7 @@ impl Cpu {
             let v = x.sfr_read(addr);
             self.hooked = true;
             self.attention = true;
-            self.ext_irq = x.irq();
+            self.set_ext_irq(x.irq());
             return v.unwrap_or(0);
         }
         if self.timed[i] {
@@ -409,7 +416,7 @@ impl Cpu {
             x.sfr_write(addr, v);
             self.hooked = true;
             self.attention = true;
-            self.ext_irq = x.irq();
+            self.set_ext_irq(x.irq());
             return;
         }
         if !self.timed[i] {
@@ -419,9 +426,11 @@ impl Cpu {
             self.sfr[i] = v;
             if cc03::is_interrupt_register(addr) {
                 self.inhibit = true;
+                self.irq_quiet = false;
             }
             return;
         }
+        self.irq_quiet = false;
         self.sync(self.effect_at);
         match addr {
             SBUF => self.transmit(v),

@@ -91,7 +91,7 @@ impl Cpu {
             1 + over / period
         };
         if !baud {
-            self.sfr[(T2CON - 0x80) as usize] |= TF2;
+            self.raise(T2CON, TF2);
         }
         ov
     }
@@ -116,6 +116,7 @@ impl Cpu {
     /// Port 1 pins changed: a falling edge on T2 (P1.0) counts, one on T2EX (P1.1) captures or
     /// reloads when EXEN2 is set.
     pub(crate) fn p1_changed(&mut self, before: u8) {
+        self.irq_quiet = false;
         let falling = before & !self.pins(1);
         if falling & 0x01 != 0 {
             let ov = self.advance_timer2(1, true);
@@ -134,7 +135,7 @@ impl Cpu {
                     self.set_t2(self.rcap2());
                 }
             }
-            self.sfr[(T2CON - 0x80) as usize] |= EXF2;
+            self.raise(T2CON, EXF2);
         }
     }
 }

@@ -81,20 +81,20 @@ impl Cpu {
         let m0 = tmod & 3;
         let m1 = tmod >> 4 & 3;
         if self.gated_on(0, tcon & 0x10 != 0) && self.advance(TL0, TH0, m0, inc(0)) > 0 {
-            self.sfr[(TCON - 0x80) as usize] |= 0x20;
+            self.raise(TCON, 0x20);
         }
         if m0 == 3 && tcon & 0x40 != 0 {
             let (th, ov) = count(self.r(TH0) as u32, cycles, 8);
             self.w(TH0, th as u8);
             if ov > 0 {
-                self.sfr[(TCON - 0x80) as usize] |= 0x80;
+                self.raise(TCON, 0x80);
             }
         }
         let mut ov1 = 0;
         if m1 != 3 && self.gated_on(1, m0 == 3 || tcon & 0x40 != 0) {
             ov1 = self.advance(TL1, TH1, m1, inc(1));
             if ov1 > 0 && m0 != 3 {
-                self.sfr[(TCON - 0x80) as usize] |= 0x80;
+                self.raise(TCON, 0x80);
             }
         }
         if self.cc03() {
@@ -185,7 +185,7 @@ impl Cpu {
         };
         self.tx = match (self.tx, left) {
             (_, 0) => {
-                self.sfr[(SCON - 0x80) as usize] |= 0x02;
+                self.raise(SCON, 0x02);
                 Tx::Idle
             }
             (Tx::Cycles(_), l) => Tx::Cycles(l as u32),
