@@ -16,10 +16,15 @@
 //! on the bus (a board with several CAN chips): each has its own place on the bus, its inputs
 //! come tagged with its index ([`NodeLogic::handle_frame_on`], [`NodeLogic::handle_event_on`])
 //! and so do the commands for it. Every other node has one controller, controller 0.
+//!
+//! A logic may also say which frames it would take no notice of for a while
+//! ([`NodeLogic::unheeded`]): a driver may then leave such frames out of a wake (and not wake
+//! the node for them), since handing them over would change nothing.
 
 use crate::Frame;
 use crate::engine::{BusError, Location, Received};
 use crate::fault::ErrorState;
+use crate::filter::{AcceptanceFilter, AtmelFilter};
 use crate::time::BusTime;
 
 /// What a node's controller tells it besides received frames.
@@ -104,6 +109,25 @@ pub enum ControllerCommand {
     Tuned(bool),
 }
 
+/// Frames a logic takes no notice of for a while ([`NodeLogic::unheeded`]): those that end
+/// before `before` and that no filter of `heeded` accepts. Handed to the logic, such a frame
+/// would change nothing in it, and it would answer the same.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Unheeded {
+    /// The end of the while: frames that end at or after it may matter.
+    pub before: BusTime,
+    /// The filters of what the logic would take (an on-chip CAN controller's receiving
+    /// channels).
+    pub heeded: smallvec::SmallVec<[AtmelFilter; 4]>,
+}
+
+impl Unheeded {
+    /// Whether a frame that ends at `at` is one of them.
+    pub fn covers(&self, at: BusTime, frame: &Frame) -> bool {
+        at < self.before && !self.heeded.iter().any(|f| f.accepts(frame))
+    }
+}
+
 /// The behaviour of one node, without I/O.
 pub trait NodeLogic {
     /// A frame passed this node's acceptance filter; `now` is its end-of-frame time.
@@ -141,6 +165,12 @@ pub trait NodeLogic {
     }
     /// When `handle_timeout` is next due.
     fn poll_timeout(&self) -> Option<BusTime>;
+    /// The frames this logic, as it stands after its inputs so far, takes no notice of (a node
+    /// with one controller only): until its next input they change nothing in it, so a driver
+    /// need not hand them over. By default, none.
+    fn unheeded(&self) -> Option<Unheeded> {
+        None
+    }
     /// Set once the logic has stopped for good, with why (a firmware's CPU fault): the driver
     /// reports it as a crash, as it reports a panic.
     fn failed(&self) -> Option<String> {
@@ -310,6 +340,8 @@ pub struct Report {
     pub frames_handled: u64,
     /// [`NodeLogic::stop_here`], as of this wake.
     pub stop: bool,
+    /// [`NodeLogic::unheeded`], as of this wake.
+    pub unheeded: Option<Unheeded>,
 }
 
 /// Most timeouts handled in one wake, so a logic whose deadline never moves cannot hang the bus.
@@ -387,6 +419,7 @@ pub fn drive_counted(
         every_event: logic.wants_every_event(),
         frames_handled: *handled,
         stop: logic.stop_here(),
+        unheeded: logic.unheeded(),
     }
 }
 

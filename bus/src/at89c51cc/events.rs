@@ -4,7 +4,7 @@
 use super::{CHANNELS, CanController, conch, git, stch};
 use crate::engine::BusError;
 use crate::fault::ErrorState;
-use crate::filter::AcceptanceFilter;
+use crate::filter::{AcceptanceFilter, AtmelFilter};
 use crate::sja1000::{Action, BusSide};
 use crate::{ExtendedId, Frame, Id, StandardId};
 
@@ -147,6 +147,15 @@ impl CanController {
     /// for reception accepts it. A frame no channel takes changes nothing in the controller.
     pub fn takes(&self, frame: &Frame) -> bool {
         self.enabled && self.hit(frame).is_some()
+    }
+
+    /// The filters of the channels that would take a frame now: [`CanController::takes`] is
+    /// true of a frame exactly when one of them accepts it (none while the controller is
+    /// disabled).
+    pub fn heeded(&self) -> impl Iterator<Item = AtmelFilter> + '_ {
+        (0..CHANNELS)
+            .filter(|&c| self.enabled && self.en & (1 << c) != 0 && self.receives(c))
+            .map(|c| self.channels[c].filter())
     }
 
     /// The lowest-numbered enabled receiving channel whose filter accepts `frame`.

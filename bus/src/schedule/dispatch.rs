@@ -204,6 +204,13 @@ impl Scheduler {
             }
             let still_arriving = self.bus.rx_front(NodeId(i as u16));
             let slot = &mut self.slots[i];
+            // Frames its logic would take no notice of are handled here, as it would handle
+            // them: left out.
+            if let Some(u) = &slot.unheeded {
+                let before = frames.len();
+                frames.retain(|r| !u.covers(r.at, &r.frame));
+                slot.handover.handled += (before - frames.len()) as u64;
+            }
             // A frame still on the wire is the next input, from its end.
             slot.pending_since = still_arriving;
             if buffering {

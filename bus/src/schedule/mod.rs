@@ -47,7 +47,9 @@
 //! controller's registers (a firmware node, [`crate::node::NodeLogic::wants_every_event`]) is
 //! woken by every event of its controller as it happens instead (confirmations, counters, bus
 //! errors, lost arbitration, bus-off recovery), and its commands (join or leave the bus, abort,
-//! counters, recovery, tuning) act at its wake's time (`commands.rs`).
+//! counters, recovery, tuning) act at its wake's time (`commands.rs`). A logic that said at its
+//! last answer which frames it takes no notice of for a while ([`crate::node::Unheeded`]) is not
+//! woken for those: they leave its FIFO at their wake and count as handled.
 //! Such a node may have several controllers on the bus ([`Scheduler::attach`]), each a slot of its
 //! own (arbitration, acknowledgement, error counters, bus off); a node is woken once per moment,
 //! with the inputs of each of its controllers that is due ([`Wake::inputs`]), and reports on
@@ -562,6 +564,7 @@ impl Scheduler {
             }
         });
         self.queue_due(first);
+        self.slots[i].unheeded = report.unheeded;
         if report.frames_can_wait != self.slots[i].frames_can_wait {
             for j in self.group(i) {
                 self.slots[j].frames_can_wait = report.frames_can_wait;

@@ -3,7 +3,7 @@
 
 use super::commands::Switches;
 use crate::engine::Received;
-use crate::node::{ControllerEvent, CrashCause};
+use crate::node::{ControllerEvent, CrashCause, Unheeded};
 use crate::time::{BusDuration, BusTime};
 
 pub(super) struct Slot {
@@ -33,6 +33,9 @@ pub(super) struct Slot {
     pub every_event: bool,
     /// What its logic set on its controller (register-level nodes).
     pub switches: Switches,
+    /// The frames its logic said at its last answer it takes no notice of
+    /// ([`crate::node::Report::unheeded`]): they leave the FIFO at their wake without one.
+    pub unheeded: Option<Unheeded>,
 }
 
 impl Slot {
@@ -54,6 +57,7 @@ impl Slot {
             crashed: None,
             every_event: false,
             switches: Switches::default(),
+            unheeded: None,
         }
     }
 
@@ -89,6 +93,7 @@ impl Slot {
         self.event_wake = false;
         self.frames_can_wait = false;
         self.pending_since = None;
+        self.unheeded = None;
     }
 }
 

@@ -23,6 +23,7 @@ struct Probe {
     every_event: bool,
     fail_at: Option<BusTime>,
     failed: Option<String>,
+    unheeded: Option<crate::node::Unheeded>,
 }
 
 impl Probe {
@@ -37,6 +38,7 @@ impl Probe {
             every_event: false,
             fail_at: None,
             failed: None,
+            unheeded: None,
         }
     }
     fn ticking(mut self, first_ms: u64, period_ms: u64) -> Probe {
@@ -94,6 +96,9 @@ impl NodeLogic for Probe {
     }
     fn failed(&self) -> Option<String> {
         self.failed.clone()
+    }
+    fn unheeded(&self) -> Option<crate::node::Unheeded> {
+        self.unheeded.clone()
     }
 }
 
@@ -256,6 +261,34 @@ fn frames_that_can_wait_leave_the_fifo_and_reach_the_logic_at_its_deadline() {
     );
     let handover = d.sched.snapshot().nodes[rx.index()].handover;
     assert_eq!((handover.handled, handover.held, handover.in_flight), (5, 0, 0));
+}
+
+#[test]
+fn frames_a_logic_does_not_heed_leave_the_fifo_without_waking_it() {
+    let rx_heard = Heard::default();
+    let mut d = Driver::new();
+    d.sender(1, 2, "123#11");
+    d.sender(2, 4, "456#22");
+    let mut probe = Probe::new(&rx_heard);
+    // Until 7 ms, only frames with identifier 456h matter to it.
+    probe.unheeded = Some(crate::node::Unheeded {
+        before: ms(7),
+        heeded: smallvec::smallvec![crate::filter::AtmelFilter::exact(crate::Id::Standard(
+            crate::StandardId::new(0x456).unwrap()
+        ))],
+    });
+    let rx = d.attach(&["rx"], 100, Some(probe))[0];
+    d.run_until(ms(10));
+    let heard: Vec<String> = rx_heard.borrow().iter().map(|h| h.1.clone()).collect();
+    // 123h at 1, 3, 5 ms left out; 456h at 2 and 6 ms, and everything from 7 ms on, heard.
+    assert_eq!(heard, ["frame 456", "frame 456", "frame 123", "frame 123"]);
+    assert_eq!(
+        d.wakes_of(rx).len(),
+        1 + 2 + 2,
+        "the attach, 456h twice, 123h twice"
+    );
+    let node = &d.sched.snapshot().nodes[rx.index()];
+    assert_eq!((node.handover.handled, node.rx_queued), (7, 0));
 }
 
 #[test]

@@ -527,6 +527,15 @@ impl Machine {
         })
     }
 
+    /// The filters of the on-chip controller's channels that would take a frame now, when its
+    /// only chip is that controller: a frame none of them accepts is one [`Machine::ignores`].
+    pub fn heeded(&self) -> Option<smallvec::SmallVec<[bus::filter::AtmelFilter; 4]>> {
+        match self.board.chips.as_slice() {
+            [Chip::OnChip(can)] => Some(can.heeded().collect()),
+            _ => None,
+        }
+    }
+
     /// The chips' requests since the last call, in order.
     pub fn take_actions(&mut self) -> Vec<Request> {
         std::mem::take(&mut self.board.actions)

@@ -50,7 +50,7 @@ use super::wiring::Wiring;
 use crate::script::SharedEnv;
 use bus::Frame;
 use bus::fault::ErrorState;
-use bus::node::{ControllerCommand, ControllerEvent, HardwareState, NodeLogic};
+use bus::node::{ControllerCommand, ControllerEvent, HardwareState, NodeLogic, Unheeded};
 use bus::sja1000::{Action, BusSide, ecc_segment};
 use bus::time::BusTime;
 use std::collections::VecDeque;
@@ -495,24 +495,31 @@ impl FirmwareNode {
     /// takes such a frame now. Such a frame changes nothing, so the run ahead stands; the hub
     /// hears about every frame on the bus, and the chip keeps few.
     fn changes_nothing(&self, at: BusTime, frame: &Frame) -> bool {
-        let n = self.clock_at(at);
-        let covered = match &self.stop {
+        self.quiet_before().is_some_and(|end| self.clock_at(at) < end) && self.now.ignores(frame)
+    }
+
+    /// The first clock from which frames the controllers do not take now may change something:
+    /// up to it, the run ahead (or the loop it waits in) writes none of the registers that
+    /// decide which frames they take. `None` when that cannot be relied on (skipping off, a
+    /// trace, a fault).
+    fn quiet_before(&self) -> Option<u64> {
+        let usable = self.spec.skip_idle_loops
+            && self.failed.is_none()
+            && self.trace.is_none()
+            && self.ahead.board.filter_writes == self.now.board.filter_writes;
+        usable.then(|| match &self.stop {
             // The loop does the same until its change; from there to the wake, the look for
             // the wake ran it and saw what it wrote.
             Stop::Parked { until, .. } => {
-                n < *until
-                    || self.at_wake.as_ref().is_some_and(|w| {
-                        n <= w.clocks() && w.board.filter_writes == self.now.board.filter_writes
-                    })
+                let looked = self
+                    .at_wake
+                    .as_ref()
+                    .filter(|w| w.board.filter_writes == self.now.board.filter_writes)
+                    .map_or(0, |w| w.clocks().saturating_add(1));
+                (*until).max(looked)
             }
-            _ => n <= self.ahead.clocks(),
-        };
-        covered
-            && self.spec.skip_idle_loops
-            && self.failed.is_none()
-            && self.trace.is_none()
-            && self.ahead.board.filter_writes == self.now.board.filter_writes
-            && self.now.ignores(frame)
+            _ => self.ahead.clocks().saturating_add(1),
+        })
     }
 }
 
@@ -678,6 +685,15 @@ impl NodeLogic for FirmwareNode {
 
     fn wants_every_event(&self) -> bool {
         true
+    }
+
+    /// The frames [`FirmwareNode::changes_nothing`] would tell apart, for the hub to leave out.
+    fn unheeded(&self) -> Option<Unheeded> {
+        let end = self.quiet_before()?;
+        Some(Unheeded {
+            before: self.time_of(end),
+            heeded: self.now.heeded()?,
+        })
     }
 
     fn failed(&self) -> Option<String> {
