@@ -49,7 +49,7 @@ impl Scheduler {
             ControllerCommand::Abort => self.bus.abort(node, now),
             ControllerCommand::SetCounters { tec, rec } => {
                 let r = self.bus.set_counters(node, tec, rec, now);
-                self.counters_now(i, now);
+                let _ = self.counters_now(i, now);
                 r
             }
             ControllerCommand::Recover => self.bus.request_recovery(node, now),
@@ -99,22 +99,23 @@ impl Scheduler {
         }
     }
 
-    /// Tells slot `i` its counters at `at` if they changed since it last heard.
-    pub(super) fn counters_to(&mut self, i: usize, at: BusTime, tec: u16, rec: u16) {
+    /// Tells slot `i` its counters at `at` if they changed since it last heard; then its due
+    /// time.
+    pub(super) fn counters_to(&mut self, i: usize, at: BusTime, tec: u16, rec: u16) -> Option<BusTime> {
         let slot = &mut self.slots[i];
         if !slot.every_event || slot.switches.counters == (tec, rec) {
-            return;
+            return None;
         }
         slot.switches.counters = (tec, rec);
         slot.input(at, Some(ControllerEvent::Counters { tec, rec }), true);
         self.queue_due(i);
+        self.slots[i].due()
     }
 
     /// [`Scheduler::counters_to`] with the controller's present counters.
-    pub(super) fn counters_now(&mut self, i: usize, at: BusTime) {
-        if let Some(c) = self.bus.controller(NodeId(i as u16)) {
-            let (tec, rec) = (c.fault().tec(), c.fault().rec());
-            self.counters_to(i, at, tec, rec);
-        }
+    pub(super) fn counters_now(&mut self, i: usize, at: BusTime) -> Option<BusTime> {
+        let c = self.bus.controller(NodeId(i as u16))?;
+        let (tec, rec) = (c.fault().tec(), c.fault().rec());
+        self.counters_to(i, at, tec, rec)
     }
 }

@@ -1,7 +1,7 @@
 //! The engine's events on their way out: to the trace (in time order), to observers, and to the
 //! nodes' pending inputs; and the wakes those inputs make.
 
-use super::{Inputs, Notice, Observed, Scheduler, Slot, Wake, kept};
+use super::{Inputs, Notice, Observed, Scheduler, Wake, kept};
 use crate::engine::{Event, NodeId};
 use crate::node::ControllerEvent;
 use crate::time::BusTime;
@@ -105,15 +105,10 @@ impl Scheduler {
     }
 
     /// Tells register-level nodes the counters an event changed; answers with the earliest due
-    /// time among them (at most a handful: the whole set is kept, not a queue).
+    /// time among those it told (the others' stand, and the caller knows them).
     #[inline(never)]
     fn tell_register_level(&mut self, event: &Event) -> Option<BusTime> {
-        self.counters_of(event);
-        self.slots
-            .iter()
-            .filter(|s| s.every_event)
-            .filter_map(Slot::due)
-            .min()
+        self.counters_of(event)
     }
 
     /// Hands the trace's records that are due to the sinks, in time order: those a reorder
@@ -261,7 +256,7 @@ impl Scheduler {
     /// Tells register-level nodes of the counters an event changed: the values the event
     /// carries where it has them, else the controller's as the event leaves them (a frame
     /// that went through, a reset).
-    fn counters_of(&mut self, event: &Event) {
+    fn counters_of(&mut self, event: &Event) -> Option<BusTime> {
         match *event {
             Event::BusError {
                 node, at, tec, rec, ..
@@ -276,13 +271,17 @@ impl Scheduler {
                 self.counters_now(node.index(), at)
             }
             Event::Frame { end, .. } => {
+                let mut due: Option<BusTime> = None;
                 for i in 0..self.slots.len() {
-                    if self.slots[i].every_event {
-                        self.counters_now(i, end);
+                    if self.slots[i].every_event
+                        && let Some(d) = self.counters_now(i, end)
+                    {
+                        due = Some(due.map_or(d, |x| x.min(d)));
                     }
                 }
+                due
             }
-            _ => {}
+            _ => None,
         }
     }
 }
