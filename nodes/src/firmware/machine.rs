@@ -205,13 +205,14 @@ impl Xdata for Board {
         self.stop
     }
 
+    /// A read asks nothing of the bus and moves no interrupt output (only CANMSG's index
+    /// moves on): nothing to collect after it.
     fn sfr_read(&mut self, addr: u8) -> Option<u8> {
-        let (i, can) = self.on_chip()?;
+        let (_, can) = self.on_chip()?;
         let value = can.sfr_read(addr)?;
         if matches!(addr, sfr::CANTIML | sfr::CANTIMH | sfr::CANTTCL | sfr::CANTTCH) {
             self.time_reads += 1;
         }
-        self.after(i);
         Some(value)
     }
 
@@ -230,11 +231,15 @@ impl Xdata for Board {
         true
     }
 
-    /// F_CAN = F_OSC / 2: the CAN timer and time stamps follow the CPU's clock.
+    /// F_CAN = F_OSC / 2: the CAN timer and time stamps follow the CPU's clock. Time moves
+    /// only the timer's overflow request.
     fn sfr_clock(&mut self, clocks: u64) {
         if let Some((i, can)) = self.on_chip() {
+            let before = can.timer_interrupt();
             can.set_time(clocks / 2);
-            self.refresh(i);
+            if can.timer_interrupt() != before {
+                self.refresh(i);
+            }
         }
     }
 
