@@ -37,8 +37,12 @@ impl Cpu {
     }
 
     /// Brings timers and the serial transmitter up to cycle `to`.
+    /// The next event's cycle stands until it has passed: counting towards it moves it no
+    /// nearer in time (what changes the counting, a write to a timer, serial, ADC or port
+    /// register or a pin, plans again itself).
     pub(crate) fn sync(&mut self, to: u64) {
-        if to >= self.next_event {
+        let passed = to >= self.next_event;
+        if passed {
             self.last_event = self.next_event;
         }
         if to > self.synced {
@@ -46,7 +50,9 @@ impl Cpu {
             self.synced = to;
             self.advance_timers(n, false);
         }
-        self.plan();
+        if passed {
+            self.plan();
+        }
     }
 
     /// Computes the cycle of the next timer or serial event.
