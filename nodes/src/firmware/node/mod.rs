@@ -243,13 +243,18 @@ impl FirmwareNode {
         let mut gap = LOOK_GAP.0;
         let mut look_at = m.clocks();
         self.stop = loop {
-            // `now` is the first copy.
-            if m.clocks() > self.now.clocks() {
+            // `now` is the first copy; a look may have kept one lately.
+            if m.clocks() > self.now.clocks()
+                && self
+                    .checkpoints
+                    .last()
+                    .is_none_or(|c| m.clocks() >= c.clocks().saturating_add(CHUNK))
+            {
                 self.checkpoints.push(m.clone());
             }
             let target = m.clocks().saturating_add(chunk).min(limit);
             if self.spec.skip_idle_loops && m.clocks() >= look_at {
-                match find_loop(&mut m, target) {
+                match find_loop(&mut m, target, &mut self.checkpoints, self.now.clocks()) {
                     Err(e) => break Stop::Failed(e.to_string()),
                     Ok(Some(turn)) => {
                         let fresh = if turn.reads_inputs {
@@ -566,7 +571,16 @@ fn wake_of(m: &Machine, turn: Turn, until: u64) -> Option<Machine> {
     Some(trial)
 }
 
-fn find_loop(m: &mut Machine, until: u64) -> Result<Option<Turn>, mcs51::Error> {
+///
+/// A turn's head that is not compared (its PC did not come back) is kept in `copies`, as a copy
+/// of the run ahead from `now`, when it lies after `now` and [`CHUNK`] clocks or more after the
+/// last one there: an input that sends the run back finds a copy near it.
+fn find_loop(
+    m: &mut Machine,
+    until: u64,
+    copies: &mut Vec<Machine>,
+    now: u64,
+) -> Result<Option<Turn>, mcs51::Error> {
     for _ in 0..LOOK_TURNS {
         if m.cpu.inputs_due() {
             m.plant_stop = true;
@@ -574,14 +588,18 @@ fn find_loop(m: &mut Machine, until: u64) -> Result<Option<Turn>, mcs51::Error> 
         }
         let head = m.clone();
         m.run_to_pc(until.min(head.clocks().saturating_add(LOOK_SPAN)), head.cpu.pc())?;
-        if !m.board.actions.is_empty() || m.plant_stop || m.clocks() >= until {
-            return Ok(None);
-        }
-        if m.cpu.pc() == head.cpu.pc()
-            && m.clocks() > head.clocks()
-            && let Some(turn) = m.repeats(head)
+        let stopped = !m.board.actions.is_empty() || m.plant_stop || m.clocks() >= until;
+        if !stopped && m.cpu.pc() == head.cpu.pc() && m.clocks() > head.clocks() {
+            if let Some(turn) = m.repeats(head) {
+                return Ok(Some(turn));
+            }
+        } else if copies.last().map_or(now, |c| c.clocks().saturating_add(CHUNK)) <= head.clocks()
+            && head.clocks() > now
         {
-            return Ok(Some(turn));
+            copies.push(head);
+        }
+        if stopped {
+            return Ok(None);
         }
     }
     Ok(None)
