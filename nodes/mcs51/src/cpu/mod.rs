@@ -307,6 +307,9 @@ impl Cpu {
             return Err(Error::Stopped { pc });
         }
         self.set_ext_irq(x.irq());
+        // Set only with `attention`, and taken by `attend`.
+        self.xaccess = None;
+        self.hooked = false;
         while self.cycles < until {
             if self.watchdog_due() {
                 self.watchdog_reset();
@@ -316,8 +319,6 @@ impl Cpu {
                 self.sync(self.cycles);
                 return Ok(RunEnd::InputsDue);
             }
-            self.xaccess = None;
-            self.hooked = false;
             if self.poll_interrupt()?.is_some() {
                 continue;
             }
@@ -346,13 +347,15 @@ impl Cpu {
     #[cold]
     fn attend(&mut self, x: &mut dyn Xdata) -> Option<RunEnd> {
         self.attention = false;
+        let xaccess = self.xaccess.take();
+        let hooked = std::mem::take(&mut self.hooked);
         if let Some(end) = self.watch_stop() {
             return Some(end);
         }
-        if let Some(XAccess::Write { addr, value }) = self.xaccess {
+        if let Some(XAccess::Write { addr, value }) = xaccess {
             return Some(RunEnd::XdataWrite { addr, value });
         }
-        if (self.xaccess.is_some() || self.hooked) && x.wants_stop() {
+        if (xaccess.is_some() || hooked) && x.wants_stop() {
             return Some(RunEnd::Peripheral);
         }
         if self.clock_changed {
