@@ -2,13 +2,23 @@
 //! pins and DACs drive plant inputs. Served at the moments the CPU stops for them (see the
 //! node's docs): when it would read inputs whose levels no longer hold, and when it changed an
 //! output.
+//!
+//! A sensor fault injected into the node ([`bus::node::NodeFault`]) acts on the wire that reads
+//! the signal, as the scripts' faults act on their readings: stuck, offset, drifting from its
+//! start, noisy (Gaussian, from the node's seed), or gone. A sensor that is gone is a cut wire:
+//! its ADC channel reads 0 V, its input pin floats high (the port's internal pull-up). Like a
+//! value forced on the plant, a fault reaches the firmware at its first read after the plant's
+//! next step.
 
 use super::machine::Machine;
 use super::spec::FirmwareSpec;
 use super::wires::Direction;
 use crate::script::{Port, SharedEnv};
+use bus::node::SensorFault;
 use bus::time::BusTime;
 use mcs51::Watched;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
 
 /// The plant, the ports of the wires' signals, and what was last written to it.
 pub(crate) struct Wiring {
@@ -23,10 +33,13 @@ pub(crate) struct Wiring {
     dacs: Vec<Option<Port>>,
     /// The value last written to each output pin's and each DAC's plant input.
     written: Vec<Option<f64>>,
+    /// Faults on the wires of these signals, each from its time.
+    faults: Vec<(Port, SensorFault, BusTime)>,
+    rng: ChaCha8Rng,
 }
 
 impl Wiring {
-    pub fn new(env: SharedEnv, spec: &FirmwareSpec) -> Wiring {
+    pub fn new(env: SharedEnv, spec: &FirmwareSpec, seed: u64) -> Wiring {
         let (analog, pins, dacs) = {
             let e = env.borrow();
             (
@@ -47,6 +60,8 @@ impl Wiring {
             pins,
             dacs,
             written: Vec::new(),
+            faults: Vec::new(),
+            rng: ChaCha8Rng::seed_from_u64(seed ^ 0x5eed_0000_f1e1_d000),
         };
         // What the ports' reset latches (FFh) would drive counts as written: an output reaches
         // the plant when the firmware first changes it, not at power-on.
@@ -100,6 +115,45 @@ impl Wiring {
         w
     }
 
+    /// Whether an input wire (an ADC channel, its multiplexer's other input, an input pin) reads
+    /// `signal`: its port.
+    pub fn input_port(&self, spec: &FirmwareSpec, signal: &str) -> Option<Port> {
+        let env = self.env.borrow();
+        let port = env.port(signal)?;
+        let analog = self
+            .analog
+            .iter()
+            .any(|&(a, o)| a == Some(port) || o == Some(port));
+        let pin = spec
+            .pins
+            .iter()
+            .zip(&self.pins)
+            .any(|(p, &q)| p.direction == Direction::Input && q == Some(port));
+        (analog || pin).then_some(port)
+    }
+
+    /// The wires of `port` read as `fault` says from `since` on (`None`: true again).
+    pub fn set_fault(&mut self, port: Port, fault: Option<SensorFault>, since: BusTime) {
+        self.faults.retain(|(p, ..)| *p != port);
+        if let Some(f) = fault {
+            self.faults.push((port, f, since));
+        }
+    }
+
+    /// What a wire of `port` reads at `at`, its fault applied; `None` when the sensor is gone.
+    fn reading(&mut self, truth: f64, port: Option<Port>, at: BusTime) -> Option<f64> {
+        let Some(&(_, fault, since)) = self.faults.iter().find(|(p, ..)| Some(*p) == port) else {
+            return Some(truth);
+        };
+        Some(match fault {
+            SensorFault::Stuck(v) => v,
+            SensorFault::Offset(o) => truth + o,
+            SensorFault::Drift(rate) => truth + rate * at.since(since).as_secs_f64(),
+            SensorFault::Noise(sigma) => truth + sigma * gaussian(&mut self.rng),
+            SensorFault::Dropout => return None,
+        })
+    }
+
     /// Drives the plant from `m`'s output latches and sets `m`'s inputs from the plant, at `at`:
     /// returns the next time the plant may change on its own (its next step).
     pub fn serve(&mut self, spec: &FirmwareSpec, m: &mut Machine, at: BusTime) -> BusTime {
@@ -118,21 +172,53 @@ impl Wiring {
             }
             self.written[i] = Some(value);
         }
-        for (a, (port, other)) in spec.analog.iter().zip(&self.analog) {
-            let mv = a.millivolts(port.and_then(|p| env.read(p)).unwrap_or(0.0));
+        let next = env.next_change(at);
+        let truths: Vec<(f64, f64)> = self
+            .analog
+            .iter()
+            .map(|(port, other)| {
+                let read = |q: &Option<Port>| q.and_then(|q| env.read(q)).unwrap_or(0.0);
+                (read(port), read(other))
+            })
+            .collect();
+        let levels: Vec<f64> = self
+            .pins
+            .iter()
+            .map(|q| q.and_then(|q| env.read(q)).unwrap_or(0.0))
+            .collect();
+        drop(env);
+        for k in 0..spec.analog.len() {
+            let (a, (port, other)) = (&spec.analog[k], self.analog[k]);
+            // A cut wire reads 0 V.
+            let mv = self.reading(truths[k].0, port, at).map_or(0, |v| a.millivolts(v));
             m.cpu.set_analog_millivolts(a.channel, mv, spec.vref_mv);
             if let Some((p, b, o)) = &a.while_high {
-                let mv = o.millivolts(other.and_then(|p| env.read(p)).unwrap_or(0.0));
+                let mv = self
+                    .reading(truths[k].1, other, at)
+                    .map_or(0, |v| o.millivolts(v));
                 m.cpu
                     .set_analog_mux(a.channel, *p, *b, mcs51::Cpu::code_of(mv, spec.vref_mv));
             }
         }
-        for (p, port) in spec.pins.iter().zip(&self.pins) {
+        for k in 0..spec.pins.len() {
+            let (p, port) = (&spec.pins[k], self.pins[k]);
             if p.direction == Direction::Input {
-                let on = port.and_then(|port| env.read(port)).is_some_and(|v| v >= 0.5);
-                m.cpu.set_pin(p.port, p.bit, on != p.active_low);
+                // A cut wire floats high (the port's pull-up).
+                let high = match self.reading(levels[k], port, at) {
+                    Some(v) => (v >= 0.5) != p.active_low,
+                    None => true,
+                };
+                m.cpu.set_pin(p.port, p.bit, high);
             }
         }
-        env.next_change(at)
+        next
     }
+}
+
+/// A standard normal deviate (Box-Muller).
+fn gaussian(rng: &mut ChaCha8Rng) -> f64 {
+    use rand::Rng;
+    let u1: f64 = rng.random_range(f64::MIN_POSITIVE..1.0);
+    let u2: f64 = rng.random();
+    (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
 }

@@ -135,8 +135,10 @@ pub(super) fn build(
         }
         Spec::Firmware(spec) => {
             let env: SharedEnv = plant.clone();
+            let seed =
+                h.config.network.seed ^ (u64::from(spec.address.unwrap_or(0)) << 32) ^ power_on.as_nanos();
             let mut node = FirmwareNode::new(spec.clone(), power_on, f64::from(h.config.network.bitrate))
-                .with_plant(env);
+                .with_plant(env, seed);
             if let Some(t) = cpu_trace.filter(|t| t.node == spec.name) {
                 let out = t.out.clone();
                 node.trace_cpu(nodes::firmware::CpuTrace {

@@ -50,7 +50,7 @@ use super::wiring::Wiring;
 use crate::script::SharedEnv;
 use bus::Frame;
 use bus::fault::ErrorState;
-use bus::node::{ControllerCommand, ControllerEvent, HardwareState, NodeLogic, Unheeded};
+use bus::node::{ControllerCommand, ControllerEvent, HardwareState, NodeFault, NodeLogic, Refused, Unheeded};
 use bus::sja1000::{Action, BusSide, ecc_segment};
 use bus::time::BusTime;
 use std::collections::VecDeque;
@@ -177,13 +177,14 @@ impl FirmwareNode {
     }
 
     /// Wires the node's ADC channels, port pins and DACs to the plant (when its file wires
-    /// any): the CPU stops for them as the module docs say.
-    pub fn with_plant(mut self, env: SharedEnv) -> FirmwareNode {
+    /// any): the CPU stops for them as the module docs say. `seed` drives the noise of an
+    /// injected sensor fault.
+    pub fn with_plant(mut self, env: SharedEnv, seed: u64) -> FirmwareNode {
         let watched = Wiring::watched(&self.spec);
         if watched == mcs51::Watched::default() {
             return self;
         }
-        self.wiring = Some(Wiring::new(env, &self.spec));
+        self.wiring = Some(Wiring::new(env, &self.spec, seed));
         self.now.cpu.watch(watched);
         self.run_ahead();
         self
@@ -716,6 +717,24 @@ impl NodeLogic for FirmwareNode {
 
     fn failed(&self) -> Option<String> {
         self.failed.clone()
+    }
+
+    /// A sensor fault acts on the wire that reads the signal ([`super::wiring`]); a node with no
+    /// input wired to it refuses it.
+    fn inject(&mut self, fault: &NodeFault, now: BusTime) -> Result<(), Refused> {
+        let (signal, reads) = match fault {
+            NodeFault::Sensor { signal, reads } => (signal, Some(*reads)),
+            NodeFault::SensorRepaired { signal } => (signal, None),
+        };
+        let port = self
+            .wiring
+            .as_ref()
+            .and_then(|w| w.input_port(&self.spec, signal))
+            .ok_or_else(|| Refused(format!("no input of {} is wired to {signal}", self.spec.name)))?;
+        if let Some(w) = self.wiring.as_mut() {
+            w.set_fault(port, reads, now);
+        }
+        Ok(())
     }
 
     /// A traced node brings its trace to the end of the run: the instructions since its last
