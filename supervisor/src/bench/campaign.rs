@@ -29,7 +29,7 @@ pub struct Throughput {
 
 /// Plays `runs` runs of the built-in campaign on `jobs` threads.
 pub fn measure(runs: u64, jobs: usize) -> crate::Result<Throughput> {
-    let c = Campaign::open(Path::new("configs/campaigns/harvest.ron"), None)?;
+    let c = Campaign::open(Path::new("configs/campaigns/harvest.ron"), None, None)?;
     let faults = (0..runs).map(|i| c.history(i).1.faults.len() as u64).sum();
     let started = Instant::now();
     let mut failed = 0;

@@ -45,6 +45,11 @@ pub struct Args {
     /// Folder for summary.json, junit.xml and failing/run-<i>.ron (created if needed).
     #[arg(long, required = true, value_name = "DIR")]
     out: Option<PathBuf>,
+    /// Run the campaign against this harvester config instead of the one its scenario names
+    /// (e.g. configs/harvester-firmware.ron, every field node as firmware); the shrunk failing
+    /// runs name it.
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
 }
 
 #[derive(clap::Subcommand)]
@@ -76,7 +81,11 @@ pub fn run(args: &Args) -> Result<Ended> {
         )
         .map_err(Error::BadInput)?,
     };
-    let campaign = Campaign::open(&configs::by_name(scenario, "campaigns"), args.seed)?;
+    let campaign = Campaign::open(
+        &configs::by_name(scenario, "campaigns"),
+        args.seed,
+        args.config.as_deref(),
+    )?;
     let failing = out.join("failing");
     std::fs::create_dir_all(&failing).map_err(|e| output::failed("create", &failing, e))?;
     let jobs = args.jobs.map_or_else(

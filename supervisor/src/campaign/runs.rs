@@ -69,10 +69,15 @@ pub struct RunResult {
 
 impl Campaign {
     /// Reads a campaign's scenario (a file, or a built-in one's path): it must have a
-    /// `random_faults` section. `seed` defaults to the scenario's, else its config's.
-    pub fn open(path: &Path, seed: Option<u64>) -> Result<Campaign, Error> {
-        let (_, text) = Source::file(path).read()?;
-        let mut base = scenario::load(path, None)?;
+    /// `random_faults` section. `seed` defaults to the scenario's, else its config's. `config`
+    /// is a harvester config to run it against instead of the one it names.
+    pub fn open(path: &Path, seed: Option<u64>, config: Option<&Path>) -> Result<Campaign, Error> {
+        let (_, mut text) = Source::file(path).read()?;
+        let mut base = scenario::load_with(path, None, None, config)?;
+        // Shards of one campaign against another harvester are another campaign.
+        if let Some(c) = config {
+            text.push_str(&format!("\n// config {}", c.display()));
+        }
         let Some(section) = base.scenario.random_faults.take() else {
             return Err(Error::Invalid(vec![Problem::at(
                 &base.source.to_string(),
