@@ -187,24 +187,24 @@ impl Wiring {
             .map(|q| q.and_then(|q| env.read(q)).unwrap_or(0.0))
             .collect();
         drop(env);
-        for k in 0..spec.analog.len() {
-            let (a, (port, other)) = (&spec.analog[k], self.analog[k]);
+        for (k, (a, &(truth, truth_other))) in spec.analog.iter().zip(&truths).enumerate() {
+            let (port, other) = self.analog[k];
             // A cut wire reads 0 V.
-            let mv = self.reading(truths[k].0, port, at).map_or(0, |v| a.millivolts(v));
+            let mv = self.reading(truth, port, at).map_or(0, |v| a.millivolts(v));
             m.cpu.set_analog_millivolts(a.channel, mv, spec.vref_mv);
             if let Some((p, b, o)) = &a.while_high {
                 let mv = self
-                    .reading(truths[k].1, other, at)
+                    .reading(truth_other, other, at)
                     .map_or(0, |v| o.millivolts(v));
                 m.cpu
                     .set_analog_mux(a.channel, *p, *b, mcs51::Cpu::code_of(mv, spec.vref_mv));
             }
         }
-        for k in 0..spec.pins.len() {
-            let (p, port) = (&spec.pins[k], self.pins[k]);
+        for (k, (p, &level)) in spec.pins.iter().zip(&levels).enumerate() {
+            let port = self.pins[k];
             if p.direction == Direction::Input {
                 // A cut wire floats high (the port's pull-up).
-                let high = match self.reading(levels[k], port, at) {
+                let high = match self.reading(level, port, at) {
                     Some(v) => (v >= 0.5) != p.active_low,
                     None => true,
                 };
