@@ -118,6 +118,27 @@ struct Projection {
     actions: Vec<Request>,
     failed: Option<String>,
     path: Path,
+    /// Machine cycles executed on the way.
+    executed: u64,
+}
+
+/// Machine cycles a machine has executed since power-on (those passed in closed form left out).
+fn executed(m: &Machine) -> u64 {
+    m.cpu.cycles().saturating_sub(m.cpu.skipped_cycles())
+}
+
+/// What a node cost the host, logged when it ends (target `firmware_stats`, level info).
+#[derive(Clone, Copy, Debug, Default)]
+struct Cost {
+    /// Machine cycles executed, runs ahead that an input sent back included.
+    executed: u64,
+    /// Wakes at its deadline; inputs (frames, controller events) it took.
+    wakes: u64,
+    inputs: u64,
+    /// Inputs that sent its run ahead back to a copy.
+    backs: u64,
+    /// Host time spent in its inputs and wakes.
+    host: std::time::Duration,
 }
 
 /// A firmware node.
@@ -142,6 +163,7 @@ pub struct FirmwareNode {
     wiring: Option<Wiring>,
     /// The run ahead parked: the machine at its wake, as the look for the wake found it.
     at_wake: Option<Machine>,
+    cost: Cost,
 }
 
 impl FirmwareNode {
@@ -171,6 +193,7 @@ impl FirmwareNode {
             trace: None,
             wiring: None,
             at_wake: None,
+            cost: Cost::default(),
         };
         node.run_ahead();
         node
@@ -237,6 +260,7 @@ impl FirmwareNode {
             return;
         }
         let mut m = self.now.clone();
+        let start = executed(&m);
         let limit = m.clocks().saturating_add(self.horizon);
         let chunk = (self.horizon / COPIES).max(CHUNK);
         // An input may have moved the firmware on to a loop that waits: look at once, then
@@ -270,6 +294,9 @@ impl FirmwareNode {
                             continue;
                         }
                         self.at_wake = wake_of(&m, turn, until);
+                        if let Some(w) = &self.at_wake {
+                            self.cost.executed += executed(w).saturating_sub(executed(&m));
+                        }
                         let wake = self.at_wake.as_ref().map_or(until, Machine::clocks);
                         break Stop::Parked { turn, until, wake };
                     }
@@ -298,6 +325,7 @@ impl FirmwareNode {
                 break Stop::Horizon;
             }
         };
+        self.cost.executed += executed(&m).saturating_sub(start);
         self.ahead = m;
     }
 
@@ -335,6 +363,7 @@ impl FirmwareNode {
             Stop::Failed(message) if path == Path::Ahead => Some(message.clone()),
             _ => None,
         };
+        let start = executed(&machine);
         let mut actions = machine.take_actions();
         while machine.clocks() < n && failed.is_none() && !machine.plant_stop {
             if let Err(e) = machine.run(n) {
@@ -343,6 +372,7 @@ impl FirmwareNode {
             actions.extend(machine.take_actions());
         }
         Projection {
+            executed: executed(&machine).saturating_sub(start),
             machine,
             actions,
             failed,
@@ -365,16 +395,21 @@ impl FirmwareNode {
                 machine: m,
                 failed: None,
                 path: Path::Skipped,
+                executed: 0,
             },
             (_, kept) => {
                 self.at_wake = kept;
                 self.project(n)
             }
         };
+        self.cost.executed += p.executed;
         match p.path {
             Path::Here | Path::Skipped => {}
             Path::Ahead => self.horizon = (self.horizon * 2).min(HORIZON.1),
-            Path::Back => self.horizon = (self.horizon / 2).max(HORIZON.0),
+            Path::Back => {
+                self.cost.backs += 1;
+                self.horizon = (self.horizon / 2).max(HORIZON.0);
+            }
         }
         if let Some(message) = p.failed {
             self.failed = Some(format!("{}: {message}", self.spec.name));
@@ -470,6 +505,15 @@ impl FirmwareNode {
 
     /// An input for chip `chip` at `at`.
     fn input(&mut self, at: BusTime, chip: usize, events: &[BusSide]) {
+        let started = std::time::Instant::now();
+        if !events.is_empty() {
+            self.cost.inputs += 1;
+        }
+        self.take_input(at, chip, events);
+        self.cost.host += started.elapsed();
+    }
+
+    fn take_input(&mut self, at: BusTime, chip: usize, events: &[BusSide]) {
         let n = self.clock_at(at);
         self.advance_to(n);
         // Stopped for the plant on the way (normally at `n` itself, the wake it asked for), or
@@ -608,11 +652,30 @@ fn find_loop(
 
 /// A line the firmware had begun on its serial port when the node goes (the run ends, or the
 /// supervisor replaces it) is not lost: it goes to the log as it is.
+///
+/// And what it cost the host goes to the log (target `firmware_stats`, level info): machine
+/// cycles of bus time, how many of them it executed and passed in closed form, how many it
+/// executed in all (runs ahead that inputs sent back included), its wakes, inputs and
+/// inputs that sent it back, and the host time they took.
 impl Drop for FirmwareNode {
     fn drop(&mut self) {
         if !self.serial.is_empty() {
             self.log_serial(" [no end of line: the node stopped]");
         }
+        let c = self.cost;
+        let (cycles, skipped) = (self.now.cpu.cycles(), self.now.cpu.skipped_cycles());
+        tracing::info!(
+            target: "firmware_stats",
+            node = %self.spec.name,
+            "{cycles} machine cycles: {} executed, {skipped} passed in closed form; {} executed in all; \
+             {} wakes, {} inputs, {} sent back; {:.3} s host time",
+            cycles.saturating_sub(skipped),
+            c.executed,
+            c.wakes,
+            c.inputs,
+            c.backs,
+            c.host.as_secs_f64()
+        );
     }
 }
 
@@ -630,6 +693,7 @@ impl NodeLogic for FirmwareNode {
     }
 
     fn handle_timeout(&mut self, now: BusTime) {
+        self.cost.wakes += 1;
         self.input(now, 0, &[]);
     }
 
