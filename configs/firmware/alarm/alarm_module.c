@@ -181,6 +181,16 @@ struct pin_field {
 static __idata struct analog_field analog[MAX_ANALOG];
 static __idata struct pin_field pin[MAX_PINS];
 
+/* What the fields read last: the ports and the pin fields' bits in each data byte, each analog
+ * field's code and value. A port or a code that has not changed since is not worked out again:
+ * most checks find the machine as it was. */
+static __idata unsigned char last_ports[4];
+static __idata unsigned char pin_bits[8];
+static __bit pins_known;
+static __idata unsigned int last_code[MAX_ANALOG];
+static __idata unsigned int last_value[MAX_ANALOG];
+static __idata unsigned char value_known;
+
 /* Ticks of 10 ms (modulo 256), counted by the timer 2 interrupt. */
 volatile unsigned char ticks;
 /* Times the CAN controller was restarted after bus-off. */
@@ -370,11 +380,16 @@ static unsigned int adc_read(unsigned char channel)
 
 /* An analog field: its channel converted, the code taken at the centre of its bin and scaled
  * as the block says. (x + 2^(s-1)) >> s is computed as ((x >> (s-1)) + 1) >> 1, the same. */
-static unsigned int analog_value(__idata struct analog_field *a)
+static unsigned int analog_value(unsigned char k)
 {
+    __idata struct analog_field *a = &analog[k];
     unsigned int code = adc_read(a->channel);
     unsigned char shift = a->shift;
-    unsigned long x = (unsigned long)((code << 1) + 1) * a->mul;
+    unsigned long x;
+
+    if ((value_known & (1 << k)) && code == last_code[k])
+        return last_value[k];
+    x = (unsigned long)((code << 1) + 1) * a->mul;
 
     if (shift) {
         shift--;
@@ -385,34 +400,58 @@ static unsigned int analog_value(__idata struct analog_field *a)
         x >>= shift;
         x = (x + 1) >> 1;
     }
-    return (unsigned int)x * a->step - a->bias;
+    last_code[k] = code;
+    last_value[k] = (unsigned int)x * a->step - a->bias;
+    value_known |= 1 << k;
+    return last_value[k];
 }
 
-/* Reads every field into frame[]: the ports once, then each field. */
+/* The pin fields' bits in each data byte, from the ports as they read now. */
+static void pin_sample(unsigned char p0, unsigned char p1, unsigned char p2, unsigned char p3)
+{
+    unsigned char k;
+    __idata unsigned char ports[4];
+
+    ports[0] = last_ports[0] = p0;
+    ports[1] = last_ports[1] = p1;
+    ports[2] = last_ports[2] = p2;
+    ports[3] = last_ports[3] = p3;
+    for (k = 0; k < 8; k++)
+        pin_bits[k] = 0;
+    for (k = 0; k < pin_fields; k++) {
+        __idata struct pin_field *p = &pin[k];
+        if ((ports[p->port] ^ p->invert) & p->mask)
+            pin_bits[p->at] |= p->bit;
+    }
+    pins_known = 1;
+}
+
+/* Reads every field into frame[]: the ports once (the pin fields worked out again only when one
+ * changed), then each analog field, the pin bits of its bytes kept. */
 static void sample(void)
 {
     unsigned char k;
     unsigned int value;
-    __idata unsigned char ports[4];
+    unsigned char p0 = P0, p1 = P1, p2 = P2, p3 = P3;
 
-    ports[0] = P0;
-    ports[1] = P1;
-    ports[2] = P2;
-    ports[3] = P3;
-    for (k = 1; k < 8; k++)
-        frame[k] = 0;
+    if (!pins_known || p0 != last_ports[0] || p1 != last_ports[1] || p2 != last_ports[2] ||
+        p3 != last_ports[3])
+        pin_sample(p0, p1, p2, p3);
     frame[0] = cfg[CFG_DATA0];
+    frame[1] = pin_bits[1];
+    frame[2] = pin_bits[2];
+    frame[3] = pin_bits[3];
+    frame[4] = pin_bits[4];
+    frame[5] = pin_bits[5];
+    frame[6] = pin_bits[6];
+    frame[7] = pin_bits[7];
     for (k = 0; k < analog_fields; k++) {
         __idata struct analog_field *a = &analog[k];
-        value = analog_value(a);
-        frame[a->at] = value & 0xFF;
+        unsigned char at = a->at;
+        value = analog_value(k);
+        frame[at] = (value & 0xFF) | pin_bits[at];
         if (a->width == 2)
-            frame[a->at + 1] = value >> 8;
-    }
-    for (k = 0; k < pin_fields; k++) {
-        __idata struct pin_field *p = &pin[k];
-        if ((ports[p->port] ^ p->invert) & p->mask)
-            frame[p->at] |= p->bit;
+            frame[at + 1] = (value >> 8) | pin_bits[at + 1];
     }
 }
 
