@@ -11,7 +11,8 @@
 //! input, from where it runs to the input's moment again: so it never acts on what it could not
 //! yet have read, and a run is the same every time. A frame that the on-chip controller would
 //! not take, while the run ahead writes none of the registers that decide which frames it takes,
-//! changes nothing and sends nothing back.
+//! changes nothing and sends nothing back; the node tells the hub which frames those are, and
+//! until when ([`bus::node::Unheeded`]), so that the hub need not wake it for them.
 //!
 //! Loops that wait: after an input, and then at growing gaps, the node looks for a loop whose
 //! turns repeat ([`Machine::repeats`]): it runs until the PC comes back, and compares the state
