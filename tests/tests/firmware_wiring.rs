@@ -9,7 +9,7 @@
 //!
 //! What the test knows independently: the set-point the block's bytes mean (01F4h = 500 steps of
 //! 0.01 km/h), the plant's signals at the end, and the ideal converter's code
-//! ⌊1024 · mV / 5000⌋.
+//! ⌊1024 · mV / 5000⌋. A second test cuts and sticks the wires with sensor faults.
 
 use actix::prelude::*;
 use bus::time::BusTime;
@@ -131,4 +131,64 @@ fn the_block_the_dac_and_the_multiplexer_reach_the_firmware_and_the_plant() {
         "high input {high}, pressure {pressure:.1} mV gives {want}"
     );
     assert!((low - high).abs() > 50.0, "the two inputs differ: {low} {high}");
+}
+
+/// Sensor faults act on the wires (docs/FIRMWARE.md, "Sensor faults on wires"): at 2 s the duct
+/// vacuum's wire is stuck at 1000 mV and the clutch pressure's cut. From the plant's next step
+/// the program converts 1000 mV on the low input (the ideal converter: code 204) and 0 V on the
+/// high one (a cut wire reads 0 V, whatever the multiplexer's offset). A signal no input of the
+/// node reads is refused.
+#[test]
+fn sensor_faults_act_on_the_wires() {
+    use bus::node::{NodeFault, SensorFault};
+    use bus_runtime::node::Inject;
+    let hex = assemble(PROGRAM);
+    let read = move |_: &Path| Ok(("fw.hex".to_string(), hex.clone()));
+    let spec = nodes::firmware::load("c1.ron", Path::new("c1.ron"), NODE, &read).expect("the node file");
+    let mut h = default_harvester();
+    h.scripts.retain(|s| s.name != "C1");
+    h.firmware.push(Arc::new(spec));
+    let (hw, refused) = System::with_tokio_rt(|| runtime(true).expect("runtime")).block_on(async move {
+        let running = harvester::start(&h, false, Vec::new()).await.expect("start");
+        let fault_at = BusTime::from_secs(2);
+        running
+            .hub
+            .send(RunUntil(fault_at))
+            .await
+            .expect("hub")
+            .expect("run");
+        let c1 = running.actor("C1").expect("C1");
+        let inject = |signal: &str, reads| Inject {
+            fault: NodeFault::Sensor {
+                signal: signal.into(),
+                reads,
+            },
+            now: fault_at,
+        };
+        c1.send(inject("duct.vacuum", SensorFault::Stuck(1000.0)))
+            .await
+            .expect("C1")
+            .expect("the vacuum's wire");
+        c1.send(inject("clutch.pressure", SensorFault::Dropout))
+            .await
+            .expect("C1")
+            .expect("the pressure's wire");
+        let refused = c1
+            .send(inject("engine.rpm", SensorFault::Stuck(0.0)))
+            .await
+            .expect("C1");
+        let end = BusTime::from_secs(3);
+        running.hub.send(RunUntil(end)).await.expect("hub").expect("run");
+        (running.hardware(end).await, refused)
+    });
+    let refused = refused.expect_err("no input of C1 reads engine.rpm");
+    assert!(refused.0.contains("engine.rpm"), "{refused}");
+    let (_, hw) = &hw[0];
+    let iram: Vec<u8> = (0..256)
+        .map(|i| u8::from_str_radix(&hw.cpu.iram[2 * i..2 * i + 2], 16).expect("hex"))
+        .collect();
+    let low = f64::from(u16::from_le_bytes([iram[0x30], iram[0x31]]));
+    let high = f64::from(u16::from_le_bytes([iram[0x32], iram[0x33]]));
+    assert_eq!(low, code(1000.0), "the stuck wire");
+    assert_eq!(high, 0.0, "the cut wire");
 }
