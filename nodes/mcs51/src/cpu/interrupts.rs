@@ -141,7 +141,8 @@ impl Cpu {
             != 0
     }
 
-    /// Notes that polling found nothing to take, and nothing: see [`Cpu::irq_quiet`].
+    /// The poll found nothing to take: so will the next ones until something they read changes
+    /// ([`Cpu::irq_quiet`]).
     fn quiet(&mut self) -> Option<u16> {
         self.irq_quiet = true;
         None
