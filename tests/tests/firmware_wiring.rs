@@ -88,8 +88,8 @@ fn code(mv: f64) -> f64 {
     (1024.0 * mv / 5000.0).floor()
 }
 
-#[test]
-fn the_block_the_dac_and_the_multiplexer_reach_the_firmware_and_the_plant() {
+/// The default harvester with the program and node file above in C1's place.
+fn with_c1() -> harvester::Harvester {
     let hex = assemble(PROGRAM);
     let read = move |_: &Path| Ok(("fw.hex".to_string(), hex.clone()));
     let spec = nodes::firmware::load("c1.ron", Path::new("c1.ron"), NODE, &read).expect("the node file");
@@ -97,6 +97,23 @@ fn the_block_the_dac_and_the_multiplexer_reach_the_firmware_and_the_plant() {
     let mut h = default_harvester();
     h.scripts.retain(|s| s.name != "C1");
     h.firmware.push(Arc::new(spec));
+    h
+}
+
+/// The program's last codes of the low and high inputs, and its loop count, from C1's state.
+fn converted(hw: &[(String, bus::node::HardwareState)]) -> (f64, f64, u8) {
+    let (_, hw) = &hw[0];
+    let iram: Vec<u8> = (0..256)
+        .map(|i| u8::from_str_radix(&hw.cpu.iram[2 * i..2 * i + 2], 16).expect("hex"))
+        .collect();
+    let low = f64::from(u16::from_le_bytes([iram[0x30], iram[0x31]]));
+    let high = f64::from(u16::from_le_bytes([iram[0x32], iram[0x33]]));
+    (low, high, iram[0x34])
+}
+
+#[test]
+fn the_block_the_dac_and_the_multiplexer_reach_the_firmware_and_the_plant() {
+    let h = with_c1();
     let end = BusTime::from_secs(6);
     let (hw, setpoint, vacuum, pressure) = System::with_tokio_rt(|| runtime(true).expect("runtime"))
         .block_on(async move {
@@ -113,13 +130,8 @@ fn the_block_the_dac_and_the_multiplexer_reach_the_firmware_and_the_plant() {
             )
         });
     assert!((setpoint - 5.0).abs() < 1e-9, "the DAC set {setpoint} km/h");
-    let (_, hw) = &hw[0];
-    let iram: Vec<u8> = (0..256)
-        .map(|i| u8::from_str_radix(&hw.cpu.iram[2 * i..2 * i + 2], 16).expect("hex"))
-        .collect();
-    assert_ne!(iram[0x34], 0, "the loop ran");
-    let low = f64::from(u16::from_le_bytes([iram[0x30], iram[0x31]]));
-    let high = f64::from(u16::from_le_bytes([iram[0x32], iram[0x33]]));
+    let (low, high, loops) = converted(&hw);
+    assert_ne!(loops, 0, "the loop ran");
     // The signals move little over the last loop: within two codes of the end's.
     assert!(
         (low - code(vacuum)).abs() <= 2.0,
@@ -142,12 +154,7 @@ fn the_block_the_dac_and_the_multiplexer_reach_the_firmware_and_the_plant() {
 fn sensor_faults_act_on_the_wires() {
     use bus::node::{NodeFault, SensorFault};
     use bus_runtime::node::Inject;
-    let hex = assemble(PROGRAM);
-    let read = move |_: &Path| Ok(("fw.hex".to_string(), hex.clone()));
-    let spec = nodes::firmware::load("c1.ron", Path::new("c1.ron"), NODE, &read).expect("the node file");
-    let mut h = default_harvester();
-    h.scripts.retain(|s| s.name != "C1");
-    h.firmware.push(Arc::new(spec));
+    let h = with_c1();
     let (hw, refused) = System::with_tokio_rt(|| runtime(true).expect("runtime")).block_on(async move {
         let running = harvester::start(&h, false, Vec::new()).await.expect("start");
         let fault_at = BusTime::from_secs(2);
@@ -183,12 +190,7 @@ fn sensor_faults_act_on_the_wires() {
     });
     let refused = refused.expect_err("no input of C1 reads engine.rpm");
     assert!(refused.0.contains("engine.rpm"), "{refused}");
-    let (_, hw) = &hw[0];
-    let iram: Vec<u8> = (0..256)
-        .map(|i| u8::from_str_radix(&hw.cpu.iram[2 * i..2 * i + 2], 16).expect("hex"))
-        .collect();
-    let low = f64::from(u16::from_le_bytes([iram[0x30], iram[0x31]]));
-    let high = f64::from(u16::from_le_bytes([iram[0x32], iram[0x33]]));
+    let (low, high, _) = converted(&hw);
     assert_eq!(low, code(1000.0), "the stuck wire");
     assert_eq!(high, 0.0, "the cut wire");
 }

@@ -25,7 +25,7 @@ impl Scheduler {
                 self.observers.retain_mut(|o| o(&seen));
             }
             if self.register_level > 0
-                && let Some(d) = self.tell_register_level(&event)
+                && let Some(d) = self.counters_of(&event)
             {
                 due = Some(due.map_or(d, |x| x.min(d)));
             }
@@ -102,13 +102,6 @@ impl Scheduler {
             }
             self.order_error.get_or_insert(e);
         }
-    }
-
-    /// Tells register-level nodes the counters an event changed; answers with the earliest due
-    /// time among those it told (the others' stand, and the caller knows them).
-    #[inline(never)]
-    fn tell_register_level(&mut self, event: &Event) -> Option<BusTime> {
-        self.counters_of(event)
     }
 
     /// Hands the trace's records that are due to the sinks, in time order: those a reorder
@@ -255,7 +248,10 @@ impl Scheduler {
 
     /// Tells register-level nodes of the counters an event changed: the values the event
     /// carries where it has them, else the controller's as the event leaves them (a frame
-    /// that went through, a reset).
+    /// that went through, a reset). Answers with the earliest due time among the nodes it told
+    /// (the others' stand, and the caller knows them). Out of line: a bus without
+    /// register-level nodes does not carry it in its per-event path.
+    #[inline(never)]
     fn counters_of(&mut self, event: &Event) -> Option<BusTime> {
         match *event {
             Event::BusError {

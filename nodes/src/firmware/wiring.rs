@@ -13,7 +13,7 @@
 use super::machine::Machine;
 use super::spec::FirmwareSpec;
 use super::wires::Direction;
-use crate::script::{Port, SharedEnv};
+use crate::script::{Port, SharedEnv, gaussian};
 use bus::node::SensorFault;
 use bus::time::BusTime;
 use mcs51::Watched;
@@ -173,38 +173,29 @@ impl Wiring {
             self.written[i] = Some(value);
         }
         let next = env.next_change(at);
-        let truths: Vec<(f64, f64)> = self
-            .analog
-            .iter()
-            .map(|(port, other)| {
-                let read = |q: &Option<Port>| q.and_then(|q| env.read(q)).unwrap_or(0.0);
-                (read(port), read(other))
-            })
-            .collect();
-        let levels: Vec<f64> = self
-            .pins
-            .iter()
-            .map(|q| q.and_then(|q| env.read(q)).unwrap_or(0.0))
-            .collect();
         drop(env);
-        for (k, (a, &(truth, truth_other))) in spec.analog.iter().zip(&truths).enumerate() {
+        // The plant through a handle of its own: a fault's noise draws from `self` meanwhile.
+        let plant = self.env.clone();
+        let plant = plant.borrow();
+        let truth = |q: Option<Port>| q.and_then(|q| plant.read(q)).unwrap_or(0.0);
+        for (k, a) in spec.analog.iter().enumerate() {
             let (port, other) = self.analog[k];
             // A cut wire reads 0 V.
-            let mv = self.reading(truth, port, at).map_or(0, |v| a.millivolts(v));
+            let mv = self.reading(truth(port), port, at).map_or(0, |v| a.millivolts(v));
             m.cpu.set_analog_millivolts(a.channel, mv, spec.vref_mv);
             if let Some((p, b, o)) = &a.while_high {
                 let mv = self
-                    .reading(truth_other, other, at)
+                    .reading(truth(other), other, at)
                     .map_or(0, |v| o.millivolts(v));
                 m.cpu
                     .set_analog_mux(a.channel, *p, *b, mcs51::Cpu::code_of(mv, spec.vref_mv));
             }
         }
-        for (k, (p, &level)) in spec.pins.iter().zip(&levels).enumerate() {
+        for (k, p) in spec.pins.iter().enumerate() {
             let port = self.pins[k];
             if p.direction == Direction::Input {
                 // A cut wire floats high (the port's pull-up).
-                let high = match self.reading(level, port, at) {
+                let high = match self.reading(truth(port), port, at) {
                     Some(v) => (v >= 0.5) != p.active_low,
                     None => true,
                 };
@@ -213,12 +204,4 @@ impl Wiring {
         }
         next
     }
-}
-
-/// A standard normal deviate (Box-Muller).
-fn gaussian(rng: &mut ChaCha8Rng) -> f64 {
-    use rand::Rng;
-    let u1: f64 = rng.random_range(f64::MIN_POSITIVE..1.0);
-    let u2: f64 = rng.random();
-    (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
 }

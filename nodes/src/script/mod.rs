@@ -22,6 +22,7 @@ mod template;
 pub use filter::FilterProblem;
 pub use load::{Signals, from_file_text, from_text, load, parse, validate};
 pub use model::*;
+pub(crate) use run::gaussian;
 pub use run::{Environment, Port, ScriptedNode, SharedEnv};
 pub(crate) use template::position_of;
 pub use template::{Reader, check as check_template, disk, expand, top_name};

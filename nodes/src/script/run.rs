@@ -507,7 +507,7 @@ fn grid_from(start: BusTime, step: BusDuration, from: BusTime) -> BusTime {
 }
 
 /// A standard normal deviate (Box–Muller) from a seeded generator.
-fn gaussian(rng: &mut ChaCha8Rng) -> f64 {
+pub(crate) fn gaussian(rng: &mut ChaCha8Rng) -> f64 {
     use rand::Rng;
     let u1: f64 = rng.random_range(f64::MIN_POSITIVE..1.0);
     let u2: f64 = rng.random();
