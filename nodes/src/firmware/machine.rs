@@ -107,7 +107,7 @@ pub(crate) struct Request {
 
 /// The CPU's surroundings: the chips, and what they asked of the bus since the CPU last
 /// stopped.
-#[derive(Clone, Debug)]
+#[derive(Debug)]
 pub(crate) struct Board {
     /// Inline: a machine is copied at every look and checkpoint, and most have one chip.
     pub chips: SmallVec<[Chip; 1]>,
@@ -130,6 +130,26 @@ pub(crate) struct Board {
     /// Reads of the on-chip controller's timers (CANTIM, CANTTC) since power-on: a loop that
     /// reads one does not turn the same way twice.
     pub time_reads: u64,
+}
+
+/// A board with one chip (most have one) is copied without the generic path of a `SmallVec`,
+/// which costs several times the copy itself.
+impl Clone for Board {
+    fn clone(&self) -> Board {
+        Board {
+            chips: match self.chips.as_slice() {
+                [one] => SmallVec::from_buf([one.clone()]),
+                _ => self.chips.clone(),
+            },
+            actions: self.actions.clone(),
+            requests: SmallVec::from_slice(&self.requests),
+            bitrate_hz: self.bitrate_hz,
+            stop: self.stop,
+            can_writes: self.can_writes,
+            filter_writes: self.filter_writes,
+            time_reads: self.time_reads,
+        }
+    }
 }
 
 /// The state, the write count aside (a loop that writes the same values repeats all the same).
@@ -318,7 +338,7 @@ impl Machine {
     /// the turn read no timer count (the CPU's or the CAN controller's), no event fell due
     /// during it, and the state is the head's with the turn's time passed on it, nothing
     /// executed (the timers counted; both told the on-chip controller the time).
-    pub fn repeats(&mut self, head: Machine) -> Option<Turn> {
+    pub fn repeats(&mut self, head: std::borrow::Cow<'_, Machine>) -> Option<Turn> {
         if self.cpu.time_reads() != head.cpu.time_reads()
             || self.board.time_reads != head.board.time_reads
             || self.board.can_writes != head.board.can_writes
@@ -332,7 +352,7 @@ impl Machine {
             cycles: self.cpu.cycles() - head.cpu.cycles(),
             reads_inputs: self.cpu.input_reads() != head.cpu.input_reads(),
         };
-        let mut passed = head;
+        let mut passed = head.into_owned();
         passed.pass(turn, 1);
         self.sync_chip_time();
         (passed.cpu.same_but_time(&self.cpu) && passed.board == self.board).then_some(turn)

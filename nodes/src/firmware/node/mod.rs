@@ -54,6 +54,7 @@ use bus::fault::ErrorState;
 use bus::node::{ControllerCommand, ControllerEvent, HardwareState, NodeFault, NodeLogic, Refused, Unheeded};
 use bus::sja1000::{Action, BusSide, ecc_segment};
 use bus::time::BusTime;
+use std::borrow::Cow;
 use std::collections::VecDeque;
 use std::sync::Arc;
 
@@ -113,19 +114,35 @@ enum Path {
     Back,
 }
 
-/// The machine at some clock, and how it got there.
-struct Projection {
-    machine: Machine,
-    actions: Vec<Request>,
-    failed: Option<String>,
-    path: Path,
-    /// Machine cycles executed on the way.
-    executed: u64,
-}
-
 /// Machine cycles a machine has executed since power-on (those passed in closed form left out).
 fn executed(m: &Machine) -> u64 {
     m.cpu.cycles().saturating_sub(m.cpu.skipped_cycles())
+}
+
+/// Where [`FirmwareNode::project`] finds the machine it runs on from.
+#[derive(Clone, Copy, Debug)]
+enum Source {
+    Now,
+    /// The machine at the wake the run ahead parked for.
+    AtWake,
+    /// The run ahead, with whole turns of the loop it parked in passed on it.
+    Ahead(Option<(Turn, u64)>),
+    /// The copy of the run ahead at this index.
+    Copy(usize),
+}
+
+/// Runs `machine` on to clock `n`, unless `failed` already: what it asked of the bus on the
+/// way (from where it was), the fault it stopped with, and the machine cycles it executed.
+fn run_on(machine: &mut Machine, n: u64, mut failed: Option<String>) -> (Vec<Request>, Option<String>, u64) {
+    let start = executed(machine);
+    let mut actions = machine.take_actions();
+    while machine.clocks() < n && failed.is_none() && !machine.plant_stop {
+        if let Err(e) = machine.run(n) {
+            failed = Some(e.to_string());
+        }
+        actions.extend(machine.take_actions());
+    }
+    (actions, failed, executed(machine).saturating_sub(start))
 }
 
 /// What a node cost the host, logged when it ends (target `firmware_stats`, level info).
@@ -268,6 +285,8 @@ impl FirmwareNode {
         // after gaps that double while looks find none.
         let mut gap = LOOK_GAP.0;
         let mut look_at = m.clocks();
+        // Whether `m` has left `now`.
+        let mut moved = false;
         self.stop = loop {
             // `now` is the first copy; a look may have kept one lately.
             if m.clocks() > self.now.clocks()
@@ -280,7 +299,9 @@ impl FirmwareNode {
             }
             let target = m.clocks().saturating_add(chunk).min(limit);
             if self.spec.skip_idle_loops && m.clocks() >= look_at {
-                match find_loop(&mut m, target, &mut self.checkpoints, self.now.clocks()) {
+                let at_now = m.clocks() == self.now.clocks() && !moved;
+                moved = true;
+                match find_loop(&mut m, target, &mut self.checkpoints, &self.now, at_now) {
                     Err(e) => break Stop::Failed(e.to_string()),
                     Ok(Some(turn)) => {
                         let fresh = if turn.reads_inputs {
@@ -312,6 +333,7 @@ impl FirmwareNode {
                 } else {
                     target
                 };
+                moved = true;
                 if let Err(e) = m.run(target) {
                     break Stop::Failed(e.to_string());
                 }
@@ -330,58 +352,60 @@ impl FirmwareNode {
         self.ahead = m;
     }
 
-    /// The machine at clock `n` (not before `now`), found from the run ahead where it holds,
-    /// without changing anything: what it asked of the bus on the way, and a fault if it hit
-    /// one.
-    fn project(&self, n: u64) -> Projection {
+    /// Where the machine at clock `n` (not before `now`) is found, and how.
+    fn source(&self, n: u64) -> (Source, Path) {
         let reached = self.ahead.clocks();
-        let (mut machine, path) = match self.stop {
-            _ if n <= self.now.clocks() => (self.now.clone(), Path::Here),
+        match self.stop {
+            _ if n <= self.now.clocks() => (Source::Now, Path::Here),
+            // Found when it parked: the whole turns, then the rest to the wake.
             Stop::Parked { wake, .. } if n == wake && self.at_wake.is_some() => {
-                // Found when it parked: the whole turns, then the rest to the wake.
-                (
-                    self.at_wake.clone().unwrap_or_else(|| self.ahead.clone()),
-                    Path::Skipped,
-                )
+                (Source::AtWake, Path::Skipped)
             }
             Stop::Parked { turn, until, .. } if n >= reached => {
                 // Whole turns that end before the next change: from there it runs.
                 let skip_to = n.min(until.saturating_sub(1));
                 let turns = skip_to.saturating_sub(reached) / turn.clocks.max(1);
-                let mut m = self.ahead.clone();
-                m.pass(turn, turns);
-                (m, Path::Skipped)
+                (Source::Ahead(Some((turn, turns))), Path::Skipped)
             }
-            _ if n >= reached => (self.ahead.clone(), Path::Ahead),
+            _ if n >= reached => (Source::Ahead(None), Path::Ahead),
             _ => {
                 // An input came first: back to the last copy before it (`now` is the first).
                 let k = self.checkpoints.partition_point(|c| c.clocks() <= n);
-                let copy = k.checked_sub(1).and_then(|i| self.checkpoints.get(i));
-                (copy.unwrap_or(&self.now).clone(), Path::Back)
+                (k.checked_sub(1).map_or(Source::Now, Source::Copy), Path::Back)
             }
-        };
-        let mut failed = match &self.stop {
-            Stop::Failed(message) if path == Path::Ahead => Some(message.clone()),
-            _ => None,
-        };
-        let start = executed(&machine);
-        let mut actions = machine.take_actions();
-        while machine.clocks() < n && failed.is_none() && !machine.plant_stop {
-            if let Err(e) = machine.run(n) {
-                failed = Some(e.to_string());
-            }
-            actions.extend(machine.take_actions());
-        }
-        Projection {
-            executed: executed(&machine).saturating_sub(start),
-            machine,
-            actions,
-            failed,
-            path,
         }
     }
 
-    /// Brings `now` to clock `n`.
+    /// The machine at clock `n` (not before `now`), found from the run ahead where it holds,
+    /// without changing anything.
+    fn project(&self, n: u64) -> Machine {
+        let (source, path) = self.source(n);
+        let mut machine = match source {
+            Source::Now => self.now.clone(),
+            Source::AtWake => self.at_wake.as_ref().unwrap_or(&self.ahead).clone(),
+            Source::Ahead(skip) => {
+                let mut m = self.ahead.clone();
+                if let Some((turn, turns)) = skip {
+                    m.pass(turn, turns);
+                }
+                m
+            }
+            Source::Copy(i) => self.checkpoints.get(i).unwrap_or(&self.now).clone(),
+        };
+        run_on(&mut machine, n, self.fault_ahead(path));
+        machine
+    }
+
+    /// The fault the run ahead stopped with, when the machine is found where it stopped.
+    fn fault_ahead(&self, path: Path) -> Option<String> {
+        match &self.stop {
+            Stop::Failed(message) if path == Path::Ahead => Some(message.clone()),
+            _ => None,
+        }
+    }
+
+    /// Brings `now` to clock `n`. The machine it starts from is moved rather than copied, so
+    /// the run ahead is spent: [`FirmwareNode::run_ahead`] must follow before it is read.
     fn advance_to(&mut self, n: u64) {
         if self.failed.is_some() {
             return;
@@ -389,22 +413,30 @@ impl FirmwareNode {
         if let Some(last) = self.traced_until(n) {
             self.step_traced(last);
         }
-        // Woken where the run ahead parked and looked for its wake: that machine, as it is.
-        let p = match (&self.stop, self.at_wake.take()) {
-            (Stop::Parked { wake, .. }, Some(mut m)) if n == *wake && n > self.now.clocks() => Projection {
-                actions: m.take_actions(),
-                machine: m,
-                failed: None,
-                path: Path::Skipped,
-                executed: 0,
-            },
-            (_, kept) => {
-                self.at_wake = kept;
-                self.project(n)
+        let (source, path) = self.source(n);
+        match source {
+            Source::Now => {}
+            Source::AtWake => {
+                if let Some(m) = self.at_wake.take() {
+                    self.now = m;
+                }
             }
-        };
-        self.cost.executed += p.executed;
-        match p.path {
+            Source::Ahead(skip) => {
+                std::mem::swap(&mut self.now, &mut self.ahead);
+                if let Some((turn, turns)) = skip {
+                    self.now.pass(turn, turns);
+                }
+            }
+            Source::Copy(i) => {
+                if let Some(copy) = self.checkpoints.get_mut(i) {
+                    std::mem::swap(&mut self.now, copy);
+                }
+            }
+        }
+        let fault = self.fault_ahead(path);
+        let (actions, failed, executed) = run_on(&mut self.now, n, fault);
+        self.cost.executed += executed;
+        match path {
             Path::Here | Path::Skipped => {}
             Path::Ahead => self.horizon = (self.horizon * 2).min(HORIZON.1),
             Path::Back => {
@@ -412,11 +444,10 @@ impl FirmwareNode {
                 self.horizon = (self.horizon / 2).max(HORIZON.0);
             }
         }
-        if let Some(message) = p.failed {
+        if let Some(message) = failed {
             self.failed = Some(format!("{}: {message}", self.spec.name));
         }
-        self.command(p.actions);
-        self.now = p.machine;
+        self.command(actions);
         self.serial();
         self.log_writes();
     }
@@ -625,24 +656,33 @@ fn find_loop(
     m: &mut Machine,
     until: u64,
     copies: &mut Vec<Machine>,
-    now: u64,
+    now: &Machine,
+    mut at_now: bool,
 ) -> Result<Option<Turn>, mcs51::Error> {
     for _ in 0..LOOK_TURNS {
         if m.cpu.inputs_due() {
             m.plant_stop = true;
             return Ok(None);
         }
-        let head = m.clone();
+        // `m` unchanged from `now` needs no copy of its own (a copy is a kilobyte or more).
+        let head = if std::mem::take(&mut at_now) {
+            Cow::Borrowed(now)
+        } else {
+            Cow::Owned(m.clone())
+        };
         m.run_to_pc(until.min(head.clocks().saturating_add(LOOK_SPAN)), head.cpu.pc())?;
         let stopped = !m.board.actions.is_empty() || m.plant_stop || m.clocks() >= until;
         if !stopped && m.cpu.pc() == head.cpu.pc() && m.clocks() > head.clocks() {
             if let Some(turn) = m.repeats(head) {
                 return Ok(Some(turn));
             }
-        } else if copies.last().map_or(now, |c| c.clocks().saturating_add(CHUNK)) <= head.clocks()
-            && head.clocks() > now
+        } else if copies
+            .last()
+            .map_or(now.clocks(), |c| c.clocks().saturating_add(CHUNK))
+            <= head.clocks()
+            && head.clocks() > now.clocks()
         {
-            copies.push(head);
+            copies.push(head.into_owned());
         }
         if stopped {
             return Ok(None);
@@ -807,13 +847,14 @@ impl NodeLogic for FirmwareNode {
     fn run_ends(&mut self, at: BusTime) {
         if self.trace.is_some() {
             self.advance_to(self.clock_at(at));
+            self.run_ahead();
         }
     }
 
     /// The machine at `at`, the on-chip controller told the time: its CAN timer shows that
     /// moment, however lately the firmware last reached it.
     fn hardware(&self, at: BusTime) -> Option<HardwareState> {
-        let mut machine = self.project(self.clock_at(at)).machine;
+        let mut machine = self.project(self.clock_at(at));
         machine.sync_chip_time();
         Some(super::dump::state(&machine))
     }
