@@ -614,13 +614,6 @@ impl FirmwareNode {
     }
 }
 
-/// Looks for a loop whose turns do the same until something changes ([`Machine::repeats`]):
-/// runs `m` until its PC comes back to where it is (for [`LOOK_SPAN`] clocks at most, not past
-/// `until`) and compares; while the PC comes back to a state that differs, or does not come
-/// back in time, looks again from where it got, [`LOOK_TURNS`] times at most (an interrupt, or
-/// the work before an idle loop, ends a turn that differs). The turn,
-/// with `m` one turn further on; `None` (with `m` moved on as far as it ran) if none was seen,
-/// a chip asked for the bus or the CPU stopped for the plant.
 /// `m` parked in a loop of `turn`, at the first instruction boundary at or after `until`: where
 /// [`FirmwareNode::project`] finds it when woken then (or where it stops first for the bus or
 /// the plant); `None` when nothing is coming, or the CPU fails on the way.
@@ -648,10 +641,18 @@ fn wake_of(m: &Machine, turn: Turn, until: u64) -> Option<Machine> {
     Some(trial)
 }
 
+/// Looks for a loop whose turns do the same until something changes ([`Machine::repeats`]):
+/// runs `m` until its PC comes back to where it is (for [`LOOK_SPAN`] clocks at most, not past
+/// `until`) and compares; while the PC comes back to a state that differs, or does not come
+/// back in time, looks again from where it got, [`LOOK_TURNS`] times at most (an interrupt, or
+/// the work before an idle loop, ends a turn that differs). The turn,
+/// with `m` one turn further on; `None` (with `m` moved on as far as it ran) if none was seen,
+/// a chip asked for the bus or the CPU stopped for the plant.
 ///
 /// A turn's head that is not compared (its PC did not come back) is kept in `copies`, as a copy
 /// of the run ahead from `now`, when it lies after `now` and [`CHUNK`] clocks or more after the
-/// last one there: an input that sends the run back finds a copy near it.
+/// last one there: an input that sends the run back finds a copy near it. `at_now` says that
+/// `m` has not left `now`: its first head is `now` itself.
 fn find_loop(
     m: &mut Machine,
     until: u64,
