@@ -71,10 +71,10 @@ impl Scheduler {
                 let before = slot.due();
                 slot.input(at, input, wakes);
                 let after = slot.due();
-                // Unchanged (a node already waiting for an input), its queue entry stands.
+                // Unchanged (a node already waiting for an input), its due time stands.
                 if let Some(d) = after {
                     if after != before {
-                        self.push_due(d, node.index());
+                        self.dues[node.index()] = d;
                     }
                     due = Some(due.map_or(d, |x| x.min(d)));
                 }
@@ -152,18 +152,10 @@ impl Scheduler {
         self.round += 1;
         self.crashed_in_round = false;
         self.stop_in_round = false;
-        // The slots queued as due by `at` (the earliest due time: none is earlier), in slot
-        // order; entries a later change made stale are dropped here.
+        // The slots due by `at` as last set (the earliest due time: none is earlier), in slot
+        // order; those a later change made stale are read again below.
         let mut due_now = std::mem::take(&mut self.due_now);
-        while let Some(&std::cmp::Reverse((t, i))) = self.due_queue.peek() {
-            if t > at {
-                break;
-            }
-            self.due_queue.pop();
-            due_now.push(i);
-        }
-        due_now.sort_unstable();
-        due_now.dedup();
+        due_now.extend((self.dues.iter().enumerate()).filter_map(|(i, &t)| (t <= at).then_some(i)));
         debug_assert_eq!(
             due_now
                 .iter()
@@ -173,10 +165,11 @@ impl Scheduler {
             (0..self.slots.len())
                 .filter(|&i| self.slots[i].due() == Some(at))
                 .collect::<Vec<_>>(),
-            "the due queue lost a slot due at {at}"
+            "the due times lost a slot due at {at}"
         );
         for &i in &due_now {
             if self.slots[i].due() != Some(at) {
+                self.queue_due(i);
                 continue;
             }
             let slot = &self.slots[i];

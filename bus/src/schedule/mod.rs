@@ -79,8 +79,7 @@ use crate::time::{BusDuration, BusTime};
 use crate::trace::{Kind, Reorder, Sink};
 use slot::Slot;
 use smallvec::SmallVec;
-use std::cmp::Reverse;
-use std::collections::{BinaryHeap, VecDeque};
+use std::collections::VecDeque;
 
 /// A frame as an observer of the bus sees it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -203,12 +202,12 @@ pub struct Scheduler {
     register_level: usize,
     woken: VecDeque<Wake>,
     notices: VecDeque<Notice>,
-    /// When slots fall due, earliest first. Every slot that is due has an entry at its due
-    /// time: one is pushed whenever a slot's due time may have changed, and checked against the
-    /// slot when it comes up (a later change makes it stale). Keeps the nodes' next due time
-    /// without scanning every slot at every wake. Rebuilt from the slots when stale entries
-    /// outnumber them ([`Scheduler::push_due`]), so it stays the size of the bus.
-    due_queue: BinaryHeap<Reverse<(BusTime, usize)>>,
+    /// Each slot's due time as last set (`BusTime::NEVER`: none), no later than the slot's own:
+    /// it is set whenever a slot's due time may have changed, and checked against the slot when
+    /// it comes up (a later change leaves it early, and it is read again then). The earliest
+    /// is found by one pass over a few words per slot, which costs less than a heap's pushes
+    /// and pops for the node counts of a CAN bus, and never reads the slots themselves.
+    dues: Vec<BusTime>,
     /// The slots due at a wake's moment (kept to reuse its allocation).
     due_now: Vec<usize>,
 }
@@ -257,7 +256,7 @@ impl Scheduler {
             register_level: 0,
             woken: VecDeque::new(),
             notices: VecDeque::new(),
-            due_queue: BinaryHeap::new(),
+            dues: Vec::new(),
             due_now: Vec::new(),
         })
     }
@@ -308,6 +307,7 @@ impl Scheduler {
         // first controller's slot keeps).
         slot.next_timeout = (k == 0).then(|| self.present());
         self.slots.push(slot);
+        self.dues.push(BusTime::NEVER);
         self.queue_due(self.slots.len() - 1);
         self.bus.attach(controller)
     }
@@ -473,44 +473,34 @@ impl Scheduler {
         self.pacer.bus_time(wall_ns)
     }
 
-    /// The earliest time a node is due, from the due queue (dropping its stale entries).
+    /// The earliest time a node is due (reading again the slots whose time went stale).
     fn next_due(&mut self) -> Option<BusTime> {
         let next = loop {
-            match self.due_queue.peek() {
-                Some(&Reverse((t, i))) if self.slots[i].due() == Some(t) => break Some(t),
-                Some(_) => drop(self.due_queue.pop()),
-                None => break None,
+            let Some((i, &t)) = self.dues.iter().enumerate().min_by_key(|&(_, t)| *t) else {
+                break None;
+            };
+            if t == BusTime::NEVER {
+                break None;
+            }
+            match self.slots[i].due() {
+                Some(d) if d == t => break Some(t),
+                d => self.dues[i] = d.unwrap_or(BusTime::NEVER),
             }
         };
         debug_assert_eq!(
             next,
             self.slots.iter().filter_map(Slot::due).min(),
-            "the due queue lost a slot"
+            "the due times lost a slot"
         );
         next
     }
 
-    /// Queues slot `i` at its due time, if it has one, after a change that may have moved it;
-    /// answers with that time.
+    /// Sets slot `i`'s due time after a change that may have moved it; answers with that
+    /// time.
     fn queue_due(&mut self, i: usize) -> Option<BusTime> {
         let due = self.slots[i].due();
-        if let Some(t) = due {
-            self.push_due(t, i);
-        }
+        self.dues[i] = due.unwrap_or(BusTime::NEVER);
         due
-    }
-
-    /// Queues slot `i` as due at `t`. A stale entry waits for its time to come, and a node
-    /// woken often with a far deadline leaves one at every wake: once the entries outnumber the
-    /// slots a few times over, the queue is rebuilt from the slots' due times (a cost of one
-    /// scan per that many pushes).
-    fn push_due(&mut self, t: BusTime, i: usize) {
-        self.due_queue.push(Reverse((t, i)));
-        if self.due_queue.len() > 4 * self.slots.len() + 64 {
-            self.due_queue = (self.slots.iter().enumerate())
-                .filter_map(|(i, s)| s.due().map(|t| Reverse((t, i))))
-                .collect();
-        }
     }
 
     /// The slots of the node slot `i` belongs to: its controllers, first to last.
