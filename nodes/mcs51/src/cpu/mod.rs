@@ -15,7 +15,6 @@ pub(crate) use sfrs::*;
 pub use types::{RunEnd, Snapshot, Step, XAccess};
 pub use watch::{ADC_LEAD, Watched};
 
-use crate::decode::{Ins, OPS};
 use crate::{Error, Image, Variant, Xdata};
 use std::sync::Arc;
 
@@ -291,7 +290,8 @@ impl Cpu {
                 interrupt: Some(vector),
             });
         }
-        let cycles = self.execute(x)?;
+        // One instruction: no delay loop is passed.
+        let cycles = self.execute(x, 0)?;
         self.sync(self.cycles);
         Ok(Step {
             cycles,
@@ -322,11 +322,10 @@ impl Cpu {
             if self.poll_interrupt()?.is_some() {
                 continue;
             }
-            let op = self.code[self.pc as usize];
-            if matches!(OPS[op as usize].ins, Ins::Djnz) && self.skip_delay_loop(self.djnz_bound(until)) {
+            if self.execute(x, until)? == 0 {
+                // A delay loop passed in closed form.
                 continue;
             }
-            self.execute(x)?;
             if self.attention
                 && let Some(end) = self.attend(x)
             {

@@ -13,22 +13,24 @@ use crate::{Error, Xdata};
 /// arm is compiled with its decoded entry as constants, so the matches on the operation and its
 /// operands fold away and execution costs what a hand-written arm per opcode would.
 macro_rules! dispatch {
-    ($cpu:ident, $x:ident, $op:expr; $($n:literal)*) => {
+    ($cpu:ident, $x:ident, $skip:ident, $op:expr; $($n:literal)*) => {
         match $op {
-            $($n => $cpu.exec::<$n>($x),)*
+            $($n => $cpu.exec::<$n>($x, $skip),)*
         }
     };
 }
 
 impl Cpu {
-    /// Executes the instruction at PC; returns its machine cycles.
+    /// Executes the instruction at PC; returns its machine cycles. A DJNZ delay loop onto
+    /// itself is passed in closed form instead, as far as it may go before cycle `skip_until`
+    /// ([`Cpu::skip_delay_loop`]): then it returns 0 (0 passes nothing up).
     // Optimised, inlined into the run loop: as a call, its prologue and epilogue (the frame of
     // every opcode's arm) cost about 17 host instructions per instruction, a tenth of the
     // whole firmware harvester's.
     #[cfg_attr(not(debug_assertions), inline(always))]
-    pub(crate) fn execute(&mut self, x: &mut dyn Xdata) -> Result<u8, Error> {
+    pub(crate) fn execute(&mut self, x: &mut dyn Xdata, skip_until: u64) -> Result<u8, Error> {
         let op = self.code[self.pc as usize];
-        dispatch!(self, x, op;
+        dispatch!(self, x, skip_until, op;
             0x00 0x01 0x02 0x03 0x04 0x05 0x06 0x07 0x08 0x09 0x0A 0x0B 0x0C 0x0D 0x0E 0x0F
             0x10 0x11 0x12 0x13 0x14 0x15 0x16 0x17 0x18 0x19 0x1A 0x1B 0x1C 0x1D 0x1E 0x1F
             0x20 0x21 0x22 0x23 0x24 0x25 0x26 0x27 0x28 0x29 0x2A 0x2B 0x2C 0x2D 0x2E 0x2F
@@ -56,8 +58,12 @@ impl Cpu {
     // copy keeps its own stack slots and `execute` needs a frame of nearly 1 MB.
     #[cfg_attr(not(debug_assertions), inline(always))]
     #[cfg_attr(debug_assertions, inline)]
-    fn exec<const OP: u8>(&mut self, x: &mut dyn Xdata) -> Result<u8, Error> {
+    fn exec<const OP: u8>(&mut self, x: &mut dyn Xdata, skip_until: u64) -> Result<u8, Error> {
         let d = const { decode(OP) };
+        // Tested here, where it folds away for every other opcode.
+        if matches!(d.ins, Ins::Djnz) && self.skip_delay_loop(self.djnz_bound(skip_until)) {
+            return Ok(0);
+        }
         let pc = self.pc;
         self.op_pc = pc;
         self.pc = pc.wrapping_add(d.len as u16);
