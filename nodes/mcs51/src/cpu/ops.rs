@@ -23,7 +23,7 @@ macro_rules! dispatch {
 impl Cpu {
     /// Executes the instruction at PC; returns its machine cycles. A DJNZ delay loop onto
     /// itself is passed in closed form instead, as far as it may go before cycle `skip_until`
-    /// ([`Cpu::skip_delay_loop`]): then it returns 0 (0 passes nothing up).
+    /// ([`Cpu::skip_delay_loop`]): then it returns 0, which no instruction takes.
     // Optimised, inlined into the run loop: as a call, its prologue and epilogue (the frame of
     // every opcode's arm) cost about 17 host instructions per instruction, a tenth of the
     // whole firmware harvester's.
