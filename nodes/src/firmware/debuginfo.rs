@@ -1,0 +1,195 @@
+//! SDCC's debug records for an image (the `.cdb` file `sdcc --debug` writes beside it): which C
+//! source line and which function each code address belongs to, for coverage reports.
+//!
+//! Contract: [`parse`] reads the linker's records of the `.cdb` format (SDCC's "CDB file
+//! format" document): line records `L:C$file$line$level$block:address`, function symbols
+//! `F:G$name$...` (global) and `F:F<module>$name$...` (static to `module`), and the start
+//! (`L:G$name$...:address`, `L:F<module>$name$...:address`) and end (`L:XG$...`, `L:XF<module>$...`)
+//! of each function's code. Every other record (types, variables, assembler lines) is skipped.
+//! A record it reads that is malformed is an error naming the file and the line, and nothing
+//! is returned. Lines come sorted by address, then by source line; functions by start.
+
+use crate::error::{Error, Problem};
+
+/// A C source line's code starts at `address`.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct SourceLine {
+    /// The first code address of the line.
+    pub address: u16,
+    /// The source file, as the compiler named it.
+    pub file: String,
+    /// Its line number, from 1.
+    pub line: u32,
+}
+
+/// A function's code: from `start`, its last instruction at `end` (when the record is there).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Function {
+    /// Its name in the source.
+    pub name: String,
+    /// The module (source file without `.c`) of a static function; `None` for a global one.
+    pub module: Option<String>,
+    /// The address of its first instruction.
+    pub start: u16,
+    /// The address of its last instruction, when the file gives it.
+    pub end: Option<u16>,
+}
+
+/// What a `.cdb` file says of an image's code.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct DebugInfo {
+    /// Where each C source line's code starts.
+    pub lines: Vec<SourceLine>,
+    /// The functions whose code the file places.
+    pub functions: Vec<Function>,
+}
+
+/// A symbol's scope and name: `G$name` is global, `F<module>$name` static to the module.
+fn scoped(text: &str) -> Option<(Option<String>, String)> {
+    let (scope, rest) = text.split_once('$')?;
+    let name = rest.split('$').next()?.to_string();
+    match scope.strip_prefix('F') {
+        _ if scope == "G" => Some((None, name)),
+        Some(module) if !module.is_empty() => Some((Some(module.to_string()), name)),
+        _ => None,
+    }
+}
+
+/// Reads `text`, the `.cdb` file `file` (named in errors).
+pub fn parse(file: &str, text: &str) -> Result<DebugInfo, Error> {
+    let problem = |n: usize, message: String| {
+        Error::Invalid(vec![Problem {
+            file: file.to_string(),
+            position: Some((n + 1, 1)),
+            node: None,
+            field: None,
+            message,
+        }])
+    };
+    let mut names = Vec::new();
+    let mut starts = Vec::new();
+    let mut ends = Vec::new();
+    let mut lines = Vec::new();
+    for (n, record) in text.lines().enumerate() {
+        let record = record.trim_end();
+        if let Some(symbol) = record.strip_prefix("F:") {
+            if let Some(scoped) = scoped(symbol) {
+                names.push(scoped);
+            }
+            continue;
+        }
+        let Some(link) = record.strip_prefix("L:") else {
+            continue;
+        };
+        let Some((key, address)) = link.rsplit_once(':') else {
+            return Err(problem(
+                n,
+                format!("a linker record without an address: `{record}`"),
+            ));
+        };
+        let address = u16::from_str_radix(address, 16)
+            .map_err(|_| problem(n, format!("`{address}` is not a code address (hex, 0 to FFFF)")))?;
+        if let Some(rest) = key.strip_prefix("C$") {
+            let mut fields = rest.split('$');
+            let (Some(source), Some(line)) = (fields.next(), fields.next()) else {
+                return Err(problem(
+                    n,
+                    format!("a line record without its file and line: `{record}`"),
+                ));
+            };
+            let line = line
+                .parse()
+                .map_err(|_| problem(n, format!("`{line}` is not a line number")))?;
+            lines.push(SourceLine {
+                address,
+                file: source.to_string(),
+                line,
+            });
+        } else if let Some(end) = key.strip_prefix('X') {
+            if let Some(symbol) = scoped(end) {
+                ends.push((symbol, address));
+            }
+        } else if let Some(symbol) = scoped(key) {
+            starts.push((symbol, address));
+        }
+    }
+    // A start record is a function's only when a function symbol of that name and scope is
+    // declared (variables have start records too).
+    let mut functions: Vec<Function> = starts
+        .into_iter()
+        .filter(|(symbol, _)| names.contains(symbol))
+        .map(|((module, name), start)| Function {
+            end: ends
+                .iter()
+                .find(|(s, _)| s.0 == module && s.1 == name)
+                .map(|&(_, a)| a),
+            name,
+            module,
+            start,
+        })
+        .collect();
+    functions.sort_by_key(|f| f.start);
+    lines.sort_by_key(|l| (l.address, l.line));
+    Ok(DebugInfo { lines, functions })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    // Records as SDCC 4 writes them for a file `m.c` with a global `main`, a static `f` and a
+    // global variable `ticks` (whose start record is not a function's).
+    const CDB: &str = "M:m
+F:G$main$0_0$0({2}DF,SV:S),C,0,0,0,0,0
+F:Fm$f$0_0$0({2}DF,SI:U),C,0,0,0,0,0
+S:G$ticks$0_0$0({1}SC:U),E,0,0
+L:G$ticks$0_0$0:8
+L:C$m.c$12$1_0$2:1D7
+L:C$m.c$10$0_0$2:1D7
+L:G$main$0$0:1D7
+L:Fm$f$0$0:AC
+L:C$m.c$4$1_0$1:AC
+L:XFm$f$0$0:100
+L:XG$main$0$0:1F0
+L:A$m$120:1D7
+";
+
+    #[test]
+    fn lines_and_functions_come_from_their_records() {
+        let info = parse("m.cdb", CDB).unwrap();
+        let line = |address, line| SourceLine {
+            address,
+            file: "m.c".into(),
+            line,
+        };
+        assert_eq!(info.lines, vec![line(0xAC, 4), line(0x1D7, 10), line(0x1D7, 12)]);
+        assert_eq!(
+            info.functions,
+            vec![
+                Function {
+                    name: "f".into(),
+                    module: Some("m".into()),
+                    start: 0xAC,
+                    end: Some(0x100)
+                },
+                Function {
+                    name: "main".into(),
+                    module: None,
+                    start: 0x1D7,
+                    end: Some(0x1F0)
+                },
+            ]
+        );
+    }
+
+    #[test]
+    fn a_malformed_record_is_refused_with_its_line() {
+        for bad in ["L:C$m.c$4$1_0$1:XYZ", "L:C$m.c$four$1_0$1:AC", "L:G$main"] {
+            let text = format!("M:m\n{bad}\n");
+            let message = parse("m.cdb", &text).unwrap_err().to_string();
+            assert!(message.contains("m.cdb:2:1: "), "{message}");
+        }
+        let message = parse("m.cdb", "L:C$m.c$4$1_0$1:10000\n").unwrap_err().to_string();
+        assert!(message.contains("`10000` is not a code address"), "{message}");
+    }
+}
