@@ -5,9 +5,11 @@
 //! format" document): line records `L:C$file$line$level$block:address`, function symbols
 //! `F:G$name$...` (global) and `F:F<module>$name$...` (static to `module`), and the start
 //! (`L:G$name$...:address`, `L:F<module>$name$...:address`) and end (`L:XG$...`, `L:XF<module>$...`)
-//! of each function's code. Every other record (types, variables, assembler lines) is skipped.
-//! A record it reads that is malformed is an error naming the file and the line, and nothing
-//! is returned. Lines come sorted by address, then by source line; functions by start.
+//! of each function's code. Every other record (types, variables, assembler lines) is skipped,
+//! but every linker record (`L:`) must end in a code address (hex, 0 to FFFF) and every line
+//! record must name its file and line: a record that does not is an error naming the file and
+//! the line, and nothing is returned. Lines come sorted by address, then by source line;
+//! functions by start.
 
 use crate::error::{Error, Problem};
 
