@@ -257,6 +257,17 @@ pub fn run_firmware_specs(
     end: BusTime,
     fault: Option<BitErrorsOf>,
 ) -> FirmwareRun {
+    run_firmware_covered(specs, end, fault, false).0
+}
+
+/// [`run_firmware_specs`], with each node's code coverage when `cover` (else empty counts): the
+/// nodes are told the run ends at `end`, so that their counts reach it.
+pub fn run_firmware_covered(
+    specs: Vec<std::sync::Arc<nodes::firmware::FirmwareSpec>>,
+    end: BusTime,
+    fault: Option<BitErrorsOf>,
+    cover: bool,
+) -> (FirmwareRun, Vec<nodes::firmware::coverage::Counts>) {
     use bus::engine::{BitPosition, BusConfig, ControllerConfig, NodeId, Recovery, Rule, Schedule, Target};
     use bus_runtime::hub::{AttachControllers, Control, GetCrashed, GetSnapshot, Hub, HubConfig};
     use bus_runtime::node::{NodeActor, ReadHardware};
@@ -265,6 +276,8 @@ pub fn run_firmware_specs(
     let t = trace.clone();
     let ends = Rc::new(RefCell::new(Vec::new()));
     let e = ends.clone();
+    let counts: Vec<nodes::firmware::coverage::SharedCounts> = specs.iter().map(|_| Rc::default()).collect();
+    let c = counts.clone();
     let (states, crashed, controllers) =
         System::with_tokio_rt(|| runtime(true).expect("runtime")).block_on(async move {
             let config = HubConfig {
@@ -282,8 +295,11 @@ pub fn run_firmware_specs(
             let mut actors = Vec::new();
             // Each bench's controller ids, one a chip.
             let mut ids: Vec<Vec<NodeId>> = Vec::new();
-            for spec in specs {
-                let logic = FirmwareNode::new(spec.clone(), BusTime::ZERO, 30_000.0);
+            for (spec, counts) in specs.into_iter().zip(c) {
+                let mut logic = FirmwareNode::new(spec.clone(), BusTime::ZERO, 30_000.0);
+                if cover {
+                    logic = logic.with_coverage(counts);
+                }
                 let actor = NodeActor::new(spec.name.clone(), Box::new(logic)).start();
                 let controllers = (0..spec.chips.len().max(1))
                     .map(|k| ControllerConfig {
@@ -329,6 +345,9 @@ pub fn run_firmware_specs(
                 }
             }
             hub.send(RunUntil(end)).await.expect("hub").expect("run");
+            for a in &actors {
+                a.send(bus_runtime::node::RunEnds(end)).await.expect("the node");
+            }
             // A bench crashes as a whole: once, however many chips it has.
             let mut crashed: Vec<(usize, String)> = hub
                 .send(GetCrashed)
@@ -349,13 +368,14 @@ pub fn run_firmware_specs(
             }
             (states, crashed, controllers)
         });
-    FirmwareRun {
+    let run = FirmwareRun {
         trace: String::from_utf8(trace.0.take()).expect("utf-8"),
         ends: ends.take(),
         states,
         crashed,
         controllers,
-    }
+    };
+    (run, counts.iter().map(|c| c.borrow().clone()).collect())
 }
 
 /// What [`run_firmware`] gives back.

@@ -147,6 +147,30 @@ pub trait Xdata {
     }
 }
 
+/// Told of every instruction [`Cpu::run_covered`] and [`Cpu::step_covered`] execute, for code
+/// coverage. An interrupt's entry is not an instruction and is not told; an instruction that
+/// faults did not complete and is not told either.
+pub trait Cover {
+    /// The instruction at `pc` ran once (not a conditional jump).
+    fn ran(&mut self, pc: u16);
+    /// The conditional jump at `pc` (JB, JNB, JBC, JC, JNC, JZ, JNZ, CJNE, DJNZ) ran once and
+    /// jumped or not. A jump whose target is the next instruction counts as not taken.
+    fn jumped(&mut self, pc: u16, taken: bool);
+    /// A `DJNZ` delay loop onto itself at `pc` ran `times` times in closed form; every time
+    /// jumped back but, when `ended`, the last.
+    fn looped(&mut self, pc: u16, times: u32, ended: bool);
+}
+
+/// Coverage off: every call is empty and folds away.
+impl Cover for () {
+    #[inline(always)]
+    fn ran(&mut self, _pc: u16) {}
+    #[inline(always)]
+    fn jumped(&mut self, _pc: u16, _taken: bool) {}
+    #[inline(always)]
+    fn looped(&mut self, _pc: u16, _times: u32, _ended: bool) {}
+}
+
 /// No external memory: every address reads FFh (an undriven bus) and writes do nothing.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct NoXdata;

@@ -6,7 +6,7 @@
 use super::spec::{CHIP_WINDOW, ChipSpec, FirmwareSpec};
 use bus::at89c51cc::{CanController, sfr};
 use bus::sja1000::{Action, BusSide, Sja1000};
-use mcs51::{Cpu, RunEnd, Xdata};
+use mcs51::{Cover, Cpu, RunEnd, Xdata};
 use smallvec::SmallVec;
 
 /// A CAN controller where the CPU reaches it.
@@ -288,6 +288,10 @@ pub(crate) struct Machine {
     /// The CPU stopped for its wires to the plant: the next instruction reads inputs whose
     /// levels no longer hold, or the last one changed an output ([`mcs51::Watched`]).
     pub plant_stop: bool,
+    /// Where this machine is in the node's coverage journal, when it ran with one
+    /// ([`super::coverage::Journal`]): the entries before it are its instructions since the
+    /// run ahead began.
+    pub journaled: usize,
 }
 
 /// One turn of a loop that turns the same way until something happens
@@ -300,6 +304,8 @@ pub(crate) struct Turn {
     pub cycles: u64,
     /// It reads wired inputs: it turns the same way only while their levels hold.
     pub reads_inputs: bool,
+    /// Its instructions in the coverage journal: from the head's position to the end's.
+    pub journal: (usize, usize),
 }
 
 impl Machine {
@@ -323,6 +329,7 @@ impl Machine {
             },
             writes: None,
             plant_stop: false,
+            journaled: 0,
         };
         m.sync_pins();
         m
@@ -351,6 +358,7 @@ impl Machine {
             clocks: self.clocks() - head.clocks(),
             cycles: self.cpu.cycles() - head.cpu.cycles(),
             reads_inputs: self.cpu.input_reads() != head.cpu.input_reads(),
+            journal: (head.journaled, self.journaled),
         };
         let mut passed = head.into_owned();
         passed.pass(turn, 1);
@@ -468,13 +476,18 @@ impl Machine {
     /// ([`Machine::timer_due`]), as when the controller is told the time before every
     /// instruction.
     pub fn run(&mut self, until: u64) -> Result<(), mcs51::Error> {
+        self.run_covered(until, &mut ())
+    }
+
+    /// [`Machine::run`], telling `cover` of every instruction executed.
+    pub fn run_covered<C: Cover>(&mut self, until: u64, cover: &mut C) -> Result<(), mcs51::Error> {
         self.catch_up_timer();
         while self.cpu.clocks() < until {
             let due = self.timer_due().filter(|&d| d > self.cpu.clocks() && d < until);
             let to = due.unwrap_or(until);
             let per = self.cpu.clocks_per_cycle();
             let target = self.cpu.cycles() + (to - self.cpu.clocks()).div_ceil(per);
-            let end = self.cpu.run(&mut self.board, target)?;
+            let end = self.cpu.run_covered(&mut self.board, target, cover)?;
             if let RunEnd::XdataWrite { addr, value } = end {
                 self.log(Some((addr, value)));
             }
@@ -508,17 +521,17 @@ impl Machine {
     }
 
     /// [`Machine::run`], stopping also after an instruction that leaves the PC at `pc`.
-    pub fn run_to_pc(&mut self, until: u64, pc: u16) -> Result<(), mcs51::Error> {
+    pub fn run_to_pc<C: Cover>(&mut self, until: u64, pc: u16, cover: &mut C) -> Result<(), mcs51::Error> {
         self.cpu.stop_at_pc(Some(pc));
-        let r = self.run(until);
+        let r = self.run_covered(until, cover);
         self.cpu.stop_at_pc(None);
         r
     }
 
     /// Executes one instruction (or enters an interrupt), as [`Machine::run`] would.
-    pub fn step(&mut self) -> Result<mcs51::Step, mcs51::Error> {
+    pub fn step<C: Cover>(&mut self, cover: &mut C) -> Result<mcs51::Step, mcs51::Error> {
         self.catch_up_timer();
-        let step = self.cpu.step(&mut self.board)?;
+        let step = self.cpu.step_covered(&mut self.board, cover)?;
         self.catch_up_timer();
         if self.cpu.take_output_changed() {
             self.plant_stop = true;
@@ -626,7 +639,7 @@ mod tests {
     /// P3.2 (INT0) as the CPU reads it.
     fn int0_high(m: &mut Machine) -> bool {
         m.cpu.set_pc(0);
-        m.step().unwrap();
+        m.step(&mut ()).unwrap();
         m.cpu.sfr()[0x60] & 0x04 != 0
     }
 

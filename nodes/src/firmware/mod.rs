@@ -17,6 +17,7 @@
 //!
 //! [`NodeLogic::failed`]: bus::node::NodeLogic::failed
 
+pub mod coverage;
 pub mod debuginfo;
 mod dump;
 mod machine;

@@ -15,7 +15,7 @@ pub(crate) use sfrs::*;
 pub use types::{RunEnd, Snapshot, Step, XAccess};
 pub use watch::{ADC_LEAD, Watched};
 
-use crate::{Error, Image, Variant, Xdata};
+use crate::{Cover, Error, Image, Variant, Xdata};
 use std::sync::Arc;
 
 /// Transmission in progress: what still has to pass before TI is set.
@@ -274,6 +274,11 @@ impl Cpu {
 
     /// Executes one instruction, or enters one interrupt.
     pub fn step(&mut self, x: &mut dyn Xdata) -> Result<Step, Error> {
+        self.step_covered(x, &mut ())
+    }
+
+    /// [`Cpu::step`], telling `cover` of the instruction it executes.
+    pub fn step_covered<C: Cover>(&mut self, x: &mut dyn Xdata, cover: &mut C) -> Result<Step, Error> {
         if let Some(pc) = self.fault {
             return Err(Error::Stopped { pc });
         }
@@ -291,7 +296,7 @@ impl Cpu {
             });
         }
         // One instruction: no delay loop is passed.
-        let cycles = self.execute(x, 0)?;
+        let cycles = self.execute(x, 0, cover)?;
         self.sync(self.cycles);
         Ok(Step {
             cycles,
@@ -303,6 +308,17 @@ impl Cpu {
     /// Runs while the cycle count is below `until`, skipping DJNZ delay loops in closed form,
     /// and returns early right after a MOVX write.
     pub fn run(&mut self, x: &mut dyn Xdata, until: u64) -> Result<RunEnd, Error> {
+        self.run_covered(x, until, &mut ())
+    }
+
+    /// [`Cpu::run`], telling `cover` of every instruction it executes, those of a delay loop
+    /// passed in closed form included ([`Cover::looped`]).
+    pub fn run_covered<C: Cover>(
+        &mut self,
+        x: &mut dyn Xdata,
+        until: u64,
+        cover: &mut C,
+    ) -> Result<RunEnd, Error> {
         if let Some(pc) = self.fault {
             return Err(Error::Stopped { pc });
         }
@@ -322,7 +338,7 @@ impl Cpu {
             if self.poll_interrupt()?.is_some() {
                 continue;
             }
-            if self.execute(x, until)? == 0 {
+            if self.execute(x, until, cover)? == 0 {
                 // A delay loop passed in closed form.
                 continue;
             }

@@ -7,15 +7,15 @@
 use super::access::{AC, Port};
 use super::{B, Cpu, DPH, DPL, PSW};
 use crate::decode::{Decoded, Ins, Opnd, decode};
-use crate::{Error, Xdata};
+use crate::{Cover, Error, Xdata};
 
 /// A `match` on the opcode byte with one arm per opcode, each calling `Cpu::exec::<OP>`: every
 /// arm is compiled with its decoded entry as constants, so the matches on the operation and its
 /// operands fold away and execution costs what a hand-written arm per opcode would.
 macro_rules! dispatch {
-    ($cpu:ident, $x:ident, $skip:ident, $op:expr; $($n:literal)*) => {
+    ($cpu:ident, $x:ident, $skip:ident, $cover:ident, $op:expr; $($n:literal)*) => {
         match $op {
-            $($n => $cpu.exec::<$n>($x, $skip),)*
+            $($n => $cpu.exec::<$n, C>($x, $skip, $cover),)*
         }
     };
 }
@@ -28,9 +28,14 @@ impl Cpu {
     // every opcode's arm) cost about 17 host instructions per instruction, a tenth of the
     // whole firmware harvester's.
     #[cfg_attr(not(debug_assertions), inline(always))]
-    pub(crate) fn execute(&mut self, x: &mut dyn Xdata, skip_until: u64) -> Result<u8, Error> {
+    pub(crate) fn execute<C: Cover>(
+        &mut self,
+        x: &mut dyn Xdata,
+        skip_until: u64,
+        cover: &mut C,
+    ) -> Result<u8, Error> {
         let op = self.code[self.pc as usize];
-        dispatch!(self, x, skip_until, op;
+        dispatch!(self, x, skip_until, cover, op;
             0x00 0x01 0x02 0x03 0x04 0x05 0x06 0x07 0x08 0x09 0x0A 0x0B 0x0C 0x0D 0x0E 0x0F
             0x10 0x11 0x12 0x13 0x14 0x15 0x16 0x17 0x18 0x19 0x1A 0x1B 0x1C 0x1D 0x1E 0x1F
             0x20 0x21 0x22 0x23 0x24 0x25 0x26 0x27 0x28 0x29 0x2A 0x2B 0x2C 0x2D 0x2E 0x2F
@@ -58,11 +63,20 @@ impl Cpu {
     // copy keeps its own stack slots and `execute` needs a frame of nearly 1 MB.
     #[cfg_attr(not(debug_assertions), inline(always))]
     #[cfg_attr(debug_assertions, inline)]
-    fn exec<const OP: u8>(&mut self, x: &mut dyn Xdata, skip_until: u64) -> Result<u8, Error> {
+    fn exec<const OP: u8, C: Cover>(
+        &mut self,
+        x: &mut dyn Xdata,
+        skip_until: u64,
+        cover: &mut C,
+    ) -> Result<u8, Error> {
         let d = const { decode(OP) };
         // Tested here, where it folds away for every other opcode.
-        if matches!(d.ins, Ins::Djnz) && self.skip_delay_loop(self.djnz_bound(skip_until)) {
-            return Ok(0);
+        if matches!(d.ins, Ins::Djnz) {
+            let pc = self.pc;
+            if let Some((times, ended)) = self.skip_delay_loop(self.djnz_bound(skip_until)) {
+                cover.looped(pc, times, ended);
+                return Ok(0);
+            }
         }
         let pc = self.pc;
         self.op_pc = pc;
@@ -79,6 +93,11 @@ impl Cpu {
             Ok(()) => {
                 if self.cycles >= self.next_event {
                     self.sync(self.cycles);
+                }
+                if d.ins.tests_late() || matches!(d.ins, Ins::Jbc) {
+                    cover.jumped(pc, self.pc != pc.wrapping_add(d.len as u16));
+                } else {
+                    cover.ran(pc);
                 }
                 Ok(d.cycles)
             }

@@ -45,6 +45,7 @@ mod trace;
 
 pub use trace::CpuTrace;
 
+use super::coverage::{Journal, SharedCounts};
 use super::machine::{Machine, Request, Turn};
 use super::spec::FirmwareSpec;
 use super::wiring::Wiring;
@@ -132,17 +133,47 @@ enum Source {
 }
 
 /// Runs `machine` on to clock `n`, unless `failed` already: what it asked of the bus on the
-/// way (from where it was), the fault it stopped with, and the machine cycles it executed.
-fn run_on(machine: &mut Machine, n: u64, mut failed: Option<String>) -> (Vec<Request>, Option<String>, u64) {
+/// way (from where it was), the fault it stopped with, and the machine cycles it executed. It
+/// adds what it executes to `counts`, when given: only for the path the node takes.
+fn run_on(
+    machine: &mut Machine,
+    n: u64,
+    mut failed: Option<String>,
+    counts: Option<&SharedCounts>,
+) -> (Vec<Request>, Option<String>, u64) {
     let start = executed(machine);
     let mut actions = machine.take_actions();
     while machine.clocks() < n && failed.is_none() && !machine.plant_stop {
-        if let Err(e) = machine.run(n) {
+        let run = match counts {
+            Some(c) => machine.run_covered(n, &mut *c.borrow_mut()),
+            None => machine.run(n),
+        };
+        if let Err(e) = run {
             failed = Some(e.to_string());
         }
         actions.extend(machine.take_actions());
     }
     (actions, failed, executed(machine).saturating_sub(start))
+}
+
+/// Runs `m` to clock `until` ([`Machine::run`]), or until the PC comes to `pc` when given
+/// ([`Machine::run_to_pc`]), writing what it executes to `journal` when coverage is on.
+fn run_journaled(
+    m: &mut Machine,
+    until: u64,
+    pc: Option<u16>,
+    journal: &mut Option<Journal>,
+) -> Result<(), mcs51::Error> {
+    let r = match (journal.as_mut(), pc) {
+        (Some(j), Some(pc)) => m.run_to_pc(until, pc, j),
+        (Some(j), None) => m.run_covered(until, j),
+        (None, Some(pc)) => m.run_to_pc(until, pc, &mut ()),
+        (None, None) => m.run(until),
+    };
+    if let Some(j) = journal {
+        m.journaled = j.len();
+    }
+    r
 }
 
 /// What a node cost the host, logged when it ends (target `firmware_stats`, level info).
@@ -179,9 +210,15 @@ pub struct FirmwareNode {
     trace: Option<CpuTrace>,
     /// The plant, when its signals are wired to the node.
     wiring: Option<Wiring>,
-    /// The run ahead parked: the machine at its wake, as the look for the wake found it.
+    /// The run ahead parked: the machine at its wake, as the look for the wake found it, and
+    /// the whole turns of the loop it passed on the way.
     at_wake: Option<Machine>,
+    wake_turns: u64,
     cost: Cost,
+    /// Coverage, when on: the counts the path it takes adds to, and what the run ahead
+    /// executed ([`super::coverage`]).
+    counts: Option<SharedCounts>,
+    journal: Option<Journal>,
 }
 
 impl FirmwareNode {
@@ -211,7 +248,10 @@ impl FirmwareNode {
             trace: None,
             wiring: None,
             at_wake: None,
+            wake_turns: 0,
             cost: Cost::default(),
+            counts: None,
+            journal: None,
         };
         node.run_ahead();
         node
@@ -227,6 +267,15 @@ impl FirmwareNode {
         }
         self.wiring = Some(Wiring::new(env, &self.spec, seed));
         self.now.cpu.watch(watched);
+        self.run_ahead();
+        self
+    }
+
+    /// Counts the instructions it executes from power-on into `counts` ([`super::coverage`]):
+    /// exactly those of the path it takes. Before any input.
+    pub fn with_coverage(mut self, counts: SharedCounts) -> FirmwareNode {
+        self.counts = Some(counts);
+        self.journal = Some(Journal::default());
         self.run_ahead();
         self
     }
@@ -272,6 +321,11 @@ impl FirmwareNode {
     fn run_ahead(&mut self) {
         self.checkpoints.clear();
         self.at_wake = None;
+        // What the last run ahead executed is counted or dropped by now.
+        self.now.journaled = 0;
+        if let Some(j) = &mut self.journal {
+            j.clear();
+        }
         if self.failed.is_some() {
             self.ahead = self.now.clone();
             self.stop = Stop::Failed(String::new());
@@ -301,7 +355,14 @@ impl FirmwareNode {
             if self.spec.skip_idle_loops && m.clocks() >= look_at {
                 let at_now = m.clocks() == self.now.clocks() && !moved;
                 moved = true;
-                match find_loop(&mut m, target, &mut self.checkpoints, &self.now, at_now) {
+                match find_loop(
+                    &mut m,
+                    target,
+                    &mut self.checkpoints,
+                    &self.now,
+                    at_now,
+                    &mut self.journal,
+                ) {
                     Err(e) => break Stop::Failed(e.to_string()),
                     Ok(Some(turn)) => {
                         let fresh = if turn.reads_inputs {
@@ -315,7 +376,10 @@ impl FirmwareNode {
                             look_at = m.clocks().saturating_add(gap);
                             continue;
                         }
-                        self.at_wake = wake_of(&m, turn, until);
+                        (self.at_wake, self.wake_turns) = match wake_of(&m, turn, until, &mut self.journal) {
+                            Some((w, turns)) => (Some(w), turns),
+                            None => (None, 0),
+                        };
                         if let Some(w) = &self.at_wake {
                             self.cost.executed += executed(w).saturating_sub(executed(&m));
                         }
@@ -334,7 +398,7 @@ impl FirmwareNode {
                     target
                 };
                 moved = true;
-                if let Err(e) = m.run(target) {
+                if let Err(e) = run_journaled(&mut m, target, None, &mut self.journal) {
                     break Stop::Failed(e.to_string());
                 }
             }
@@ -392,8 +456,42 @@ impl FirmwareNode {
             }
             Source::Copy(i) => self.checkpoints.get(i).unwrap_or(&self.now).clone(),
         };
-        run_on(&mut machine, n, self.fault_ahead(path));
+        run_on(&mut machine, n, self.fault_ahead(path), None);
         machine
+    }
+
+    /// Adds to the counts, when coverage is on, what the run ahead executed from `now` to the
+    /// machine `source` names: the path the node now takes.
+    fn commit(&self, source: Source) {
+        let (Some(counts), Some(journal)) = (&self.counts, &self.journal) else {
+            return;
+        };
+        let counts = &mut *counts.borrow_mut();
+        let ahead = self.ahead.journaled;
+        let pass = |turns: u64, counts: &mut _| {
+            if let Stop::Parked { turn, .. } = self.stop {
+                journal.apply(turn.journal.0..turn.journal.1, turns, counts);
+            }
+        };
+        match source {
+            Source::Now => {}
+            Source::Copy(i) => {
+                let end = self.checkpoints.get(i).map_or(0, |c| c.journaled);
+                journal.apply(0..end, 1, counts);
+            }
+            Source::Ahead(skip) => {
+                journal.apply(0..ahead, 1, counts);
+                if let Some((_, turns)) = skip {
+                    pass(turns, counts);
+                }
+            }
+            Source::AtWake => {
+                journal.apply(0..ahead, 1, counts);
+                pass(self.wake_turns, counts);
+                let end = self.at_wake.as_ref().map_or(ahead, |w| w.journaled);
+                journal.apply(ahead..end, 1, counts);
+            }
+        }
     }
 
     /// The fault the run ahead stopped with, when the machine is found where it stopped.
@@ -414,6 +512,7 @@ impl FirmwareNode {
             self.step_traced(last);
         }
         let (source, path) = self.source(n);
+        self.commit(source);
         match source {
             Source::Now => {}
             Source::AtWake => {
@@ -434,7 +533,7 @@ impl FirmwareNode {
             }
         }
         let fault = self.fault_ahead(path);
-        let (actions, failed, executed) = run_on(&mut self.now, n, fault);
+        let (actions, failed, executed) = run_on(&mut self.now, n, fault, self.counts.as_ref());
         self.cost.executed += executed;
         match path {
             Path::Here | Path::Skipped => {}
@@ -622,7 +721,7 @@ impl FirmwareNode {
 /// boundary after they do instead (or where the CPU first asks the bus for something): the
 /// node then reads the plant at that wake, where it would stop to read it soon after, and is
 /// woken once rather than twice.
-fn wake_of(m: &Machine, turn: Turn, until: u64) -> Option<Machine> {
+fn wake_of(m: &Machine, turn: Turn, until: u64, journal: &mut Option<Journal>) -> Option<(Machine, u64)> {
     if until == u64::MAX {
         return None;
     }
@@ -630,15 +729,19 @@ fn wake_of(m: &Machine, turn: Turn, until: u64) -> Option<Machine> {
     let turns = until.saturating_sub(1).saturating_sub(m.clocks()) / turn.clocks.max(1);
     trial.pass(turn, turns);
     // An error here is met again, and reported, when the node runs there.
-    if trial.run(until).is_err() {
+    if run_journaled(&mut trial, until, None, journal).is_err() {
         return None;
     }
     let stale = trial.cpu.clocks_at_cycle(trial.cpu.stale_from());
     let quiet = trial.board.actions.is_empty() && !trial.plant_stop;
-    if quiet && stale > trial.clocks() && stale - trial.clocks() <= LOOK_SPAN && trial.run(stale).is_err() {
+    if quiet
+        && stale > trial.clocks()
+        && stale - trial.clocks() <= LOOK_SPAN
+        && run_journaled(&mut trial, stale, None, journal).is_err()
+    {
         return None;
     }
-    Some(trial)
+    Some((trial, turns))
 }
 
 /// Looks for a loop whose turns do the same until something changes ([`Machine::repeats`]):
@@ -659,6 +762,7 @@ fn find_loop(
     copies: &mut Vec<Machine>,
     now: &Machine,
     mut at_now: bool,
+    journal: &mut Option<Journal>,
 ) -> Result<Option<Turn>, mcs51::Error> {
     for _ in 0..LOOK_TURNS {
         if m.cpu.inputs_due() {
@@ -671,7 +775,12 @@ fn find_loop(
         } else {
             Cow::Owned(m.clone())
         };
-        m.run_to_pc(until.min(head.clocks().saturating_add(LOOK_SPAN)), head.cpu.pc())?;
+        run_journaled(
+            m,
+            until.min(head.clocks().saturating_add(LOOK_SPAN)),
+            Some(head.cpu.pc()),
+            journal,
+        )?;
         let stopped = !m.board.actions.is_empty() || m.plant_stop || m.clocks() >= until;
         if !stopped && m.cpu.pc() == head.cpu.pc() && m.clocks() > head.clocks() {
             if let Some(turn) = m.repeats(head) {
@@ -846,7 +955,7 @@ impl NodeLogic for FirmwareNode {
     /// A traced node brings its trace to the end of the run: the instructions since its last
     /// wake. An untraced node has nothing to write, and stays as its last input left it.
     fn run_ends(&mut self, at: BusTime) {
-        if self.trace.is_some() {
+        if self.trace.is_some() || self.counts.is_some() {
             self.advance_to(self.clock_at(at));
             self.run_ahead();
         }

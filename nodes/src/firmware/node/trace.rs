@@ -59,7 +59,11 @@ impl FirmwareNode {
                 break;
             }
             let (pc, start, clock) = (m.cpu.pc(), m.cpu.cycles(), m.clocks());
-            let step = match m.step() {
+            let step = match &self.counts {
+                Some(c) => m.step(&mut *c.borrow_mut()),
+                None => m.step(&mut ()),
+            };
+            let step = match step {
                 Ok(step) => step,
                 Err(e) => {
                     self.failed = Some(format!("{}: {e}", self.spec.name));
