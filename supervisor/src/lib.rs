@@ -9,6 +9,7 @@
 pub mod bench;
 pub mod campaign;
 pub mod configs;
+pub mod coverage;
 pub mod dbc;
 pub mod error;
 pub mod exit;

@@ -7,7 +7,7 @@
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 use supervisor::exit::{self, Ended};
-use supervisor::{bench, campaign, configs, dbc, inspect, replay, run, scenarios_cli, soak, stop};
+use supervisor::{bench, campaign, configs, coverage, dbc, inspect, replay, run, scenarios_cli, soak, stop};
 
 #[derive(Parser)]
 #[command(
@@ -71,6 +71,11 @@ const BENCH_EXAMPLES: &str = "\
 Examples:
   harvemu bench --only harvester --json";
 
+const COVERAGE_EXAMPLES: &str = "\
+Examples:
+  harvemu scenario c0_bus_off --coverage cov/c0
+  harvemu coverage merge cov/c0 cov/campaign --out cov/all
+  genhtml cov/all/c0_alarm.info --branch-coverage -o cov/html";
 const DBC_EXAMPLES: &str = "\
 Examples:
   harvemu dbc -o harvester.dbc";
@@ -113,6 +118,9 @@ enum Command {
     /// Measure how fast the emulator runs (saturated bus; many buses in one process).
     #[command(after_help = BENCH_EXAMPLES)]
     Bench(bench::Args),
+    /// Firmware code coverage: merge the coverage folders of several runs.
+    #[command(subcommand, after_help = COVERAGE_EXAMPLES)]
+    Coverage(coverage::Args),
     /// Write a DBC of the whole harvester (catalogue messages, cycle times from the node scripts).
     #[command(after_help = DBC_EXAMPLES)]
     Dbc(dbc::Args),
@@ -170,6 +178,7 @@ fn main() -> ExitCode {
         Command::Inspect(args) => inspect::run(&args).map(|()| done),
         Command::Bench(args) => bench::run(&args).map(|()| done),
         Command::Dbc(args) => dbc::run(&args).map(|()| done),
+        Command::Coverage(args) => coverage::run(&args).map(|()| done),
         Command::Config(command) => configs::cli::run(&command).map(|()| done),
         Command::Protocol { markdown } => protocol(markdown).map(|()| done),
     };

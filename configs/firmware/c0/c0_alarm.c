@@ -17,8 +17,8 @@
  * Data0 = 30h, Data1 bits 0-5 = doors 1-6, Data2-3 = duct vacuum in mV, little-endian,
  * quantized to 100 mV.
  *
- * Build (in this folder; the HEX is configs/firmware/c0_alarm.hex):
- *   sdcc -mmcs51 --model-small -o c0_alarm.ihx c0_alarm.c
+ * Build (in this folder; the HEX is configs/firmware/c0_alarm.hex, its debug files beside it):
+ *   sdcc -mmcs51 --model-small --debug -o c0_alarm.ihx c0_alarm.c && cp c0_alarm.ihx c0_alarm.cdb ..
  *   packihx c0_alarm.ihx > ../c0_alarm.hex
  */
 #include "at89c51cc03.h"

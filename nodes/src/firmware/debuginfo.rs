@@ -10,6 +10,15 @@
 //! record must name its file and line: a record that does not is an error naming the file and
 //! the line, and nothing is returned. Lines come sorted by address, then by source line;
 //! functions by start.
+//!
+//! [`parse_as31_listing`] reads the same facts, lines only, from an as31 listing (`as31 -l`):
+//! one listing line per source line, `ADDR: BYTES` before the source text, so listing line `n`
+//! is source line `n`. A line that places bytes is an instruction's unless its statement is a
+//! directive (`.db`, `.dw`, `.byte`, ...: data).
+//!
+//! [`DebugInfo::check`] holds the records to the image they claim to describe: every line and
+//! function address inside what the image writes, and inside a function on an instruction
+//! boundary, the instructions decoded from the function's start.
 
 use crate::error::{Error, Problem};
 
@@ -59,15 +68,7 @@ fn scoped(text: &str) -> Option<(Option<String>, String)> {
 
 /// Reads `text`, the `.cdb` file `file` (named in errors).
 pub fn parse(file: &str, text: &str) -> Result<DebugInfo, Error> {
-    let problem = |n: usize, message: String| {
-        Error::Invalid(vec![Problem {
-            file: file.to_string(),
-            position: Some((n + 1, 1)),
-            node: None,
-            field: None,
-            message,
-        }])
-    };
+    let problem = |n: usize, message: String| problem(file, n, message);
     let mut names = Vec::new();
     let mut starts = Vec::new();
     let mut ends = Vec::new();
@@ -133,6 +134,118 @@ pub fn parse(file: &str, text: &str) -> Result<DebugInfo, Error> {
     functions.sort_by_key(|f| f.start);
     lines.sort_by_key(|l| (l.address, l.line));
     Ok(DebugInfo { lines, functions })
+}
+
+/// Reads an as31 listing `text` (file `file`, named in errors) of the source `source`; no
+/// lines when it places no instruction as as31 lists them (another assembler's listing).
+pub fn parse_as31_listing(file: &str, text: &str, source: &str) -> Result<DebugInfo, Error> {
+    let mut lines = Vec::new();
+    for (n, row) in text.lines().enumerate() {
+        // `0030: 75 81 60     START:  MOV SP, #60H`; a line without code has no address.
+        let Some((address, rest)) = row.split_once(": ") else {
+            continue;
+        };
+        if address.len() != 4 || !address.bytes().all(|b| b.is_ascii_hexdigit()) {
+            continue;
+        }
+        let address =
+            u16::from_str_radix(address, 16).map_err(|_| problem(file, n, format!("`{address}`")))?;
+        let mut words = rest.split_whitespace().peekable();
+        let mut bytes = 0;
+        while words
+            .peek()
+            .is_some_and(|w| w.len() == 2 && w.bytes().all(|b| b.is_ascii_hexdigit()))
+        {
+            words.next();
+            bytes += 1;
+        }
+        let mut statement = words.next().unwrap_or("");
+        if statement.ends_with(':') {
+            statement = words.next().unwrap_or("");
+        }
+        if bytes == 0 || statement.starts_with('.') || statement.starts_with(';') {
+            continue;
+        }
+        let line = u32::try_from(n + 1).map_err(|_| problem(file, n, "too many lines".into()))?;
+        lines.push(SourceLine {
+            address,
+            file: source.to_string(),
+            line,
+        });
+    }
+    lines.sort_by_key(|l| (l.address, l.line));
+    Ok(DebugInfo {
+        lines,
+        functions: Vec::new(),
+    })
+}
+
+fn problem(file: &str, n: usize, message: String) -> Error {
+    Error::Invalid(vec![Problem {
+        file: file.to_string(),
+        position: Some((n + 1, 1)),
+        node: None,
+        field: None,
+        message,
+    }])
+}
+
+impl DebugInfo {
+    /// Whether these records describe `image` (see the module docs); `file` is named in the
+    /// error, with the first record that does not fit.
+    pub fn check(&self, file: &str, image: &mcs51::Image) -> Result<(), Error> {
+        let written = |a: u16| image.written.iter().any(|r| r.contains(&u32::from(a)));
+        let refuse = |message: String| {
+            Err(Error::Invalid(vec![Problem {
+                file: file.to_string(),
+                position: None,
+                node: None,
+                field: None,
+                message: format!("{message}: the debug information does not belong to this image"),
+            }]))
+        };
+        for f in &self.functions {
+            for a in std::iter::once(f.start).chain(f.end) {
+                if !written(a) {
+                    return refuse(format!("function {} at {a:04X}h lies outside the image", f.name));
+                }
+            }
+        }
+        for l in &self.lines {
+            if !written(l.address) {
+                return refuse(format!(
+                    "{} line {} at {:04X}h lies outside the image",
+                    l.file, l.line, l.address
+                ));
+            }
+            let within = self
+                .functions
+                .iter()
+                .find(|f| f.start <= l.address && f.end.is_some_and(|e| l.address <= e));
+            if let Some(f) = within
+                && !instruction_starts(image, f.start, l.address)
+            {
+                return refuse(format!(
+                    "{} line {} at {:04X}h is not on an instruction of {}",
+                    l.file, l.line, l.address, f.name
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Whether decoding instructions one after another from `from` meets `at`.
+fn instruction_starts(image: &mcs51::Image, from: u16, at: u16) -> bool {
+    let mut pc = from;
+    while pc < at {
+        let (_, len) = mcs51::disasm(&image.code, pc);
+        match pc.checked_add(len.max(1)) {
+            Some(next) => pc = next,
+            None => return false,
+        }
+    }
+    pc == at
 }
 
 #[cfg(test)]

@@ -17,6 +17,7 @@
 //!
 //! [`NodeLogic::failed`]: bus::node::NodeLogic::failed
 
+mod beside;
 pub mod coverage;
 pub mod debuginfo;
 mod dump;
@@ -26,6 +27,7 @@ mod spec;
 mod wires;
 mod wiring;
 
+pub use beside::{Debug, SourceFile};
 pub use dump::hex;
 pub use node::{CHUNK, CpuTrace, FirmwareNode};
 pub use spec::{

@@ -17,6 +17,8 @@ struct File {
     #[serde(default, deserialize_with = "present")]
     address: Option<u8>,
     image: String,
+    #[serde(default, deserialize_with = "present")]
+    sources: Option<String>,
     #[serde(default)]
     entry: Option<u16>,
     #[serde(default, deserialize_with = "present")]
@@ -152,6 +154,13 @@ pub struct FirmwareSpec {
     pub file: String,
     /// The image, with the node file's configuration block in place.
     pub image: Arc<mcs51::Image>,
+    /// The image's file, as named in messages.
+    pub image_file: String,
+    /// SHA-256 of the image as its file holds it (before the configuration block), in hex:
+    /// what tells one image from another in coverage reports.
+    pub image_sha256: String,
+    /// Debug information found beside the image ([`super::beside`]), for coverage reports.
+    pub debug: Option<Arc<super::beside::Debug>>,
     /// Where execution starts after reset.
     pub entry: u16,
     /// 80C51, 8052 or AT89C51CC03.
@@ -278,13 +287,28 @@ pub fn load(file: &str, path: &Path, text: &str, read: Reader) -> Result<Firmwar
     taken.extend(selects);
     let dacs = wires::dacs(&f.dacs, &taken, text, &at, &mut problems);
     let image_path = path.parent().unwrap_or(Path::new("")).join(&f.image);
+    let mut found = None;
     let image = match read(&image_path) {
         Err(e) => {
             problems.push(at("image", format!("cannot read it: {e}")));
             None
         }
         Ok((name, hex)) => match mcs51::hex::parse(&hex, code_bytes.clamp(1, 0x10000) as usize) {
-            Ok(image) => configure(image, f.config.as_ref(), &name, &at, &mut problems),
+            Ok(image) => {
+                use sha2::Digest;
+                let sha: String = sha2::Sha256::digest(&image.code)
+                    .iter()
+                    .map(|b| format!("{b:02x}"))
+                    .collect();
+                let dir = path.parent().unwrap_or(Path::new(""));
+                let sources = f.sources.as_ref().map_or_else(
+                    || image_path.parent().unwrap_or(dir).to_path_buf(),
+                    |s| dir.join(s),
+                );
+                let debug = super::beside::read(&image_path, &image, &sources, read, &mut problems);
+                found = Some((name.clone(), sha, debug.map(Arc::new)));
+                configure(image, f.config.as_ref(), &name, &at, &mut problems)
+            }
             Err(e) => {
                 problems.push(Problem {
                     node: Some(f.name.clone()),
@@ -294,23 +318,28 @@ pub fn load(file: &str, path: &Path, text: &str, read: Reader) -> Result<Firmwar
             }
         },
     };
-    match (image, clock) {
-        (Some(image), Some(clock)) if problems.is_empty() => Ok(FirmwareSpec {
-            name: f.name,
-            address: f.address,
-            file: file.to_string(),
-            image: Arc::new(image),
-            entry: f.entry.unwrap_or(0),
-            variant,
-            clock_hz,
-            clock,
-            chips,
-            vref_mv,
-            analog,
-            pins,
-            dacs,
-            skip_idle_loops: true,
-        }),
+    match (image, clock, found) {
+        (Some(image), Some(clock), Some((image_file, image_sha256, debug))) if problems.is_empty() => {
+            Ok(FirmwareSpec {
+                name: f.name,
+                address: f.address,
+                file: file.to_string(),
+                image: Arc::new(image),
+                image_file,
+                image_sha256,
+                debug,
+                entry: f.entry.unwrap_or(0),
+                variant,
+                clock_hz,
+                clock,
+                chips,
+                vref_mv,
+                analog,
+                pins,
+                dacs,
+                skip_idle_loops: true,
+            })
+        }
         _ => Err(Error::Invalid(problems)),
     }
 }

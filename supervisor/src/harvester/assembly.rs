@@ -118,6 +118,9 @@ pub struct Running {
     pub(super) field_nodes_at: Option<BusTime>,
     /// An instruction trace of a firmware node, set before the field nodes are attached.
     pub cpu_trace: Option<CpuTraceRequest>,
+    /// Code coverage of the firmware nodes, set before the field nodes are attached
+    /// ([`crate::coverage`]); [`Running::end_coverage`] gives it.
+    pub coverage: Option<crate::coverage::SharedCollector>,
 }
 
 pub(super) fn build(
@@ -127,6 +130,7 @@ pub(super) fn build(
     display: &Option<DisplayHandle>,
     power_on: BusTime,
     cpu_trace: Option<&CpuTraceRequest>,
+    coverage: Option<&crate::coverage::SharedCollector>,
 ) -> Box<dyn bus::node::NodeLogic> {
     match spec {
         Spec::Monitor => {
@@ -139,6 +143,9 @@ pub(super) fn build(
                 h.config.network.seed ^ (u64::from(spec.address.unwrap_or(0)) << 32) ^ power_on.as_nanos();
             let mut node = FirmwareNode::new(spec.clone(), power_on, f64::from(h.config.network.bitrate))
                 .with_plant(env, seed);
+            if let Some(c) = coverage {
+                node = node.with_coverage(c.counts_for(spec));
+            }
             if let Some(t) = cpu_trace.filter(|t| t.node == spec.name) {
                 let out = t.out.clone();
                 node.trace_cpu(nodes::firmware::CpuTrace {
@@ -199,6 +206,7 @@ pub async fn begin(h: &Harvester, paced: bool, sinks: Vec<Box<dyn Sink>>) -> cra
         now: BusTime::ZERO,
         field_nodes_at: Some(h.relay()),
         cpu_trace: None,
+        coverage: None,
     };
     if c.monitor.enabled {
         running
@@ -224,6 +232,7 @@ impl Running {
             &self.display,
             power_on,
             self.cpu_trace.as_ref(),
+            self.coverage.as_ref(),
         );
         let actor = NodeActor::new(name, logic).start();
         let names: Vec<String> = controllers.iter().map(|c| c.name.clone()).collect();
@@ -298,6 +307,21 @@ impl Running {
             // A node whose actor is gone has no trace to end.
             let _ = m.actor.send(bus_runtime::node::RunEnds(at)).await;
         }
+    }
+
+    /// Tells every firmware node that the run ends at `at`, so that its counts reach it, and
+    /// gives the run's coverage; `None` when coverage is off.
+    pub async fn end_coverage(&self, at: BusTime) -> Option<crate::coverage::Coverage> {
+        let collector = self.coverage.as_ref()?;
+        for m in self
+            .members
+            .iter()
+            .filter(|m| matches!(m.spec, Spec::Firmware(_)))
+        {
+            // A node whose actor is gone counted what it ran already.
+            let _ = m.actor.send(bus_runtime::node::RunEnds(at)).await;
+        }
+        Some(collector.take())
     }
 
     /// The harvester (or network) it runs.

@@ -145,7 +145,15 @@ impl Running {
             &self.display,
             power_on,
             self.cpu_trace.as_ref(),
+            self.coverage.as_ref(),
         );
+        // The node it replaces counts what it ran up to now.
+        if self.coverage.is_some() && matches!(self.members[i].spec, Spec::Firmware(_)) {
+            let _ = self.members[i]
+                .actor
+                .send(bus_runtime::node::RunEnds(self.now))
+                .await;
+        }
         let actor = NodeActor::new(self.members[i].name.clone(), logic).start();
         self.hub
             .send(Replace {

@@ -74,6 +74,11 @@ pub struct Args {
     /// The stretch of bus time --trace-cpu covers (default: the whole run), e.g. 0.5s..600ms.
     #[arg(long, value_name = "FROM..TO", value_parser = cpu_trace::parse_window, requires = "trace_cpu")]
     trace_cpu_window: Option<(BusTime, BusTime)>,
+    /// Write each firmware image's code coverage to this folder: lcov .info where its debug
+    /// files lie beside it, a listing of every instruction, and a record `coverage merge` reads
+    /// (docs/FIRMWARE.md, "Coverage").
+    #[arg(long, value_name = "DIR")]
+    coverage: Option<PathBuf>,
 }
 
 /// Parses `120s`, `10m`, `1h`, `500ms`, `250us` or a plain number of seconds.
@@ -144,6 +149,10 @@ pub fn run(args: &Args) -> crate::Result<Ended> {
         None => None,
     };
     let cpu_trace_out = cpu_trace.as_ref().map(|(_, out)| out.clone());
+    if let Some(dir) = &args.coverage {
+        crate::coverage::prepare(dir)?;
+    }
+    let cover = args.coverage.is_some();
     let epoch = crate::record::epoch(args.start_time, !args.fast);
     h.epoch = Some(epoch);
     let (trace, recording) = crate::record::create_opt(args.record.as_ref(), epoch)?;
@@ -179,6 +188,9 @@ pub fn run(args: &Args) -> crate::Result<Ended> {
         let mut stop = Stop::new().map_err(Error::System)?;
         let mut running = harvester::begin(&h, !fast, trace.into_iter().collect()).await?;
         running.cpu_trace = cpu_trace.map(|(request, _)| request);
+        if cover {
+            running.coverage = Some(Default::default());
+        }
         let mut reported = 0;
         let bridge = match &iface {
             Some(name) => {
@@ -234,6 +246,7 @@ pub fn run(args: &Args) -> crate::Result<Ended> {
         }
         let interrupted = interrupted.or(crate::stop::received());
         running.end_cpu_trace(running.now()).await;
+        let coverage = running.end_coverage(running.now()).await;
         running.hub.send(FlushTrace).await??;
         let snap = running.hub.send(GetSnapshot).await?;
         console.finish(&Summary::of(&snap, &running), interrupted);
@@ -258,17 +271,23 @@ pub fn run(args: &Args) -> crate::Result<Ended> {
                 ?;
             crate::output::write_whole(path, format!("{text}\n").as_bytes())?;
         }
-        Ok::<_, Error>(Ended {
-            expectations_failed: false,
-            node_down: report_down(&running),
-        })
+        Ok::<_, Error>((
+            Ended {
+                expectations_failed: false,
+                node_down: report_down(&running),
+            },
+            coverage,
+        ))
     });
     // The trace is ended whatever happened: a failed run still leaves what it recorded.
     let finished = recording.map_or(Ok(()), |r| r.finish(crate::stop::received()));
     let traced = cpu_trace_out.map_or(Ok(()), |out| out.borrow_mut().finish());
-    let ended = result?;
+    let (ended, coverage) = result?;
     finished?;
     traced?;
+    if let (Some(dir), Some(coverage)) = (&args.coverage, coverage) {
+        crate::coverage::report(dir, &coverage)?;
+    }
     Ok(ended)
 }
 

@@ -1,0 +1,136 @@
+//! The coverage folder: written whole file by file ([`crate::output`]), and read back for a
+//! merge.
+
+use super::listing;
+use super::record::{Coverage, FORMAT, ImageCoverage};
+use crate::output::{failed, write_whole};
+use crate::{Error, Result};
+use std::path::{Path, PathBuf};
+
+/// The largest `NAME.coverage.json` read: a 64 KiB image's record is well under 1 MiB.
+pub const MAX_RECORD: u64 = 16 << 20;
+
+/// Writes `coverage` to `dir` (created if needed), and returns one line per image saying what
+/// it covers and where its reports are. An output that cannot be written is an
+/// [`Error::Output`] naming it.
+pub fn write(dir: &Path, coverage: &Coverage) -> Result<Vec<String>> {
+    std::fs::create_dir_all(dir).map_err(|e| failed("create", dir, e))?;
+    // The sources are copied beside the reports: lcov's SF names them by absolute path.
+    let absolute = std::path::absolute(dir).map_err(|e| failed("create", dir, e))?;
+    let mut lines = Vec::new();
+    for image in &coverage.images {
+        let stem = image.stem();
+        let json = serde_json::to_string(image)?;
+        write_whole(
+            &dir.join(format!("{stem}.coverage.json")),
+            format!("{json}\n").as_bytes(),
+        )?;
+        write_whole(&dir.join(format!("{stem}.lst")), listing::text(image).as_bytes())?;
+        let mut reports = vec![format!("{stem}.lst")];
+        let mut missing = Vec::new();
+        if let Some(debug) = &image.debug {
+            let src = dir.join("src").join(&stem);
+            let mut paths = Vec::new();
+            for s in &debug.sources {
+                let Some(text) = &s.text else {
+                    missing.push(s.path.clone());
+                    paths.push((s.name.clone(), s.path.clone()));
+                    continue;
+                };
+                let name = Path::new(&s.name)
+                    .file_name()
+                    .map_or_else(|| "source".into(), |n| n.to_string_lossy().into_owned());
+                std::fs::create_dir_all(&src).map_err(|e| failed("create", &src, e))?;
+                write_whole(&src.join(&name), text.as_bytes())?;
+                let copy = absolute.join("src").join(&stem).join(&name);
+                paths.push((s.name.clone(), copy.display().to_string()));
+            }
+            let path_of = |file: &str| {
+                paths
+                    .iter()
+                    .find(|(n, _)| n == file)
+                    .map_or_else(|| file.to_string(), |(_, p)| p.clone())
+            };
+            if let Some(info) = super::lcov::tracefile(image, path_of) {
+                write_whole(&dir.join(format!("{stem}.info")), info.as_bytes())?;
+                reports.push(format!("{stem}.info"));
+            }
+        }
+        let code = image.code_bytes();
+        let counts = image.counts();
+        let totals = listing::totals(&listing::items(&code, &image.written, &counts), &counts);
+        let mut line = format!(
+            "{} ({}): {}; {} in {}",
+            image.image,
+            image.nodes.join(" "),
+            listing::describe(&totals),
+            reports.join(", "),
+            dir.display()
+        );
+        if !missing.is_empty() {
+            line.push_str(&format!(" (sources not found: {})", missing.join(", ")));
+        }
+        lines.push(line);
+    }
+    Ok(lines)
+}
+
+/// Reads the coverage records (`*.coverage.json`) of `dir`. A record that cannot be read, is
+/// too large or is not one is bad input naming the file; a folder without any, too.
+pub fn read_dir(dir: &Path) -> Result<Coverage> {
+    let entries = std::fs::read_dir(dir).map_err(|e| Error::Input {
+        path: dir.to_path_buf(),
+        source: e,
+    })?;
+    let mut files: Vec<PathBuf> = entries
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.to_string_lossy().ends_with(".coverage.json"))
+        .collect();
+    files.sort();
+    if files.is_empty() {
+        return Err(Error::BadInput(format!(
+            "{}: no coverage records (NAME.coverage.json) in it",
+            dir.display()
+        )));
+    }
+    let mut coverage = Coverage::default();
+    for f in files {
+        let image = read_record(&f)?;
+        coverage
+            .merge(&Coverage { images: vec![image] })
+            .map_err(|e| Error::BadInput(format!("{}: {e}", f.display())))?;
+    }
+    Ok(coverage)
+}
+
+fn read_record(path: &Path) -> Result<ImageCoverage> {
+    use std::io::Read;
+    let file = std::fs::File::open(path).map_err(|e| Error::Input {
+        path: path.to_path_buf(),
+        source: e,
+    })?;
+    let mut text = String::new();
+    file.take(MAX_RECORD + 1)
+        .read_to_string(&mut text)
+        .map_err(|e| Error::Input {
+            path: path.to_path_buf(),
+            source: e,
+        })?;
+    if text.len() as u64 > MAX_RECORD {
+        return Err(Error::BadInput(format!(
+            "{}: larger than {} MiB: not a coverage record",
+            path.display(),
+            MAX_RECORD >> 20
+        )));
+    }
+    let image: ImageCoverage = serde_json::from_str(&text)
+        .map_err(|e| Error::BadInput(format!("{}: not a coverage record: {e}", path.display())))?;
+    if image.format != FORMAT {
+        return Err(Error::BadInput(format!(
+            "{}: format `{}`, expected `{FORMAT}`",
+            path.display(),
+            image.format
+        )));
+    }
+    Ok(image)
+}
