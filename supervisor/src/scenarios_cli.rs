@@ -42,6 +42,11 @@ pub struct ScenarioArgs {
     /// trace).
     #[arg(long, value_name = "TIME", value_parser = crate::record::parse_start_time)]
     start_time: Option<bus::time::Epoch>,
+    /// Write the firmware images' code coverage, merged over every scenario run, to this
+    /// folder (docs/FIRMWARE.md, "Coverage"; written also when expectations fail or the run is
+    /// interrupted).
+    #[arg(long, value_name = "DIR")]
+    coverage: Option<PathBuf>,
 }
 
 /// Runs `harvemu scenario`: exit code 0 only when every expectation of every scenario passed.
@@ -61,6 +66,7 @@ pub fn run(args: &ScenarioArgs) -> crate::Result<Ended> {
         ) {
             Ok(mut l) => {
                 l.harvester.epoch = Some(epoch);
+                l.harvester.coverage = args.coverage.is_some();
                 loaded.push(l)
             }
             Err(Error::Invalid(p)) => problems.extend(p),
@@ -73,6 +79,9 @@ pub fn run(args: &ScenarioArgs) -> crate::Result<Ended> {
     // Started before anything runs: a bad path should not cost a whole run.
     let report = args.report.as_deref().map(Output::create).transpose()?;
     let junit = args.junit.as_deref().map(Output::create).transpose()?;
+    if let Some(dir) = &args.coverage {
+        crate::coverage::prepare(dir)?;
+    }
     let mut outcomes = Vec::new();
     let mut failure = None;
     for l in &loaded {
@@ -169,6 +178,13 @@ pub fn run(args: &ScenarioArgs) -> crate::Result<Ended> {
     }
     if let Some(out) = report {
         write(out, report::html(&runs).as_bytes())?;
+    }
+    if let Some(dir) = &args.coverage {
+        let mut merged = crate::coverage::Coverage::default();
+        for c in outcomes.iter().filter_map(|o| o.coverage.as_ref()) {
+            merged.merge(c).map_err(crate::Error::Internal)?;
+        }
+        crate::coverage::report(dir, &merged)?;
     }
     if let Some(e) = failure {
         return Err(e);

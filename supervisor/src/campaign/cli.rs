@@ -50,6 +50,11 @@ pub struct Args {
     /// runs name it.
     #[arg(long, value_name = "FILE")]
     config: Option<PathBuf>,
+    /// Write the firmware images' code coverage, merged over the runs done, to this folder
+    /// (docs/FIRMWARE.md, "Coverage"). `OUT/coverage` is where `campaign merge` finds a
+    /// shard's.
+    #[arg(long, value_name = "DIR")]
+    coverage: Option<PathBuf>,
 }
 
 #[derive(clap::Subcommand)]
@@ -81,11 +86,16 @@ pub fn run(args: &Args) -> Result<Ended> {
         )
         .map_err(Error::BadInput)?,
     };
-    let campaign = Campaign::open(
+    let mut campaign = Campaign::open(
         &configs::by_name(scenario, "campaigns"),
         args.seed,
         args.config.as_deref(),
     )?;
+    campaign.coverage = args.coverage.is_some();
+    if let Some(dir) = &args.coverage {
+        crate::coverage::prepare(dir)?;
+    }
+    let mut coverage = crate::coverage::Coverage::default();
     let failing = out.join("failing");
     std::fs::create_dir_all(&failing).map_err(|e| output::failed("create", &failing, e))?;
     let jobs = args.jobs.map_or_else(
@@ -101,6 +111,12 @@ pub fn run(args: &Args) -> Result<Ended> {
     let mut broken = None;
     let done = super::runs::play(&campaign, shard, runs, jobs, args.shrink_trials, |r| {
         bar.add(r.failure.is_some());
+        if let Some(c) = &r.coverage
+            && let Err(e) = coverage.merge(c)
+        {
+            broken = Some(Error::Internal(e));
+            return false;
+        }
         let Some(f) = &r.failure else { return true };
         let file = summary::shrunk_file(r.run);
         let path = out.join(&file);
@@ -118,6 +134,9 @@ pub fn run(args: &Args) -> Result<Ended> {
     bar.finish();
     if let Some(e) = broken {
         return Err(e);
+    }
+    if let Some(dir) = &args.coverage {
+        crate::coverage::report(dir, &coverage)?;
     }
     let done = done.map_err(Error::Internal)?;
     let wall = started.elapsed().as_secs_f64();

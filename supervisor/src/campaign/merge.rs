@@ -30,6 +30,19 @@ pub(super) fn merge(dirs: &[PathBuf], out: &Path) -> Result<Ended> {
             write(&to, moved(&from, &to)?.as_bytes())?;
         }
     }
+    // The shards' coverage, where each has it in its folder (`--coverage OUT/coverage`).
+    let with_coverage: Vec<&PathBuf> = dirs.iter().filter(|d| d.join("coverage").is_dir()).collect();
+    if !with_coverage.is_empty() {
+        let mut coverage = crate::coverage::Coverage::default();
+        for d in with_coverage {
+            let dir = d.join("coverage");
+            let shard = crate::coverage::read_dir(&dir)?;
+            coverage
+                .merge(&shard)
+                .map_err(|e| Error::BadInput(format!("{}: {e}", dir.display())))?;
+        }
+        crate::coverage::report(&out.join("coverage"), &coverage)?;
+    }
     let text = summary_lines(&merged, out);
     finish(&merged, out, &text)
 }

@@ -33,6 +33,9 @@ pub struct Campaign {
     /// What tells this campaign from another with the same name: a hash of the scenario's text.
     pub id: String,
     nodes: Vec<String>,
+    /// Count the firmware images' code coverage of each run (not of the candidates tried while
+    /// shrinking): [`RunResult::coverage`].
+    pub coverage: bool,
 }
 
 /// A failing run, shrunk.
@@ -65,6 +68,8 @@ pub struct RunResult {
     pub seed: u64,
     /// What it failed, if anything.
     pub failure: Option<Failure>,
+    /// Its firmware images' code coverage, when the campaign counts it.
+    pub coverage: Option<crate::coverage::Coverage>,
 }
 
 impl Campaign {
@@ -100,6 +105,7 @@ impl Campaign {
             section,
             seed,
             nodes,
+            coverage: false,
         })
     }
 
@@ -140,8 +146,13 @@ impl Campaign {
     /// Plays a run: the expectations it failed with what was observed, in the order of the
     /// expectations; `None` when a stop signal interrupted it.
     pub fn failures(&self, l: &Loaded) -> Option<Vec<(String, String)>> {
+        self.played(l).map(|(failed, _)| failed)
+    }
+
+    /// [`Campaign::failures`], with the run's coverage when its harvester counts it.
+    fn played(&self, l: &Loaded) -> Option<(Vec<(String, String)>, Option<crate::coverage::Coverage>)> {
         let played = catch_unwind(AssertUnwindSafe(|| scenario::run(l, None, |_| {})));
-        match played {
+        let failed = match played {
             Err(panic) => {
                 let why =
                     bus_runtime::node::panic_message(panic.as_ref()).unwrap_or_else(|| "a panic".into());
@@ -149,30 +160,37 @@ impl Campaign {
             }
             Ok(Err(e)) => Some(vec![(NO_ERROR.into(), e.report().to_string())]),
             Ok(Ok(o)) if o.interrupted => None,
-            Ok(Ok(o)) => Some(
-                o.verdicts
+            Ok(Ok(o)) => {
+                let failed = o
+                    .verdicts
                     .into_iter()
                     .filter(|v| !v.passed)
                     .map(|v| (v.expectation, v.observed))
-                    .collect(),
-            ),
-        }
+                    .collect();
+                return Some((failed, o.coverage));
+            }
+        };
+        failed.map(|f| (f, None))
     }
 
     /// Plays run `i`, and shrinks it with at most `budget` candidates when it fails; `None`
     /// when a stop signal interrupted it.
     pub fn run(&self, i: u64, budget: u32) -> Option<RunResult> {
         let (seed, start) = self.history(i);
-        let failed = match self.loaded(seed, &start) {
-            Ok(l) => self.failures(&l)?,
+        let (failed, coverage) = match self.loaded(seed, &start) {
+            Ok(mut l) => {
+                l.harvester.coverage = self.coverage;
+                self.played(&l)?
+            }
             // Drawn from a section the campaign checked: a bug, told as the run's failure.
-            Err(e) => vec![(RESOLVES.into(), e.to_string())],
+            Err(e) => (vec![(RESOLVES.into(), e.to_string())], None),
         };
         let Some((expectation, observed)) = failed.into_iter().next() else {
             return Some(RunResult {
                 run: i,
                 seed,
                 failure: None,
+                coverage,
             });
         };
         let bounds = shrink::Bounds {
@@ -214,6 +232,7 @@ impl Campaign {
         Some(RunResult {
             run: i,
             seed,
+            coverage,
             failure: Some(Failure {
                 expectation,
                 observed,

@@ -15,8 +15,10 @@ pub const FORMAT: &str = "harvemu coverage 1";
 pub struct ImageCoverage {
     /// [`FORMAT`].
     pub format: String,
-    /// The image's file, as the node files name it (`c0_alarm.hex`).
+    /// The image's file name (`c0_alarm.hex`): what merges go by.
     pub image: String,
+    /// Where it was read, as messages name it (`configs/firmware/c0_alarm.hex (built in)`).
+    pub source: String,
     /// SHA-256 of the image as its file holds it, hex.
     pub sha256: String,
     /// The nodes that ran it.
@@ -107,7 +109,8 @@ impl ImageCoverage {
         });
         ImageCoverage {
             format: FORMAT.into(),
-            image: spec.image_file.clone(),
+            image: file_name(&spec.image_file),
+            source: spec.image_file.clone(),
             sha256: spec.image_sha256.clone(),
             nodes,
             runs: 1,
@@ -175,9 +178,11 @@ impl ImageCoverage {
     pub fn add(&mut self, other: &ImageCoverage) -> Result<(), String> {
         if other.sha256 != self.sha256 {
             return Err(format!(
-                "{} is not the same image in both (SHA-256 {} and {})",
+                "{} is not the same image in both: {} (SHA-256 {}) and {} (SHA-256 {})",
                 self.image,
+                self.source,
                 short(&self.sha256),
+                other.source,
                 short(&other.sha256)
             ));
         }
@@ -199,6 +204,14 @@ impl ImageCoverage {
         }
         Ok(())
     }
+}
+
+/// The file name of `found` (a path as messages name it, perhaps with ` (built in)`).
+fn file_name(found: &str) -> String {
+    let path = found.strip_suffix(crate::configs::BUILT_IN).unwrap_or(found);
+    std::path::Path::new(path)
+        .file_name()
+        .map_or_else(|| path.to_string(), |n| n.to_string_lossy().into_owned())
 }
 
 fn short(sha: &str) -> &str {

@@ -18,8 +18,14 @@ pub fn write(dir: &Path, coverage: &Coverage) -> Result<Vec<String>> {
     // The sources are copied beside the reports: lcov's SF names them by absolute path.
     let absolute = std::path::absolute(dir).map_err(|e| failed("create", dir, e))?;
     let mut lines = Vec::new();
+    let mut stems: Vec<String> = Vec::new();
     for image in &coverage.images {
-        let stem = image.stem();
+        // Two images of one name in a run (from two folders) keep apart.
+        let mut stem = image.stem();
+        if stems.contains(&stem) {
+            stem = format!("{stem}-{}", image.sha256.get(..12).unwrap_or(&image.sha256));
+        }
+        stems.push(stem.clone());
         let json = serde_json::to_string(image)?;
         write_whole(
             &dir.join(format!("{stem}.coverage.json")),
@@ -61,7 +67,7 @@ pub fn write(dir: &Path, coverage: &Coverage) -> Result<Vec<String>> {
         let totals = listing::totals(&listing::items(&code, &image.written, &counts), &counts);
         let mut line = format!(
             "{} ({}): {}; {} in {}",
-            image.image,
+            image.source,
             image.nodes.join(" "),
             listing::describe(&totals),
             reports.join(", "),

@@ -118,7 +118,7 @@ pub struct Running {
     pub(super) field_nodes_at: Option<BusTime>,
     /// An instruction trace of a firmware node, set before the field nodes are attached.
     pub cpu_trace: Option<CpuTraceRequest>,
-    /// Code coverage of the firmware nodes, set before the field nodes are attached
+    /// Code coverage of the firmware nodes, when [`Harvester::coverage`] asks for it
     /// ([`crate::coverage`]); [`Running::end_coverage`] gives it.
     pub coverage: Option<crate::coverage::SharedCollector>,
 }
@@ -206,7 +206,7 @@ pub async fn begin(h: &Harvester, paced: bool, sinks: Vec<Box<dyn Sink>>) -> cra
         now: BusTime::ZERO,
         field_nodes_at: Some(h.relay()),
         cpu_trace: None,
-        coverage: None,
+        coverage: h.coverage.then(Default::default),
     };
     if c.monitor.enabled {
         running

@@ -102,6 +102,9 @@ pub struct Harvester {
     /// for the hub's default (the wall clock in real time, [`bus::time::Epoch::FIXED`] in
     /// virtual time). A command that writes the trace itself sets it, so that both agree.
     pub epoch: Option<bus::time::Epoch>,
+    /// Count the firmware nodes' code coverage ([`crate::coverage`]; off unless a command asks):
+    /// [`super::Running::end_coverage`] gives it.
+    pub coverage: bool,
 }
 
 impl Harvester {
@@ -239,6 +242,7 @@ impl Harvester {
                 firmware,
                 network,
                 epoch: None,
+                coverage: false,
             })
         } else {
             Err(Error::Invalid(problems))

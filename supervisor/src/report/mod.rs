@@ -244,6 +244,7 @@ mod tests {
             applied: Default::default(),
             snapshot: None,
             hardware: Vec::new(),
+            coverage: None,
         };
         let s = scenario("short");
         let page = html(&[("a.ron".into(), &s, &outcome)]);

@@ -152,7 +152,7 @@ pub fn run(args: &Args) -> crate::Result<Ended> {
     if let Some(dir) = &args.coverage {
         crate::coverage::prepare(dir)?;
     }
-    let cover = args.coverage.is_some();
+    h.coverage = args.coverage.is_some();
     let epoch = crate::record::epoch(args.start_time, !args.fast);
     h.epoch = Some(epoch);
     let (trace, recording) = crate::record::create_opt(args.record.as_ref(), epoch)?;
@@ -188,9 +188,6 @@ pub fn run(args: &Args) -> crate::Result<Ended> {
         let mut stop = Stop::new().map_err(Error::System)?;
         let mut running = harvester::begin(&h, !fast, trace.into_iter().collect()).await?;
         running.cpu_trace = cpu_trace.map(|(request, _)| request);
-        if cover {
-            running.coverage = Some(Default::default());
-        }
         let mut reported = 0;
         let bridge = match &iface {
             Some(name) => {

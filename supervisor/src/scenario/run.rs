@@ -48,6 +48,9 @@ pub struct Outcome {
     pub snapshot: Option<Snapshot>,
     /// Each firmware node's hardware (CPU, controllers) at the end.
     pub hardware: Vec<(String, bus::node::HardwareState)>,
+    /// The firmware images' code coverage, when the harvester counts it
+    /// ([`crate::harvester::Harvester::coverage`]).
+    pub coverage: Option<crate::coverage::Coverage>,
 }
 
 impl Outcome {
@@ -138,6 +141,7 @@ async fn play(
     let books = Books::gather(&snap, monitor, tally.map(|t| *t.borrow()));
     let mut verdicts = check::all(&l.plan.checks, &running, &snap, &books);
     let hardware = running.hardware(snap.now).await;
+    let coverage = running.end_coverage(snap.now).await;
     if let Some(signal) = interrupted {
         verdicts.push(Verdict {
             expectation: "the run completes".into(),
@@ -159,6 +163,7 @@ async fn play(
         applied,
         snapshot: Some(snap),
         hardware,
+        coverage,
     })
 }
 
