@@ -4,6 +4,7 @@
 use super::shard::{Shard, run_seed};
 use super::shrink::{self, History};
 use crate::configs::Source;
+use crate::coverage::Coverage;
 use crate::scenario::{self, Expect, Fault, Loaded, RandomFaults, Scenario};
 use nodes::{Error, Problem};
 use std::collections::BTreeSet;
@@ -69,7 +70,7 @@ pub struct RunResult {
     /// What it failed, if anything.
     pub failure: Option<Failure>,
     /// Its firmware images' code coverage, when the campaign counts it.
-    pub coverage: Option<crate::coverage::Coverage>,
+    pub coverage: Option<Coverage>,
 }
 
 impl Campaign {
@@ -150,7 +151,7 @@ impl Campaign {
     }
 
     /// [`Campaign::failures`], with the run's coverage when its harvester counts it.
-    fn played(&self, l: &Loaded) -> Option<(Vec<(String, String)>, Option<crate::coverage::Coverage>)> {
+    fn played(&self, l: &Loaded) -> Option<(Vec<(String, String)>, Option<Coverage>)> {
         let played = catch_unwind(AssertUnwindSafe(|| scenario::run(l, None, |_| {})));
         let failed = match played {
             Err(panic) => {
