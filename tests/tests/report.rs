@@ -419,6 +419,7 @@ fn characters_xml_cannot_carry_become_replacement_characters_in_junit_and_the_re
         applied: Default::default(),
         snapshot: None,
         hardware: Vec::new(),
+        coverage: None,
     };
     let runs = [(format!("dir/{bad}.ron"), &scenario, &outcome)];
     let xml = junit::xml(&runs);

@@ -39,6 +39,9 @@ pub struct Campaign {
     pub coverage: bool,
 }
 
+/// The expectations a run failed, each with what was observed.
+type Failures = Vec<(String, String)>;
+
 /// A failing run, shrunk.
 #[derive(Clone, Debug)]
 pub struct Failure {
@@ -151,7 +154,7 @@ impl Campaign {
     }
 
     /// [`Campaign::failures`], with the run's coverage when its harvester counts it.
-    fn played(&self, l: &Loaded) -> Option<(Vec<(String, String)>, Option<Coverage>)> {
+    fn played(&self, l: &Loaded) -> Option<(Failures, Option<Coverage>)> {
         let played = catch_unwind(AssertUnwindSafe(|| scenario::run(l, None, |_| {})));
         let failed = match played {
             Err(panic) => {
