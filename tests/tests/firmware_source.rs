@@ -275,3 +275,37 @@ fn as31_makes_the_shipped_irq_receiver_hex() {
     assert_eq!(bytes_at(&made, 0x0000, 3), [0x02, 0x00, 0x30]);
     assert_eq!(made.get(&0x0003), Some(&0x02));
 }
+
+/// The interrupt-driven receiver's image and its listing (`irq_receiver.lst`, which coverage
+/// reads for line numbers) are what as31 makes of `irq_receiver.asm` with the command
+/// configs/firmware/README.md gives.
+#[test]
+fn as31_makes_the_shipped_receiver_and_its_listing() {
+    let dir = std::env::temp_dir().join(format!("harvemu-firmware-irq-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::copy(
+        root().join("configs/firmware/irq_receiver.asm"),
+        dir.join("irq_receiver.asm"),
+    )
+    .unwrap();
+    let out = Command::new("as31")
+        .current_dir(&dir)
+        .args(["-l", "-Fhex", "-Oirq_receiver.hex", "irq_receiver.asm"])
+        .output()
+        .unwrap_or_else(|e| panic!("cannot run as31 ({e}): install the Debian package as31"));
+    assert!(
+        out.status.success(),
+        "as31: {}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    for file in ["irq_receiver.hex", "irq_receiver.lst"] {
+        let made = std::fs::read(dir.join(file)).unwrap();
+        let shipped = std::fs::read(root().join("configs/firmware").join(file)).unwrap();
+        assert!(
+            made == shipped,
+            "the shipped {file} is not what as31 makes of irq_receiver.asm"
+        );
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

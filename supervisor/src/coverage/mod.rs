@@ -6,7 +6,7 @@
 //! image's file and its SHA-256), shared by every node that runs it. [`Collector::take`] gives
 //! them as a [`Coverage`], which [`Coverage::merge`] adds to another run's (the same images
 //! only) and [`write`] puts in a folder: per image `NAME.coverage.json` (everything, for
-//! merging), `NAME.lst` (every instruction with its counts) and, when the image has debug
+//! merging), `NAME.coverage.lst` (every instruction with its counts) and, when the image has debug
 //! information, `NAME.info` (lcov) with copies of its sources under `src/`.
 
 mod cli;

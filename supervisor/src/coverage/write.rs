@@ -31,8 +31,11 @@ pub fn write(dir: &Path, coverage: &Coverage) -> Result<Vec<String>> {
             &dir.join(format!("{stem}.coverage.json")),
             format!("{json}\n").as_bytes(),
         )?;
-        write_whole(&dir.join(format!("{stem}.lst")), listing::text(image).as_bytes())?;
-        let mut reports = vec![format!("{stem}.lst")];
+        write_whole(
+            &dir.join(format!("{stem}.coverage.lst")),
+            listing::text(image).as_bytes(),
+        )?;
+        let mut reports = vec![format!("{stem}.coverage.lst")];
         let mut missing = Vec::new();
         if let Some(debug) = &image.debug {
             let src = dir.join("src").join(&stem);
