@@ -2,7 +2,10 @@
 //! counted, with a run ahead sent back by frames, a delay loop passed in closed form and an
 //! idle loop parked in, with skipping on and off.
 //!
-//! The program is written here and assembled with as31: an interrupt-driven receiver (as
+//! A small C program compiled by SDCC is counted as exactly, through its debug records: each
+//! line's count in the lcov tracefile is what the C says it must be.
+//!
+//! The assembler program is written here and assembled with as31: an interrupt-driven receiver (as
 //! `configs/firmware/irq_receiver.asm`) that first waits in a `DJNZ R7,$` delay loop, and whose
 //! INT0 handler takes one branch at its fifth frame. The lab sender (`configs/firmware/`) sends
 //! ten frames by 1 s (see `firmware_interrupts.rs`). Every instruction's expected count is
@@ -233,4 +236,162 @@ fn counting_changes_no_frame_and_no_state() {
         counts.iter().all(|c| c.iter().next().is_none()),
         "nothing counted when off"
     );
+}
+
+/// Timer 0 interrupts every 256 machine cycles; main counts odd and even numbers below 20,
+/// waits for 50 ticks, turns interrupts off and idles.
+const C_PROGRAM: &str = "#include <8051.h>
+
+volatile unsigned char ticks;
+unsigned char evens, odds;
+
+void timer0_isr(void) __interrupt(1)
+{
+    ticks++;
+}
+
+void main(void)
+{
+    unsigned char i;
+
+    TMOD = 0x02;
+    TH0 = 0;
+    ET0 = 1;
+    EA = 1;
+    TR0 = 1;
+    for (i = 0; i < 20; i++) {
+        if (i & 1)
+            odds++;
+        else
+            evens++;
+    }
+    while (ticks < 50)
+        ;
+    EA = 0;
+    for (;;)
+        ;
+}
+";
+
+/// Builds [`C_PROGRAM`] with SDCC into `dir` (`prog.hex` with `prog.cdb` and `prog.ihx`
+/// beside it, as `--debug` and packihx leave them) with a network of that one node.
+fn build_c(dir: &std::path::Path) {
+    std::fs::write(dir.join("prog.c"), C_PROGRAM).unwrap();
+    let out = std::process::Command::new("sdcc")
+        .current_dir(dir)
+        .args(["-mmcs51", "--model-small", "--debug", "prog.c"])
+        .output()
+        .unwrap_or_else(|e| panic!("cannot run sdcc ({e}): install the Debian package sdcc"));
+    assert!(
+        out.status.success(),
+        "sdcc: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let packed = std::process::Command::new("packihx")
+        .current_dir(dir)
+        .arg("prog.ihx")
+        .output()
+        .unwrap_or_else(|e| panic!("cannot run packihx ({e}): install the Debian package sdcc"));
+    assert!(packed.status.success());
+    std::fs::write(dir.join("prog.hex"), packed.stdout).unwrap();
+    std::fs::write(
+        dir.join("prog.ron"),
+        "Firmware(name: \"PROG\", image: \"prog.hex\", cpu: I80C51(clock_hz: 12000000), controllers: [])",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("net.ron"),
+        "Network(name: \"c program\", bitrate: 250000, nodes: [\"prog.ron\"])",
+    )
+    .unwrap();
+}
+
+/// One second of the C program's network with skipping on or off: its coverage, written to
+/// `out`, and the lcov tracefile's text.
+fn c_coverage(
+    dir: &std::path::Path,
+    skip: bool,
+    out: &std::path::Path,
+) -> (supervisor::coverage::Coverage, String) {
+    use supervisor::harvester::Harvester;
+    let mut h = Harvester::load(&dir.join("net.ron")).unwrap_or_else(|e| panic!("{e}"));
+    for f in &mut h.firmware {
+        Arc::make_mut(f).skip_idle_loops = skip;
+    }
+    h.coverage = true;
+    let (_, coverage) = harvemu_e2e::drive(h, async |running| {
+        harvemu_e2e::run_to(running, bus::time::BusTime::from_secs(1)).await;
+        running.end_coverage(running.now()).await
+    });
+    let coverage = coverage.expect("coverage is on");
+    supervisor::coverage::write(out, &coverage).expect("the reports");
+    let info = std::fs::read_to_string(out.join("prog.info")).expect("the lcov tracefile");
+    (coverage, info)
+}
+
+/// The line of [`C_PROGRAM`] (from 1) that holds `text`.
+fn c_line(text: &str) -> usize {
+    C_PROGRAM
+        .lines()
+        .position(|l| l.contains(text))
+        .expect("the line")
+        + 1
+}
+
+#[test]
+fn a_c_program_s_lines_count_what_the_c_says_skipping_or_not() {
+    let dir = std::env::temp_dir().join(format!("harvemu-cover-c-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    build_c(&dir);
+    let (skipping, info) = c_coverage(&dir, true, &dir.join("on"));
+    let (working, info_off) = c_coverage(&dir, false, &dir.join("off"));
+    assert_eq!(
+        skipping.images[0].counts, working.images[0].counts,
+        "the same counts either way"
+    );
+    assert_eq!(info.replace("/on/", "/"), info_off.replace("/off/", "/"));
+    let da: std::collections::BTreeMap<usize, u64> = info
+        .lines()
+        .filter_map(|l| {
+            let (line, n) = l.strip_prefix("DA:")?.split_once(',')?;
+            Some((line.parse().ok()?, n.parse().ok()?))
+        })
+        .collect();
+    let count = |text: &str| da.get(&c_line(text)).copied();
+    // Fifty ticks, then interrupts off: the handler ran fifty times.
+    assert_eq!(count("ticks++;"), Some(50));
+    // Twenty numbers below 20, ten odd, ten even.
+    assert_eq!(count("if (i & 1)"), Some(20));
+    assert_eq!(count("odds++;"), Some(10));
+    assert_eq!(count("evens++;"), Some(10));
+    for once in [
+        "TMOD = 0x02;",
+        "TH0 = 0;",
+        "ET0 = 1;",
+        "EA = 1;",
+        "TR0 = 1;",
+        "EA = 0;",
+    ] {
+        assert_eq!(count(once), Some(1), "{once}");
+    }
+    // The test `i < 20` runs 20 or 21 times, as the compiler arranges the loop.
+    assert!(
+        count("for (i = 0;").is_some_and(|n| (20..=21).contains(&n)),
+        "{:?}",
+        count("for (i = 0;")
+    );
+    // The handler's function once per tick, main once.
+    assert!(
+        info.contains("FNDA:50,timer0_isr\n") && info.contains("FNDA:1,main\n"),
+        "{info}"
+    );
+    // The odd/even test went each way ten times.
+    let branches: Vec<&str> = info
+        .lines()
+        .filter(|l| l.starts_with(&format!("BRDA:{},", c_line("if (i & 1)"))))
+        .collect();
+    assert_eq!(branches.len(), 2, "{branches:?}");
+    assert!(branches.iter().all(|b| b.ends_with(",10")), "{branches:?}");
+    let _ = std::fs::remove_dir_all(&dir);
 }

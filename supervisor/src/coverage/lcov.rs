@@ -1,10 +1,13 @@
 //! lcov's tracefile format (`.info`, as `geninfo` writes it and `genhtml` reads it) from an
 //! image's counts and its debug records.
 //!
-//! A source line's code runs from its first address to the next address where another line's
-//! code starts (or its function ends). Its count (`DA`) is the most any of its instructions
-//! ran, so a line whose code ran at all counts as run; each conditional jump in it is a pair of
-//! branches (`BRDA`: jumped, fell through), `-` while the jump never ran. A function (`FN`,
+//! A line record's code runs from its address to the next address where another record's
+//! code starts (or its function ends); a source line may have several such stretches (a `for`
+//! has its start, its test and its step). A stretch is entered as often as its first
+//! instruction ran, or, when that never ran but others did (code only jumped into), as often as
+//! its most-run instruction: so a line whose code ran at all counts as run. A line's count
+//! (`DA`) is its most-entered stretch's. Each conditional jump in it is a pair of branches
+//! (`BRDA`: jumped, fell through), `-` while the jump never ran. A function (`FN`,
 //! `FNDA`) is at the first line of its code and counts the runs of its first instruction.
 
 use super::listing::{Item, items};
@@ -52,11 +55,18 @@ pub fn tracefile(image: &ImageCoverage, source_path: impl Fn(&str) -> String) ->
             .iter()
             .filter(|i| !i.data && i.address >= *address && i.address < end)
             .collect();
-        let count = within
-            .iter()
-            .map(|i| counts.get(i.address).runs)
-            .max()
-            .unwrap_or(0);
+        // Entered as often as its first instruction ran; a stretch only jumped into counts its
+        // most-run instruction.
+        let first = counts.get(*address).runs;
+        let count = if first > 0 {
+            first
+        } else {
+            within
+                .iter()
+                .map(|i| counts.get(i.address).runs)
+                .max()
+                .unwrap_or(0)
+        };
         let record = files.entry(file.clone()).or_default();
         let seen = record.lines.entry(*line).or_insert(0);
         *seen = (*seen).max(count);
