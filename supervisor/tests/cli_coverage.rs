@@ -336,3 +336,70 @@ fn sigterm_mid_run_writes_the_coverage_so_far() {
     assert!(runs > 100, "{row}");
     assert!(cov.join("c0_alarm.info").exists());
 }
+
+#[test]
+fn a_campaign_merges_its_runs_and_its_shards_merge_to_the_whole() {
+    let dir = scratch("cli-coverage", "campaign");
+    let config = root().join("configs/harvester-firmware-c0.ron");
+    let file = dir.join("c0_faults.ron");
+    std::fs::write(
+        &file,
+        format!(
+            r#"Scenario(
+    name: "c0 faults",
+    config: {:?},
+    duration_s: 4.0,
+    random_faults: Some((
+        mean_interval_s: 0.5,
+        kinds: [ErrorPassive, Hang, Disconnect],
+        nodes: ["C0"],
+        from_s: 1.0,
+        quiet_end_s: 1.0,
+        min_fault_s: 0.2,
+        max_fault_s: 0.5,
+        node_rest_s: 0.2,
+    )),
+    expect: [NoCrashes],
+)
+"#,
+            config.display().to_string()
+        ),
+    )
+    .unwrap();
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let campaign = |out: &Path, shard: Option<&str>| {
+        let mut args = vec![
+            "campaign".to_string(),
+            s(&file),
+            "--runs".into(),
+            "3".into(),
+            "--out".into(),
+            s(out),
+            "--coverage".into(),
+            s(&out.join("coverage")),
+        ];
+        if let Some(k) = shard {
+            args.extend(["--shard".into(), k.into()]);
+        }
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let out = harvemu(&args);
+        assert!(matches!(out.status.code(), Some(0 | 1)), "{}", err(&out));
+    };
+    let whole = dir.join("whole");
+    campaign(&whole, None);
+    let (one, two) = (dir.join("one"), dir.join("two"));
+    campaign(&one, Some("1/2"));
+    campaign(&two, Some("2/2"));
+    let merged = dir.join("merged");
+    let out = harvemu(&["campaign", "merge", &s(&one), &s(&two), "--out", &s(&merged)]);
+    assert!(matches!(out.status.code(), Some(0 | 1)), "{}", err(&out));
+    let record = |d: &Path| d.join("coverage/c0_alarm.coverage.json");
+    assert_eq!(counts(&record(&merged)), counts(&record(&whole)));
+    assert!(
+        counts(&record(&one)) != counts(&record(&whole)),
+        "a shard is not the whole"
+    );
+    let text = std::fs::read_to_string(record(&merged)).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(v["runs"], 3);
+}
