@@ -65,7 +65,9 @@ fn bench_json_reports_every_scenario() {
             ("firmware-irq-noskip", 1),
             ("harvester-scripts", 1),
             ("harvester-c0-fw", 1),
+            ("harvester-c0-fw-cov", 1),
             ("harvester-all-fw", 1),
+            ("harvester-all-fw-cov", 1),
         ]
     );
     // The harvesters with C0 as firmware and with every field node as firmware carry the same
@@ -77,6 +79,9 @@ fn bench_json_reports_every_scenario() {
             .unwrap()
     };
     let scripts = frames("harvester-scripts");
+    // Counting coverage changes no frame: the same count with it as without.
+    assert_eq!(frames("harvester-c0-fw-cov"), frames("harvester-c0-fw"));
+    assert_eq!(frames("harvester-all-fw-cov"), frames("harvester-all-fw"));
     for row in ["harvester-c0-fw", "harvester-all-fw"] {
         let firmware = frames(row);
         assert!(

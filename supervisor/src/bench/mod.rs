@@ -333,10 +333,18 @@ pub fn run(args: &Args) -> crate::Result<()> {
         let scripts = load("configs/harvester.ron")?;
         let c0 = load("configs/harvester-firmware-c0.ron")?;
         let all = load("configs/harvester-firmware.ron")?;
+        // The same with code coverage counted (and left unwritten): what counting costs.
+        let covered = |h: &crate::harvester::Harvester| crate::harvester::Harvester {
+            coverage: true,
+            ..h.clone()
+        };
+        let (c0_cov, all_cov) = (covered(&c0), covered(&all));
         for (name, h) in [
             ("harvester-scripts", scripts),
             ("harvester-c0-fw", c0),
+            ("harvester-c0-fw-cov", c0_cov),
             ("harvester-all-fw", all),
+            ("harvester-all-fw-cov", all_cov),
         ] {
             plan.push((
                 name,
