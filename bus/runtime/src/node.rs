@@ -154,6 +154,9 @@ impl NodeActor {
         if std::mem::take(&mut self.crash_next) {
             // An injected crash behaves as a panic would, without the noise of one.
             tracing::info!(node = %self.name, "injected crash");
+            // What the logic did up to this moment stands: a traced or counted firmware node
+            // brings its trace and its coverage here.
+            self.logic.run_ends(now);
             ctx.stop();
             return Report {
                 crashed: Some(CrashCause::Injected),

@@ -520,7 +520,7 @@ impl Machine {
         Ok(())
     }
 
-    /// [`Machine::run`], stopping also after an instruction that leaves the PC at `pc`.
+    /// [`Machine::run_covered`], stopping also after an instruction that leaves the PC at `pc`.
     pub fn run_to_pc<C: Cover>(&mut self, until: u64, pc: u16, cover: &mut C) -> Result<(), mcs51::Error> {
         self.cpu.stop_at_pc(Some(pc));
         let r = self.run_covered(until, cover);
@@ -528,7 +528,8 @@ impl Machine {
         r
     }
 
-    /// Executes one instruction (or enters an interrupt), as [`Machine::run`] would.
+    /// Executes one instruction (or enters an interrupt), as [`Machine::run`] would, telling
+    /// `cover` of it.
     pub fn step<C: Cover>(&mut self, cover: &mut C) -> Result<mcs51::Step, mcs51::Error> {
         self.catch_up_timer();
         let step = self.cpu.step_covered(&mut self.board, cover)?;

@@ -13,7 +13,9 @@
 //! firmware made them, and what the bus does reaches the registers at the moment it happens.
 //! Wired inputs are read from the plant at least every millisecond and at every input, and are
 //! steady in between. A CPU fault (reserved opcode, stack past internal RAM) stops the node for
-//! good: [`NodeLogic::failed`] reports it and the supervisor treats it as a crash.
+//! good: [`NodeLogic::failed`] reports it and the supervisor treats it as a crash. Given counts
+//! ([`FirmwareNode::with_coverage`]), it adds exactly the instructions of the path it takes
+//! ([`coverage`]), and counting changes nothing else.
 //!
 //! [`NodeLogic::failed`]: bus::node::NodeLogic::failed
 

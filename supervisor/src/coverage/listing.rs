@@ -21,7 +21,8 @@ pub struct Item {
     pub text: String,
     /// Bytes that are not an instruction.
     pub data: bool,
-    /// A conditional jump (JB, JNB, JBC, JC, JNC, JZ, JNZ, CJNE, DJNZ).
+    /// A conditional jump (JB, JNB, JBC, JC, JNC, JZ, JNZ, CJNE, DJNZ) whose target is not the
+    /// next instruction.
     pub branches: bool,
 }
 
@@ -50,10 +51,14 @@ pub fn items(code: &[u8], written: &[(u32, u32)], counts: &Counts) -> Vec<Item> 
                 continue;
             }
             let mnemonic = text.split_whitespace().next().unwrap_or("");
+            // Every conditional jump ends in its relative offset; one of 0 goes on to the next
+            // instruction either way (SDCC compares with `CJNE R7,#0FH,$+3` to set the carry):
+            // no branch.
+            let offset = code.get((pc + len - 1) as usize).copied().unwrap_or(0);
             out.push(Item {
                 address,
                 len: len as u16,
-                branches: CONDITIONAL.contains(&mnemonic),
+                branches: CONDITIONAL.contains(&mnemonic) && offset != 0,
                 text,
                 data: false,
             });
