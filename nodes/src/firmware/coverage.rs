@@ -23,10 +23,20 @@ pub struct Count {
 }
 
 /// Per-address counts of one image (see the module docs).
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Counts {
-    /// Indexed by address; grows to the highest address that ran.
-    per: Vec<Count>,
+    /// Indexed by address: every address of the code memory, so that counting needs no check.
+    per: Box<[Count; 0x10000]>,
+}
+
+impl Default for Counts {
+    fn default() -> Counts {
+        let per: Box<[Count]> = vec![Count::default(); 0x10000].into_boxed_slice();
+        Counts {
+            // A slice of 65536 counts is an array of them.
+            per: per.try_into().unwrap_or_else(|_| unreachable!()),
+        }
+    }
 }
 
 /// Counts several nodes running one image add to.
@@ -35,7 +45,7 @@ pub type SharedCounts = Rc<RefCell<Counts>>;
 impl Counts {
     /// What ran at `addr`.
     pub fn get(&self, addr: u16) -> Count {
-        self.per.get(usize::from(addr)).copied().unwrap_or_default()
+        self.per[usize::from(addr)]
     }
 
     /// Every address where something ran, in order.
@@ -49,7 +59,7 @@ impl Counts {
 
     /// Adds `count` at `addr` (merging runs).
     pub fn add(&mut self, addr: u16, count: Count) {
-        let c = self.at(addr);
+        let c = &mut self.per[usize::from(addr)];
         c.runs = c.runs.saturating_add(count.runs);
         c.taken = c.taken.saturating_add(count.taken);
         c.not_taken = c.not_taken.saturating_add(count.not_taken);
@@ -62,21 +72,19 @@ impl Counts {
         }
     }
 
+    #[inline(always)]
     fn at(&mut self, addr: u16) -> &mut Count {
-        let i = usize::from(addr);
-        if i >= self.per.len() {
-            // Whole pages, so that a run creeping past the end grows seldom.
-            self.per.resize((i | 0xFF) + 1, Count::default());
-        }
-        &mut self.per[i]
+        &mut self.per[usize::from(addr)]
     }
 }
 
 impl mcs51::Cover for Counts {
+    #[inline(always)]
     fn ran(&mut self, pc: u16) {
         self.at(pc).runs += 1;
     }
 
+    #[inline(always)]
     fn jumped(&mut self, pc: u16, taken: bool) {
         let c = self.at(pc);
         c.runs += 1;
@@ -122,6 +130,8 @@ impl Journal {
 
     /// Adds the entries in `range` to `into`, `times` over. `range` must start and end between
     /// instructions, as machines' positions do.
+    // Every instruction a node keeps passes here once: the counts are plain additions (a
+    // count of 2^64 instructions is centuries of bus time), one per entry.
     pub fn apply(&self, range: Range<usize>, times: u64, into: &mut Counts) {
         if times == 0 {
             return;
@@ -129,26 +139,27 @@ impl Journal {
         let entries = self.entries.get(range).unwrap_or_default();
         let mut i = 0;
         while let Some(&e) = entries.get(i) {
-            let pc = e as u16;
-            let mut count = Count {
-                runs: times,
-                ..Count::default()
-            };
+            let c = into.at(e as u16);
             match e & !0xFFFF {
-                FELL => count.not_taken = times,
-                JUMPED => count.taken = times,
-                LOOPED => {
+                RAN => c.runs += times,
+                FELL => {
+                    c.runs += times;
+                    c.not_taken += times;
+                }
+                JUMPED => {
+                    c.runs += times;
+                    c.taken += times;
+                }
+                _ => {
                     i += 1;
                     let n = entries.get(i).copied().unwrap_or(0);
                     let iterations = u64::from(n & !ENDED);
                     let ended = u64::from(n & ENDED != 0);
-                    count.runs = iterations.saturating_mul(times);
-                    count.taken = (iterations - ended).saturating_mul(times);
-                    count.not_taken = ended.saturating_mul(times);
+                    c.runs += iterations * times;
+                    c.taken += (iterations - ended) * times;
+                    c.not_taken += ended * times;
                 }
-                _ => {}
             }
-            into.add(pc, count);
             i += 1;
         }
     }

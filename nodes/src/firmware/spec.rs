@@ -156,8 +156,8 @@ pub struct FirmwareSpec {
     pub image: Arc<mcs51::Image>,
     /// The image's file, as named in messages.
     pub image_file: String,
-    /// SHA-256 of the image as its file holds it (before the configuration block), in hex:
-    /// what tells one image from another in coverage reports.
+    /// SHA-256 of what the image's file writes (each stretch's address, then its bytes), before
+    /// the configuration block, in hex: what tells one image from another in coverage reports.
     pub image_sha256: String,
     /// Debug information found beside the image ([`super::beside`]), for coverage reports.
     pub debug: Option<Arc<super::beside::Debug>>,
@@ -296,10 +296,19 @@ pub fn load(file: &str, path: &Path, text: &str, read: Reader) -> Result<Firmwar
         Ok((name, hex)) => match mcs51::hex::parse(&hex, code_bytes.clamp(1, 0x10000) as usize) {
             Ok(image) => {
                 use sha2::Digest;
-                let sha: String = sha2::Sha256::digest(&image.code)
-                    .iter()
-                    .map(|b| format!("{b:02x}"))
-                    .collect();
+                // What the file writes, address and bytes: the image, however large its code
+                // memory.
+                let mut digest = sha2::Sha256::new();
+                for r in &image.written {
+                    digest.update(r.start.to_be_bytes());
+                    digest.update(
+                        image
+                            .code
+                            .get(r.start as usize..r.end as usize)
+                            .unwrap_or_default(),
+                    );
+                }
+                let sha: String = digest.finalize().iter().map(|b| format!("{b:02x}")).collect();
                 let dir = path.parent().unwrap_or(Path::new(""));
                 let sources = f.sources.as_ref().map_or_else(
                     || image_path.parent().unwrap_or(dir).to_path_buf(),
