@@ -10,8 +10,9 @@
 //! (`BRDA`: jumped, fell through), `-` while the jump never ran. A function (`FN`,
 //! `FNDA`) is at the first line of its code and counts the runs of its first instruction.
 
-use super::listing::{Item, items};
+use super::listing::Item;
 use super::record::ImageCoverage;
+use nodes::firmware::coverage::Counts;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
@@ -26,13 +27,16 @@ struct FileRecord {
     functions: Vec<(u32, String, u64)>,
 }
 
-/// The tracefile of `image`, its sources named by `source_path` (a record's file name → the
-/// path `SF` gives); `None` when it has no debug records.
-pub fn tracefile(image: &ImageCoverage, source_path: impl Fn(&str) -> String) -> Option<String> {
+/// The tracefile of `image` with its counts and instructions ([`super::listing::items`]),
+/// its sources named by `source_path` (a record's file name → the path `SF` gives); `None`
+/// when it has no debug records.
+pub fn tracefile(
+    image: &ImageCoverage,
+    counts: &Counts,
+    items: &[Item],
+    source_path: impl Fn(&str) -> String,
+) -> Option<String> {
     let debug = image.debug.as_ref()?;
-    let code = image.code_bytes();
-    let counts = image.counts();
-    let items = items(&code, &image.written, &counts);
     let mut files: BTreeMap<String, FileRecord> = BTreeMap::new();
     // Each distinct start address, with the lines that start there.
     let mut starts: Vec<u16> = debug.lines.iter().map(|l| l.2).collect();

@@ -110,11 +110,8 @@ pub fn describe(t: &Totals) -> String {
     )
 }
 
-/// The listing's text.
-pub fn text(image: &ImageCoverage) -> String {
-    let code = image.code_bytes();
-    let counts = image.counts();
-    let items = items(&code, &image.written, &counts);
+/// The listing's text: `image`, its code, counts and instructions ([`items`]).
+pub fn text(image: &ImageCoverage, code: &[u8], counts: &Counts, items: &[Item]) -> String {
     let mut out = String::new();
     let _ = writeln!(
         out,
@@ -124,12 +121,12 @@ pub fn text(image: &ImageCoverage) -> String {
         image.nodes.join(" "),
         image.runs
     );
-    let _ = writeln!(out, "; {}", describe(&totals(&items, &counts)));
+    let _ = writeln!(out, "; {}", describe(&totals(items, counts)));
     let _ = writeln!(
         out,
         "; address  bytes      instruction               runs      jumped  fell through"
     );
-    for i in &items {
+    for i in items {
         let bytes: Vec<String> = (0..i.len)
             .take(if i.data { 8 } else { 3 })
             .map(|k| {

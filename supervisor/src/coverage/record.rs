@@ -25,7 +25,8 @@ pub struct ImageCoverage {
     pub nodes: Vec<String>,
     /// Runs merged into these counts.
     pub runs: u64,
-    /// The code memory (hex), as the first node ran it: listings are decoded from it.
+    /// The code memory (hex) up to the end of what the image writes, as the first node ran it:
+    /// listings are decoded from it.
     pub code: String,
     /// The address ranges the image writes, `[start, end)`.
     pub written: Vec<(u32, u32)>,
@@ -114,7 +115,7 @@ impl ImageCoverage {
             sha256: spec.image_sha256.clone(),
             nodes,
             runs: 1,
-            code: spec.image.code.iter().map(|b| format!("{b:02X}")).collect(),
+            code: hex(&spec.image.code[..code_end(spec)]),
             written: spec.image.written.iter().map(|r| (r.start, r.end)).collect(),
             counts: counts
                 .iter()
@@ -145,14 +146,13 @@ impl ImageCoverage {
     /// The code memory, decoded from [`ImageCoverage::code`] (bytes that do not decode read
     /// FFh, as unwritten code does).
     pub fn code_bytes(&self) -> Vec<u8> {
+        let nibble = |c: u8| char::from(c).to_digit(16).and_then(|d| u8::try_from(d).ok());
         self.code
             .as_bytes()
             .chunks(2)
-            .map(|p| {
-                std::str::from_utf8(p)
-                    .ok()
-                    .and_then(|t| u8::from_str_radix(t, 16).ok())
-                    .unwrap_or(0xFF)
+            .map(|p| match p {
+                [h, l] => nibble(*h).zip(nibble(*l)).map_or(0xFF, |(h, l)| h << 4 | l),
+                _ => 0xFF,
             })
             .collect()
     }
@@ -204,6 +204,23 @@ impl ImageCoverage {
         }
         Ok(())
     }
+}
+
+/// The code memory up to the end of the last stretch the image writes: what listings decode.
+fn code_end(spec: &FirmwareSpec) -> usize {
+    let end = spec.image.written.iter().map(|r| r.end).max().unwrap_or(0);
+    (end as usize).min(spec.image.code.len())
+}
+
+/// `bytes` in upper-case hex.
+fn hex(bytes: &[u8]) -> String {
+    const DIGITS: &[u8; 16] = b"0123456789ABCDEF";
+    let mut out = String::with_capacity(2 * bytes.len());
+    for b in bytes {
+        out.push(char::from(DIGITS[usize::from(b >> 4)]));
+        out.push(char::from(DIGITS[usize::from(b & 0xF)]));
+    }
+    out
 }
 
 /// The file name of `found` (a path as messages name it, perhaps with ` (built in)`).

@@ -26,6 +26,9 @@ pub fn write(dir: &Path, coverage: &Coverage) -> Result<Vec<String>> {
             stem = format!("{stem}-{}", image.sha256.get(..12).unwrap_or(&image.sha256));
         }
         stems.push(stem.clone());
+        let code = image.code_bytes();
+        let counts = image.counts();
+        let items = listing::items(&code, &image.written, &counts);
         let json = serde_json::to_string(image)?;
         write_whole(
             &dir.join(format!("{stem}.coverage.json")),
@@ -33,7 +36,7 @@ pub fn write(dir: &Path, coverage: &Coverage) -> Result<Vec<String>> {
         )?;
         write_whole(
             &dir.join(format!("{stem}.coverage.lst")),
-            listing::text(image).as_bytes(),
+            listing::text(image, &code, &counts, &items).as_bytes(),
         )?;
         let mut reports = vec![format!("{stem}.coverage.lst")];
         let mut missing = Vec::new();
@@ -60,14 +63,12 @@ pub fn write(dir: &Path, coverage: &Coverage) -> Result<Vec<String>> {
                     .find(|(n, _)| n == file)
                     .map_or_else(|| file.to_string(), |(_, p)| p.clone())
             };
-            if let Some(info) = super::lcov::tracefile(image, path_of) {
+            if let Some(info) = super::lcov::tracefile(image, &counts, &items, path_of) {
                 write_whole(&dir.join(format!("{stem}.info")), info.as_bytes())?;
                 reports.push(format!("{stem}.info"));
             }
         }
-        let code = image.code_bytes();
-        let counts = image.counts();
-        let totals = listing::totals(&listing::items(&code, &image.written, &counts), &counts);
+        let totals = listing::totals(&items, &counts);
         let mut line = format!(
             "{} ({}): {}; {} in {}",
             image.source,
