@@ -403,3 +403,79 @@ fn a_campaign_merges_its_runs_and_its_shards_merge_to_the_whole() {
     let v: serde_json::Value = serde_json::from_str(&text).unwrap();
     assert_eq!(v["runs"], 3);
 }
+
+/// An sdas program: its lines come from the listing the linker completes (`sdld -u`).
+const SDAS_PROGRAM: &str = "\t.area\tCSEG\t(ABS,CODE)
+\t.org\t0x0000
+start:\tmov\tr7, #200
+delay:\tdjnz\tr7, delay
+\tmov\tr6, #5
+again:\tinc\ta
+\tdjnz\tr6, again
+loop:\tsjmp\tloop
+\t.db\t0x01, 0x02
+";
+
+#[test]
+fn an_sdas_image_maps_to_its_source_through_the_linked_listing() {
+    let dir = scratch("cli-coverage", "sdas");
+    std::fs::write(dir.join("prog.asm"), SDAS_PROGRAM).unwrap();
+    let tool = |program: &str, args: &[&str]| {
+        let out = Command::new(program)
+            .current_dir(&dir)
+            .args(args)
+            .output()
+            .unwrap_or_else(|e| panic!("cannot run {program} ({e}): install the Debian package sdcc"));
+        assert!(
+            out.status.success(),
+            "{program}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        out.stdout
+    };
+    tool("sdas8051", &["-plosgffw", "prog.asm"]);
+    tool("sdld", &["-n", "-u", "-i", "prog.ihx", "prog.rel"]);
+    let hex = tool("packihx", &["prog.ihx"]);
+    std::fs::write(dir.join("prog.hex"), hex).unwrap();
+    std::fs::write(
+        dir.join("prog.ron"),
+        "Firmware(name: \"PROG\", image: \"prog.hex\", cpu: I80C51(clock_hz: 12000000), controllers: [])",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("net.ron"),
+        "Network(name: \"sdas\", bitrate: 250000, nodes: [\"prog.ron\"])",
+    )
+    .unwrap();
+    let cov = dir.join("cov");
+    let out = harvemu(&[
+        "run",
+        dir.join("net.ron").to_str().unwrap(),
+        "--fast",
+        "--for",
+        "100ms",
+        "--coverage",
+        cov.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", err(&out));
+    let info = std::fs::read_to_string(cov.join("prog.info")).expect("lcov from the linked listing");
+    let da = lines(&info);
+    let at = |text: &str| da.get(&line_of(SDAS_PROGRAM, text)).copied();
+    assert_eq!(at("mov\tr7, #200"), Some(1));
+    // The delay loop, passed in closed form: 200 turns.
+    assert_eq!(at("djnz\tr7, delay"), Some(200));
+    assert_eq!(at("mov\tr6, #5"), Some(1));
+    assert_eq!(at("inc\ta"), Some(5));
+    assert_eq!(at("djnz\tr6, again"), Some(5));
+    assert!(
+        at("sjmp\tloop").is_some_and(|n| n > 1000),
+        "{:?}",
+        at("sjmp\tloop")
+    );
+    assert_eq!(at(".db"), None, "data is no line of code");
+    let again = line_of(SDAS_PROGRAM, "djnz\tr6, again");
+    assert!(
+        info.contains(&format!("BRDA:{again},1,0,4\nBRDA:{again},1,1,1\n")),
+        "{info}"
+    );
+}

@@ -1,12 +1,13 @@
 //! What a build leaves beside a firmware image, for coverage reports: SDCC's debug records
-//! (`NAME.cdb` beside `NAME.hex`) or as31's listing (`NAME.lst`), the linker's own output
+//! (`NAME.cdb` beside `NAME.hex`), else an assembler's listing (as31's `NAME.lst`, or sdas's
+//! with the linker's addresses, `NAME.rst`, of `NAME.asm`), the linker's own output
 //! (`NAME.ihx`), and the source files the records name.
 //!
 //! Contract: [`read`] finds them through the node file's reader, where the image was found.
 //! None of them is needed: a file that is not there is left out. One that is there must belong
 //! to the image: debug records outside the image or off its instructions
 //! ([`DebugInfo::check`]), or an `.ihx` whose code differs from the image, are a problem naming
-//! that file. A listing that is not as31's is not read.
+//! that file. A listing of neither kind is not read.
 
 use super::debuginfo::{self, DebugInfo};
 use super::spec::Reader;
@@ -34,6 +35,9 @@ pub struct SourceFile {
     /// Its text, when it was found.
     pub text: Option<String>,
 }
+
+/// A listing's reader: the listing's name and text, and its source's name.
+type Parse = fn(&str, &str, &str) -> Result<DebugInfo, Error>;
 
 /// `Ok(None)` for a file that is not there.
 fn optional(read: Reader, path: &Path) -> Result<Option<(String, String)>, Error> {
@@ -93,21 +97,32 @@ pub fn read(
         Ok(None) => {
             let asm = image_path.with_extension("asm");
             let asm_name = asm.file_name()?.to_str()?.to_string();
-            match optional(read, &image_path.with_extension("lst")) {
-                Ok(Some((name, text))) => match debuginfo::parse_as31_listing(&name, &text, &asm_name) {
-                    Ok(info) if !info.lines.is_empty() => (name, info),
-                    Ok(_) => return None,
+            let listings: [(&str, Parse); 2] = [
+                ("lst", debuginfo::parse_as31_listing),
+                ("rst", debuginfo::parse_sdas_listing),
+            ];
+            let mut found = None;
+            for (extension, parse) in listings {
+                match optional(read, &image_path.with_extension(extension)) {
+                    Ok(Some((name, text))) => match parse(&name, &text, &asm_name) {
+                        Ok(info) if !info.lines.is_empty() => {
+                            found = Some((name, info));
+                            break;
+                        }
+                        Ok(_) => {}
+                        Err(e) => {
+                            refuse(e);
+                            return None;
+                        }
+                    },
+                    Ok(None) => {}
                     Err(e) => {
                         refuse(e);
                         return None;
                     }
-                },
-                Ok(None) => return None,
-                Err(e) => {
-                    refuse(e);
-                    return None;
                 }
             }
+            found?
         }
         Err(e) => {
             refuse(e);

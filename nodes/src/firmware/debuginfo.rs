@@ -16,6 +16,10 @@
 //! is source line `n`. A line that places bytes is an instruction's unless its statement is a
 //! directive (`.db`, `.dw`, `.byte`, ...: data).
 //!
+//! [`parse_sdas_listing`] reads them from sdas's listing with the linker's addresses
+//! (`NAME.rst`): a row with bytes and a cycle count in brackets is an instruction, and gives
+//! its source line's number.
+//!
 //! [`DebugInfo::check`] holds the records to the image they claim to describe: every line and
 //! function address inside what the image writes, and inside a function on an instruction
 //! boundary, the instructions decoded from the function's start.
@@ -180,6 +184,57 @@ pub fn parse_as31_listing(file: &str, text: &str, source: &str) -> Result<DebugI
     })
 }
 
+/// Reads an sdas listing with the linker's addresses (`NAME.rst`, from `sdas8051 -l` and
+/// `sdld -u`) `text` (file `file`) of the source `source`. A row
+/// `000002 DF FE [24] 4 delay: djnz r7, delay` is an instruction (address, bytes, cycles in
+/// brackets, then its source line's number); rows without cycles (data, directives) are not.
+/// No lines when there is none.
+pub fn parse_sdas_listing(file: &str, text: &str, source: &str) -> Result<DebugInfo, Error> {
+    let mut lines = Vec::new();
+    for (n, row) in text.lines().enumerate() {
+        let mut words = row.split_whitespace().peekable();
+        let Some(address) = words.next() else { continue };
+        if address.len() != 6 || !address.bytes().all(|b| b.is_ascii_hexdigit()) {
+            continue;
+        }
+        let mut bytes = 0;
+        while words
+            .peek()
+            .is_some_and(|w| w.len() == 2 && w.bytes().all(|b| b.is_ascii_hexdigit()))
+        {
+            words.next();
+            bytes += 1;
+        }
+        let cycles = words
+            .next()
+            .is_some_and(|w| w.starts_with('[') && w.ends_with(']'));
+        if bytes == 0 || !cycles {
+            continue;
+        }
+        let line = words.next().and_then(|w| w.parse::<u32>().ok()).ok_or_else(|| {
+            problem(
+                file,
+                n,
+                "an instruction row without its source line's number".into(),
+            )
+        })?;
+        let address = u32::from_str_radix(address, 16)
+            .ok()
+            .and_then(|a| u16::try_from(a).ok())
+            .ok_or_else(|| problem(file, n, format!("`{address}` is not a code address (0 to FFFF)")))?;
+        lines.push(SourceLine {
+            address,
+            file: source.to_string(),
+            line,
+        });
+    }
+    lines.sort_by_key(|l| (l.address, l.line));
+    Ok(DebugInfo {
+        lines,
+        functions: Vec::new(),
+    })
+}
+
 fn problem(file: &str, n: usize, message: String) -> Error {
     Error::Invalid(vec![Problem {
         file: file.to_string(),
@@ -294,6 +349,26 @@ L:A$m$120:1D7
                     end: Some(0x1F0)
                 },
             ]
+        );
+    }
+
+    #[test]
+    fn listings_give_the_lines_of_instructions_only() {
+        // as31 -l: listing line n is source line n.
+        let as31 = "; comment\n0000:                      .org    0000H\n0000: 02 00 30             LJMP    START\n0030: 75 81 60     START:  MOV     SP, #60H\n0033: 01 02                .db 1, 2\n";
+        let info = parse_as31_listing("p.lst", as31, "p.asm").unwrap();
+        let at: Vec<(u16, u32)> = info.lines.iter().map(|l| (l.address, l.line)).collect();
+        assert_eq!(at, [(0x0000, 3), (0x0030, 4)]);
+        // sdas + sdld -u: the line number is a column of its own.
+        let sdas = "      000000                          2 \t.org\t0x0000\n      000000 7F C8            [12]    3 start:\tmov\tr7, #200\n      000006 01 02                    6 \t.db\t0x01, 0x02\n      000008 80 FE            [24]    7 loop:\tsjmp\tloop\n";
+        let info = parse_sdas_listing("p.rst", sdas, "p.asm").unwrap();
+        let at: Vec<(u16, u32)> = info.lines.iter().map(|l| (l.address, l.line)).collect();
+        assert_eq!(at, [(0x0000, 3), (0x0008, 7)]);
+        assert!(
+            parse_as31_listing("p.lst", sdas, "p.asm")
+                .unwrap()
+                .lines
+                .is_empty()
         );
     }
 

@@ -71,12 +71,8 @@ impl Cpu {
     ) -> Result<u8, Error> {
         let d = const { decode(OP) };
         // Tested here, where it folds away for every other opcode.
-        if matches!(d.ins, Ins::Djnz) {
-            let pc = self.pc;
-            if let Some((times, ended)) = self.skip_delay_loop(self.djnz_bound(skip_until)) {
-                cover.looped(pc, times, ended);
-                return Ok(0);
-            }
+        if matches!(d.ins, Ins::Djnz) && self.skip_delay_loop(self.djnz_bound(skip_until), cover) {
+            return Ok(0);
         }
         let pc = self.pc;
         self.op_pc = pc;

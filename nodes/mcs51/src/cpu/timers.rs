@@ -14,6 +14,7 @@
 //! T1 = P3.5) as the caller drives them.
 
 use super::{Cpu, PCON, SCON, TCON, TH0, TH1, TL0, TL1, TMOD, Tx};
+use crate::Cover;
 use crate::decode::{Ins, OPS, Opnd};
 
 /// Adds `inc` to an up-counter of `bits` bits; returns the new value and the overflow count.
@@ -242,21 +243,21 @@ impl Cpu {
 
     /// At a `DJNZ Rn,$` or `DJNZ direct,$` (direct in internal RAM), runs as many iterations as
     /// stepping would before `until` or before any interrupt could be taken, in closed form.
-    /// Returns the iterations passed and whether the loop ended (the last fell through), or
-    /// `None` if the instruction is not such a loop or nothing may be skipped.
-    pub(crate) fn skip_delay_loop(&mut self, until: u64) -> Option<(u32, bool)> {
+    /// Returns false if the instruction is not such a loop or nothing may be skipped; else
+    /// tells `cover` of the iterations passed ([`Cover::looped`]).
+    pub(crate) fn skip_delay_loop<C: Cover>(&mut self, until: u64, cover: &mut C) -> bool {
         let pc = self.pc;
         let d = OPS[self.code[pc as usize] as usize];
         let byte = |k: u8| self.code[pc.wrapping_add(k as u16) as usize];
         // A loop onto itself: the relative offset, the last byte, is minus the length.
         if d.ins != Ins::Djnz || byte(d.len - 1) as i8 != -(d.len as i8) {
-            return None;
+            return false;
         }
         let (len, per) = (d.len as u16, d.cycles as u64);
         let addr = match d.opnds[0] {
             Opnd::Rn(n) => (self.psw() & 0x18) | n,
             Opnd::Direct if byte(1) < 0x80 => byte(1),
-            _ => return None,
+            _ => return false,
         };
         let value = self.iram[addr as usize];
         let mut k = if value == 0 { 256 } else { value as u64 };
@@ -265,7 +266,7 @@ impl Cpu {
         if self.interrupt_possible() {
             if self.request_takeable() {
                 // Held off for one instruction only (after RETI or an IE/IP write).
-                return None;
+                return false;
             }
             // The iteration whose cycles reach the event is the last one that runs unpolled.
             k = k.min(self.next_event.saturating_sub(self.cycles).div_ceil(per));
@@ -273,7 +274,7 @@ impl Cpu {
         // The watchdog resets the core whether or not interrupts are enabled.
         k = k.min(self.wdt_deadline.saturating_sub(self.cycles).div_ceil(per));
         if k < 2 {
-            return None;
+            return false;
         }
         self.iram[addr as usize] = value.wrapping_sub(k as u8);
         let ended = self.iram[addr as usize] == 0;
@@ -286,6 +287,7 @@ impl Cpu {
             self.sync(self.cycles);
         }
         self.inhibit = false;
-        Some((k as u32, ended))
+        cover.looped(pc, k as u32, ended);
+        true
     }
 }
