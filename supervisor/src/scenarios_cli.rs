@@ -80,6 +80,9 @@ pub fn run(args: &ScenarioArgs) -> crate::Result<Ended> {
     let report = args.report.as_deref().map(Output::create).transpose()?;
     let junit = args.junit.as_deref().map(Output::create).transpose()?;
     if let Some(dir) = &args.coverage {
+        for l in &loaded {
+            crate::coverage::check(&l.harvester)?;
+        }
         crate::coverage::prepare(dir)?;
     }
     let mut outcomes = Vec::new();

@@ -249,19 +249,19 @@ fn debug_files_that_are_not_the_image_s_are_refused_naming_them() {
         (&inside, "irq_receiver.cdb", "is not on an instruction of main"),
         (&ihx, "irq_receiver.ihx", "differs from the image beside it"),
     ] {
-        let out = harvemu(&[
-            "run",
-            dir.join("irq_lab.ron").to_str().unwrap(),
-            "--fast",
-            "--for",
-            "1s",
-        ]);
+        let (net, cov) = (dir.join("irq_lab.ron"), dir.join("cov"));
+        let (net, cov) = (net.to_str().unwrap(), cov.to_str().unwrap());
+        let out = harvemu(&["run", net, "--fast", "--for", "1s", "--coverage", cov]);
         assert_eq!(out.status.code(), Some(2), "{file}: {}", err(&out));
         assert!(
             err(&out).contains(file) && err(&out).contains(why),
             "{}",
             err(&out)
         );
+        assert!(!dir.join("cov").exists(), "refused before anything is written");
+        // A run that counts no coverage needs no debug files: it goes on without them.
+        let out = harvemu(&["run", net, "--fast", "--for", "1s"]);
+        assert_eq!(out.status.code(), Some(0), "{file}: {}", err(&out));
     }
 }
 

@@ -7,7 +7,8 @@
 //! None of them is needed: a file that is not there is left out. One that is there must belong
 //! to the image: debug records outside the image or off its instructions
 //! ([`DebugInfo::check`]), or an `.ihx` whose code differs from the image, are a problem naming
-//! that file. A listing of neither kind is not read.
+//! that file (the spec keeps them: only a run that counts coverage refuses them). A listing of
+//! neither kind is not read.
 
 use super::debuginfo::{self, DebugInfo};
 use super::spec::Reader;

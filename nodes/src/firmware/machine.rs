@@ -606,6 +606,7 @@ mod tests {
             image_file: "bench.hex".into(),
             image_sha256: String::new(),
             debug: None,
+            debug_problems: Vec::new(),
             entry: 0,
             variant: mcs51::Variant::I8051,
             clock_hz: 12_000_000,

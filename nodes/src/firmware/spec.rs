@@ -161,6 +161,9 @@ pub struct FirmwareSpec {
     pub image_sha256: String,
     /// Debug information found beside the image ([`super::beside`]), for coverage reports.
     pub debug: Option<Arc<super::beside::Debug>>,
+    /// Why debug files beside the image were not taken (they do not belong to it): a run that
+    /// counts coverage refuses them; any other run goes on without them.
+    pub debug_problems: Vec<Problem>,
     /// Where execution starts after reset.
     pub entry: u16,
     /// 80C51, 8052 or AT89C51CC03.
@@ -314,8 +317,9 @@ pub fn load(file: &str, path: &Path, text: &str, read: Reader) -> Result<Firmwar
                     || image_path.parent().unwrap_or(dir).to_path_buf(),
                     |s| dir.join(s),
                 );
-                let debug = super::beside::read(&image_path, &image, &sources, read, &mut problems);
-                found = Some((name.clone(), sha, debug.map(Arc::new)));
+                let mut refused = Vec::new();
+                let debug = super::beside::read(&image_path, &image, &sources, read, &mut refused);
+                found = Some((name.clone(), sha, debug.map(Arc::new), refused));
                 configure(image, f.config.as_ref(), &name, &at, &mut problems)
             }
             Err(e) => {
@@ -328,7 +332,9 @@ pub fn load(file: &str, path: &Path, text: &str, read: Reader) -> Result<Firmwar
         },
     };
     match (image, clock, found) {
-        (Some(image), Some(clock), Some((image_file, image_sha256, debug))) if problems.is_empty() => {
+        (Some(image), Some(clock), Some((image_file, image_sha256, debug, debug_problems)))
+            if problems.is_empty() =>
+        {
             Ok(FirmwareSpec {
                 name: f.name,
                 address: f.address,
@@ -337,6 +343,7 @@ pub fn load(file: &str, path: &Path, text: &str, read: Reader) -> Result<Firmwar
                 image_file,
                 image_sha256,
                 debug,
+                debug_problems,
                 entry: f.entry.unwrap_or(0),
                 variant,
                 clock_hz,

@@ -93,6 +93,7 @@ pub fn run(args: &Args) -> Result<Ended> {
     )?;
     campaign.coverage = args.coverage.is_some();
     if let Some(dir) = &args.coverage {
+        crate::coverage::check(&campaign.base.harvester)?;
         crate::coverage::prepare(dir)?;
     }
     let mut coverage = crate::coverage::Coverage::default();

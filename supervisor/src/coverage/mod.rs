@@ -38,6 +38,17 @@ pub fn prepare(dir: &std::path::Path) -> crate::Result<()> {
         .map_err(|e| crate::output::failed("write", dir, e))
 }
 
+/// Refuses, before a run that counts coverage, debug files that lie beside an image of `h`
+/// but do not belong to it ([`FirmwareSpec::debug_problems`]): bad input naming each file.
+pub fn check(h: &crate::harvester::Harvester) -> crate::Result<()> {
+    let problems: Vec<nodes::Problem> = h.firmware.iter().flat_map(|f| f.debug_problems.clone()).collect();
+    if problems.is_empty() {
+        Ok(())
+    } else {
+        Err(crate::Error::Config(nodes::Error::Invalid(problems)))
+    }
+}
+
 /// Writes `coverage` to `dir` and says on stderr what each image's covers.
 pub fn report(dir: &std::path::Path, coverage: &Coverage) -> crate::Result<()> {
     if coverage.images.is_empty() {

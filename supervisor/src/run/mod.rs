@@ -150,6 +150,7 @@ pub fn run(args: &Args) -> crate::Result<Ended> {
     };
     let cpu_trace_out = cpu_trace.as_ref().map(|(_, out)| out.clone());
     if let Some(dir) = &args.coverage {
+        crate::coverage::check(&h)?;
         crate::coverage::prepare(dir)?;
     }
     h.coverage = args.coverage.is_some();
