@@ -125,6 +125,11 @@ fn merged_counts_are_the_sum_and_another_image_is_refused() {
     };
     let (a, b) = (run("a", "2s"), run("b", "3s"));
     let merged = dir.join("merged");
+    // A folder used before: its stale record would be merged next time; it goes.
+    std::fs::create_dir_all(&merged).unwrap();
+    std::fs::copy(b.join("c0_alarm.coverage.json"), merged.join("old.coverage.json")).unwrap();
+    std::fs::write(merged.join("old.info"), "TN:\n").unwrap();
+    std::fs::write(merged.join("notes.txt"), "mine").unwrap();
     let out = harvemu(&[
         "coverage",
         "merge",
@@ -147,6 +152,8 @@ fn merged_counts_are_the_sum_and_another_image_is_refused() {
         }
     }
     assert_eq!(cm, sum);
+    assert!(!merged.join("old.coverage.json").exists() && !merged.join("old.info").exists());
+    assert!(merged.join("notes.txt").exists(), "a file of the user's stays");
     assert!(ca != cb, "two runs of different lengths count differently");
     let listing = std::fs::read_to_string(merged.join("c0_alarm.coverage.lst")).unwrap();
     assert!(

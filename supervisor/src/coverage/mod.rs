@@ -7,7 +7,8 @@
 //! them as a [`Coverage`], which [`Coverage::merge`] adds to another run's (the same images
 //! only) and [`write`] puts in a folder: per image `NAME.coverage.json` (everything, for
 //! merging), `NAME.coverage.lst` (every instruction with its counts) and, when the image has debug
-//! information, `NAME.info` (lcov) with copies of its sources under `src/`.
+//! information, `NAME.info` (lcov) with copies of its sources under `src/`. The reports of
+//! images the folder held from an earlier write, and this one has not, are removed.
 
 mod cli;
 mod lcov;

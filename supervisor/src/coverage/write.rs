@@ -82,7 +82,38 @@ pub fn write(dir: &Path, coverage: &Coverage) -> Result<Vec<String>> {
         }
         lines.push(line);
     }
+    remove_stale(dir, &stems)?;
     Ok(lines)
+}
+
+/// Removes the reports of images this write did not have (a folder used again): a record left
+/// from an earlier run would otherwise be merged with this one's. Only harvemu's own names go:
+/// `NAME.coverage.json` with its `NAME.coverage.lst`, `NAME.info` and `src/NAME/`.
+fn remove_stale(dir: &Path, written: &[String]) -> Result<()> {
+    let entries = std::fs::read_dir(dir).map_err(|e| failed("write", dir, e))?;
+    for e in entries.flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        let Some(stem) = name.strip_suffix(".coverage.json") else {
+            continue;
+        };
+        if written.iter().any(|w| w == stem) {
+            continue;
+        }
+        for file in [
+            format!("{stem}.coverage.lst"),
+            format!("{stem}.info"),
+            name.clone(),
+        ] {
+            match std::fs::remove_file(dir.join(&file)) {
+                Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                    return Err(failed("write", &dir.join(&file), e));
+                }
+                _ => {}
+            }
+        }
+        let _ = std::fs::remove_dir_all(dir.join("src").join(stem));
+    }
+    Ok(())
 }
 
 /// Reads the coverage records (`*.coverage.json`) of `dir`. A record that cannot be read, is
@@ -122,9 +153,15 @@ fn read_record(path: &Path) -> Result<ImageCoverage> {
     let mut text = String::new();
     file.take(MAX_RECORD + 1)
         .read_to_string(&mut text)
-        .map_err(|e| Error::Input {
-            path: path.to_path_buf(),
-            source: e,
+        .map_err(|e| match e.kind() {
+            std::io::ErrorKind::InvalidData => Error::BadInput(format!(
+                "{}: not a coverage record: not UTF-8 text",
+                path.display()
+            )),
+            _ => Error::Input {
+                path: path.to_path_buf(),
+                source: e,
+            },
         })?;
     if text.len() as u64 > MAX_RECORD {
         return Err(Error::BadInput(format!(
