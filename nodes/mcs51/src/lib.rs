@@ -59,6 +59,10 @@
 //! turn does the same until the next event, and [`Cpu::idle`] passes as many whole turns as come
 //! before it.
 //!
+//! Coverage: [`Cpu::run_covered`] and [`Cpu::step_covered`] tell a [`Cover`] of each instruction
+//! they execute (address, and for a conditional jump whether it jumped), a delay loop passed in
+//! closed form as its iterations; [`Cpu::run`] and [`Cpu::step`] tell `()`, which costs nothing.
+//!
 //! Watched inputs and outputs: a caller that drives pins and analog inputs from a world it
 //! brings up to date only now and then names them ([`Cpu::watch`]); [`Cpu::run`] then stops
 //! before an instruction would read them once their levels no longer hold, and after an

@@ -1,6 +1,6 @@
 //! Behaviour computed by hand from the Intel MCS-51 User's Manual: external interrupts (level
 //! and edge), interrupt latency rules, port pins versus latches, counters, faults, MOVX stops,
-//! serial output and the idle skip (checked against plain stepping).
+//! serial output, the idle skip (checked against plain stepping) and what coverage is told.
 
 use mcs51::{Cpu, Error, Image, NoXdata, RunEnd, Variant, XAccess, Xdata};
 
@@ -330,4 +330,55 @@ fn idle_skip_matches_stepping() {
         "the timer interrupt kept running: {}",
         c.iram()[0x30]
     );
+}
+
+/// Every instruction told, by address: (runs, jumped, fell through).
+#[derive(Default)]
+struct Told(std::collections::BTreeMap<u16, (u64, u64, u64)>);
+
+impl mcs51::Cover for Told {
+    fn ran(&mut self, pc: u16) {
+        self.0.entry(pc).or_default().0 += 1;
+    }
+    fn jumped(&mut self, pc: u16, taken: bool) {
+        let e = self.0.entry(pc).or_default();
+        e.0 += 1;
+        if taken {
+            e.1 += 1;
+        } else {
+            e.2 += 1;
+        }
+    }
+    fn looped(&mut self, pc: u16, times: u32, ended: bool) {
+        let e = self.0.entry(pc).or_default();
+        e.0 += u64::from(times);
+        e.1 += u64::from(times) - u64::from(ended);
+        e.2 += u64::from(ended);
+    }
+}
+
+#[test]
+fn coverage_is_told_of_every_instruction_a_delay_loop_s_too() {
+    // 0000 MOV R7,#10 (1 cycle); 0002 DJNZ R7,$ (2 cycles, ten times: passed in closed form);
+    // 0004 CJNE R7,#0,$+3 (2: R7 is 0, it falls through); 0007 SJMP $ (2 cycles each).
+    let program: &[u8] = &[0x7F, 0x0A, 0xDF, 0xFE, 0xBF, 0x00, 0x00, 0x80, 0xFE];
+    for stepped in [false, true] {
+        let mut c = cpu(Variant::I8051, &[(0, program)]);
+        let mut told = Told::default();
+        if stepped {
+            while c.cycles() < 100 {
+                c.step_covered(&mut NoXdata, &mut told).unwrap();
+            }
+        } else {
+            c.run_covered(&mut NoXdata, 100, &mut told).unwrap();
+        }
+        // 1 + 20 + 2 = 23 cycles before the SJMPs; the ones that start before cycle 100: 39.
+        let want = [
+            (0x0000, (1, 0, 0)),
+            (0x0002, (10, 9, 1)),
+            (0x0004, (1, 0, 1)),
+            (0x0007, (39, 0, 0)),
+        ];
+        assert_eq!(told.0.into_iter().collect::<Vec<_>>(), want, "stepped {stepped}");
+    }
 }
