@@ -17,7 +17,7 @@ pub enum XAccess {
     },
 }
 
-/// What one [`Cpu::step`] did.
+/// What one [`Cpu::step`](crate::Cpu::step) did.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Step {
     /// Machine cycles taken (1, 2 or 4; 2 for an interrupt entry unless set otherwise).
@@ -28,13 +28,13 @@ pub struct Step {
     pub interrupt: Option<u16>,
 }
 
-/// Why [`Cpu::run`] returned.
+/// Why [`Cpu::run`](crate::Cpu::run) returned.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum RunEnd {
     /// The cycle count reached `until`.
     Reached,
     /// The instruction just executed was a MOVX read after which the external data space
-    /// asked to stop ([`Xdata::wants_stop`]).
+    /// asked to stop ([`Xdata::wants_stop`](crate::Xdata::wants_stop)).
     Peripheral,
     /// The instruction just executed was a MOVX write.
     XdataWrite {
@@ -46,7 +46,7 @@ pub enum RunEnd {
     /// The watchdog ran out: the core was reset at the end of the instruction during which
     /// the time-out fell (AT89C51CC03).
     WatchdogReset,
-    /// The instruction just executed switched X2 mode: [`Cpu::clocks_per_cycle`] changed, so
+    /// The instruction just executed switched X2 mode: [`Cpu::clocks_per_cycle`](crate::Cpu::clocks_per_cycle) changed, so
     /// a caller that maps cycles to time recomputes its target (AT89C51CC03).
     ClockChanged,
     /// The next instruction would read watched inputs whose levels no longer hold
@@ -66,7 +66,7 @@ pub struct Snapshot {
     pub pc: u16,
     /// Internal RAM.
     pub iram: [u8; 256],
-    /// SFRs 80h–FFh as [`Cpu::sfr`] shows them.
+    /// SFRs 80h–FFh as [`Cpu::sfr`](crate::Cpu::sfr) shows them.
     pub sfr: [u8; 128],
     /// Interrupt levels in service (bit n: level n; the 80C51 has levels 0 low and 1 high,
     /// the AT89C51CC03 levels 0 to 3).
