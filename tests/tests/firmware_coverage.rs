@@ -181,7 +181,8 @@ fn expected() -> Counts {
     counts
 }
 
-fn covered(skip: bool) -> (harvemu_e2e::FirmwareRun, Counts) {
+/// The lab's sender and [`PROGRAM`] on the receiving bench, its INT output wired to INT0.
+fn benches() -> Vec<Arc<nodes::firmware::FirmwareSpec>> {
     let sender = (
         bench_file("SENDER", 0x4000, 0xD300, 6_000_000, "None"),
         std::fs::read_to_string(root().join("configs/firmware/can_seed.hex")).expect("HEX"),
@@ -190,7 +191,11 @@ fn covered(skip: bool) -> (harvemu_e2e::FirmwareRun, Counts) {
         bench_file("RECEIVER", 0, 0xD400, 6_000_000, "Some(Int0)"),
         assemble(PROGRAM),
     );
-    let mut specs = bench_specs(&[sender, receiver]);
+    bench_specs(&[sender, receiver])
+}
+
+fn covered(skip: bool) -> (harvemu_e2e::FirmwareRun, Counts) {
+    let mut specs = benches();
     for s in &mut specs {
         Arc::make_mut(s).skip_idle_loops = skip;
     }
@@ -216,20 +221,7 @@ fn every_instruction_is_counted_exactly_skipping_or_not() {
 #[test]
 fn counting_changes_no_frame_and_no_state() {
     let (covered_run, _) = covered(true);
-    let sender = (
-        bench_file("SENDER", 0x4000, 0xD300, 6_000_000, "None"),
-        std::fs::read_to_string(root().join("configs/firmware/can_seed.hex")).expect("HEX"),
-    );
-    let receiver = (
-        bench_file("RECEIVER", 0, 0xD400, 6_000_000, "Some(Int0)"),
-        assemble(PROGRAM),
-    );
-    let (plain, counts) = run_firmware_covered(
-        bench_specs(&[sender, receiver]),
-        bus::time::BusTime::from_secs(1),
-        None,
-        false,
-    );
+    let (plain, counts) = run_firmware_covered(benches(), bus::time::BusTime::from_secs(1), None, false);
     assert_eq!(plain.trace, covered_run.trace);
     assert_eq!(format!("{:?}", plain.states), format!("{:?}", covered_run.states));
     assert!(

@@ -155,14 +155,7 @@ pub fn parse_as31_listing(file: &str, text: &str, source: &str) -> Result<DebugI
         let address =
             u16::from_str_radix(address, 16).map_err(|_| problem(file, n, format!("`{address}`")))?;
         let mut words = rest.split_whitespace().peekable();
-        let mut bytes = 0;
-        while words
-            .peek()
-            .is_some_and(|w| w.len() == 2 && w.bytes().all(|b| b.is_ascii_hexdigit()))
-        {
-            words.next();
-            bytes += 1;
-        }
+        let bytes = skip_bytes(&mut words);
         let mut statement = words.next().unwrap_or("");
         if statement.ends_with(':') {
             statement = words.next().unwrap_or("");
@@ -197,14 +190,7 @@ pub fn parse_sdas_listing(file: &str, text: &str, source: &str) -> Result<DebugI
         if address.len() != 6 || !address.bytes().all(|b| b.is_ascii_hexdigit()) {
             continue;
         }
-        let mut bytes = 0;
-        while words
-            .peek()
-            .is_some_and(|w| w.len() == 2 && w.bytes().all(|b| b.is_ascii_hexdigit()))
-        {
-            words.next();
-            bytes += 1;
-        }
+        let bytes = skip_bytes(&mut words);
         let cycles = words
             .next()
             .is_some_and(|w| w.starts_with('[') && w.ends_with(']'));
@@ -233,6 +219,18 @@ pub fn parse_sdas_listing(file: &str, text: &str, source: &str) -> Result<DebugI
         lines,
         functions: Vec::new(),
     })
+}
+
+/// Takes the code bytes (two hex digits each) a listing row places after its address: how many.
+fn skip_bytes<'a>(words: &mut std::iter::Peekable<impl Iterator<Item = &'a str>>) -> usize {
+    let mut bytes = 0;
+    while words
+        .next_if(|w| w.len() == 2 && w.bytes().all(|b| b.is_ascii_hexdigit()))
+        .is_some()
+    {
+        bytes += 1;
+    }
+    bytes
 }
 
 fn problem(file: &str, n: usize, message: String) -> Error {
