@@ -23,7 +23,7 @@ use crate::Error;
 use crate::node::{Answer, Reply, Wake};
 use actix::prelude::*;
 use bus::Frame;
-use bus::engine::{BusConfig, ControllerConfig, NodeId, Rule, RuleId};
+use bus::engine::{BusConfig, ControllerConfig, DisturbCounts, NodeId, Rule, RuleId};
 use bus::node::CrashCause;
 use bus::pacing::Pacer;
 pub use bus::schedule::{Handover, NodeSnapshot, Observed, Snapshot};
@@ -428,6 +428,18 @@ impl Handler<Control> for Hub {
         };
         self.pump(ctx);
         Ok(result?)
+    }
+}
+
+/// Hits and misses of disturbance rules, in the order asked (`None` for a rule that is not one).
+#[derive(Message, Clone, Debug)]
+#[rtype(result = "Vec<Option<DisturbCounts>>")]
+pub struct GetDisturbCounts(pub Vec<RuleId>);
+
+impl Handler<GetDisturbCounts> for Hub {
+    type Result = Vec<Option<DisturbCounts>>;
+    fn handle(&mut self, msg: GetDisturbCounts, _: &mut Context<Self>) -> Self::Result {
+        msg.0.iter().map(|&id| self.sched.disturb_counts(id)).collect()
     }
 }
 

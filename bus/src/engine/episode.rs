@@ -57,10 +57,54 @@ impl Flip {
     }
 }
 
+/// A disturbance at a place ([`super::inject::Disturb`]): each controller it reaches reads
+/// `level` for `bits` bit times from the bit at which it is itself at `place`.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub(crate) struct Anchored {
+    /// The rule it comes from (for its hits and misses).
+    pub rule: super::RuleId,
+    pub place: super::Place,
+    pub level: bool,
+    pub bits: u32,
+    pub who: Who,
+    /// Per controller: the episode bit at which it reached the place.
+    pub from: Vec<Option<u32>>,
+}
+
+impl Anchored {
+    /// Its level, if it acts on controller `i` at bit `k`.
+    fn acts(&self, i: usize, k: u32) -> Option<bool> {
+        let from = self.from.get(i).copied().flatten()?;
+        (from..from.saturating_add(self.bits))
+            .contains(&k)
+            .then_some(self.level)
+    }
+
+    /// True while it may still act at bit `k`: started on some controller and not over, or
+    /// not started on one it reaches (`reaches`) that is still before the end of its
+    /// intermission (`unfinished`), where recessive bits alone can bring it to a delimiter or
+    /// intermission bit. Other places need a dominant bit to come, which only something still
+    /// running can give.
+    fn pending(&self, k: u32, reaches: &[bool], unfinished: &[bool]) -> bool {
+        let running = self
+            .from
+            .iter()
+            .flatten()
+            .any(|&f| k < f.saturating_add(self.bits));
+        let ahead = matches!(
+            self.place.field,
+            super::Field::ErrorDelimiter | super::Field::OverloadDelimiter | super::Field::Intermission
+        ) && (0..self.from.len()).any(|i| self.from[i].is_none() && reaches[i] && unfinished[i]);
+        running || ahead
+    }
+}
+
 /// What an episode is asked to do beyond the frames that start it.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct Plan {
     pub flips: Vec<Flip>,
+    /// Disturbances at places.
+    pub anchored: Vec<Anchored>,
     /// Overload frames the named receivers send after the frame (receivers not ready).
     pub overload: Option<(u8, super::inject::SeenBy)>,
 }
@@ -160,6 +204,26 @@ impl Bus {
         }
         let sending: Vec<bool> = (0..n).map(|i| starters.contains(&i)).collect();
         let last_flip = plan.flips.iter().map(|f| f.from + f.bits).max().unwrap_or(0);
+        let extended = starters
+            .first()
+            .and_then(|&s| self.controllers[s].tx.front())
+            .is_some_and(|p| p.frame.is_extended());
+        let mut anchored = plan.anchored;
+        // Per disturbance at a place, the controllers it reaches.
+        let reaches: Vec<Vec<bool>> = anchored
+            .iter()
+            .map(|a| {
+                let probe = Flip {
+                    from: 0,
+                    bits: 0,
+                    level: None,
+                    who: a.who.clone(),
+                };
+                (0..n)
+                    .map(|i| probe.reaches(NodeId(i as u16), sending[i]))
+                    .collect()
+            })
+            .collect();
         let mut tally = Tally {
             events: Vec::new(),
             destroyed: Vec::new(),
@@ -217,6 +281,17 @@ impl Bus {
                         sampled = f.level.unwrap_or(!sampled);
                     }
                 }
+                if !anchored.is_empty() && c.on_bus() && c.integrating.is_none() {
+                    let place = c.mac.place(k == 0, extended);
+                    for (a, reach) in anchored.iter_mut().zip(&reaches) {
+                        if reach[i] && a.from[i].is_none() && place == Some(a.place) {
+                            a.from[i] = Some(k);
+                        }
+                        if let Some(l) = a.acts(i, k) {
+                            sampled = l;
+                        }
+                    }
+                }
                 if c.fault.state() == ErrorState::BusOff {
                     if c.counts_recovery() {
                         self.count_recovery(i, sampled, next, &mut tally.events);
@@ -234,12 +309,27 @@ impl Bus {
             // An episode lasts as long as a disturbance that reaches it: no frame starts within
             // it (a limit of the model, documented with `Disturbance`).
             let quiet = self.controllers.iter().all(|c| !c.on_bus() || c.mac.quiet());
-            let done = quiet && k >= last_flip;
+            let mut done = quiet && k >= last_flip;
+            if done && !anchored.is_empty() {
+                let unfinished: Vec<bool> = self
+                    .controllers
+                    .iter()
+                    .map(|c| c.on_bus() && !matches!(c.mac.phase, Phase::Idle | Phase::Suspend { .. }))
+                    .collect();
+                done = !anchored
+                    .iter()
+                    .zip(&reaches)
+                    .any(|(a, r)| a.pending(k, r, &unfinished));
+            }
             if done || k >= MAX_EPISODE_BITS {
                 break;
             }
         }
         let end = sof + u64::from(k) * bit;
+        for a in &anchored {
+            let hit = a.from.iter().any(Option::is_some);
+            self.injector.count_disturb(a.rule, hit);
+        }
         self.last_dominant = self.last_dominant.max(last_dominant);
         // The bus is busy until the last controller is through its intermission.
         let mut busy_to = end;

@@ -7,7 +7,12 @@
 //! [`Effect::Crc`] and [`Effect::Form`] are a disturbance near the receivers: the receivers named
 //! (all of them by default) sample one bit flipped, chosen so that it is a stuff, CRC or form
 //! error to them, while the transmitter reads its own bits correctly. [`Effect::Overload`] makes
-//! receivers that are not ready send overload frames after the frame.
+//! receivers that are not ready send overload frames after the frame. [`Effect::Disturb`] makes
+//! the nodes named read a chosen level for a few bit times from a chosen bit of a chosen field
+//! ([`Place`]), each node counting the field as it is in it itself; what they detect then is
+//! whatever the protocol makes of the bits they read. A frame that lacks the place (a data bit
+//! past its data field) is a miss, and so is one in which no node reached it (an error flag in
+//! an attempt without error): [`Injector::disturb_counts`] tells hits and misses.
 //!
 //! Randomness comes from one generator seeded by the run's seed, so a run repeats exactly.
 
@@ -71,6 +76,148 @@ pub enum Effect {
     Form,
     /// Receivers that are not ready send this many overload frames (1 or 2) after the frame.
     Overload(u8),
+    /// The nodes named read a chosen level at a chosen place ([`Disturb`]).
+    Disturb(Disturb),
+}
+
+/// A field of a frame, or of what follows an error or overload, in which a disturbance starts.
+#[derive(Clone, Copy, PartialEq, Eq, Hash, Debug, Serialize, Deserialize)]
+pub enum Field {
+    /// Start of frame (1 bit).
+    Sof,
+    /// The identifier: 11 bits (base) or 29 (extended: ID28..ID18, then after SRR and IDE
+    /// ID17..ID0, counted on from 11).
+    Identifier,
+    /// Substitute remote request (extended frames only, 1 bit).
+    Srr,
+    /// Identifier extension (1 bit).
+    Ide,
+    /// Remote transmission request (1 bit).
+    Rtr,
+    /// Reserved bits: r0 in a base frame (1 bit); r1, r0 in an extended one (2 bits).
+    Reserved,
+    /// Data length code (4 bits).
+    Dlc,
+    /// Data field (8 bits a byte; none in a remote frame).
+    Data,
+    /// CRC sequence (15 bits).
+    Crc,
+    /// CRC delimiter (1 bit).
+    CrcDelimiter,
+    /// ACK slot (1 bit).
+    AckSlot,
+    /// ACK delimiter (1 bit).
+    AckDelimiter,
+    /// End of frame (7 bits).
+    Eof,
+    /// Intermission (3 bits).
+    Intermission,
+    /// The stuff bits of the frame, counted from the first.
+    StuffBit,
+    /// The node's own error flag (6 bits; a passive flag can last longer).
+    ErrorFlag,
+    /// The node's error delimiter: bit 0 is the first bit after its flag, bits 1 to 7 the seven
+    /// after the recessive bit that ends its wait (8 bits).
+    ErrorDelimiter,
+    /// The node's own overload flag (6 bits).
+    OverloadFlag,
+    /// The node's overload delimiter, counted as the error delimiter (8 bits).
+    OverloadDelimiter,
+}
+
+impl Field {
+    /// Every field, in the order of a frame and what follows it.
+    pub const ALL: [Field; 19] = [
+        Field::Sof,
+        Field::Identifier,
+        Field::Srr,
+        Field::Ide,
+        Field::Rtr,
+        Field::Reserved,
+        Field::Dlc,
+        Field::Data,
+        Field::Crc,
+        Field::CrcDelimiter,
+        Field::AckSlot,
+        Field::AckDelimiter,
+        Field::Eof,
+        Field::Intermission,
+        Field::StuffBit,
+        Field::ErrorFlag,
+        Field::ErrorDelimiter,
+        Field::OverloadFlag,
+        Field::OverloadDelimiter,
+    ];
+
+    /// The most bits the field has in any frame (a frame's stuff bits: at most 29, one after the
+    /// first five and then one per four of an extended frame's 118 bits before stuffing).
+    pub fn max_bits(self) -> u16 {
+        match self {
+            Field::Sof | Field::Srr | Field::Ide | Field::Rtr => 1,
+            Field::CrcDelimiter | Field::AckSlot | Field::AckDelimiter => 1,
+            Field::Identifier => 29,
+            Field::Reserved => 2,
+            Field::Dlc => 4,
+            Field::Data => 64,
+            Field::Crc => 15,
+            Field::Eof => 7,
+            Field::Intermission => 3,
+            Field::StuffBit => 29,
+            Field::ErrorFlag | Field::OverloadFlag => 6,
+            Field::ErrorDelimiter | Field::OverloadDelimiter => 8,
+        }
+    }
+
+    /// The bits the field has in `frame`; `None` for the fields after an error or overload,
+    /// which an attempt may or may not have.
+    pub fn bits_in(self, frame: &crate::Frame) -> Option<u16> {
+        let ext = frame.is_extended();
+        Some(match self {
+            Field::Identifier => {
+                if ext {
+                    29
+                } else {
+                    11
+                }
+            }
+            Field::Srr => u16::from(ext),
+            Field::Reserved => 1 + u16::from(ext),
+            Field::Data => 8 * frame.data().len() as u16,
+            Field::StuffBit => crate::bits::encode(frame).stuff_bits as u16,
+            f if f.after_error() => return None,
+            other => other.max_bits(),
+        })
+    }
+
+    /// True for the fields after an error or overload.
+    pub fn after_error(self) -> bool {
+        matches!(
+            self,
+            Field::ErrorFlag | Field::ErrorDelimiter | Field::OverloadFlag | Field::OverloadDelimiter
+        )
+    }
+}
+
+/// A bit of a field: `bit` counts from 0 in the field's bits as sent (stuff bits are a field of
+/// their own, [`Field::StuffBit`]).
+#[derive(Clone, Copy, PartialEq, Eq, Hash, Debug, Serialize, Deserialize)]
+pub struct Place {
+    /// The field.
+    pub field: Field,
+    /// The bit in it.
+    pub bit: u16,
+}
+
+/// A disturbance at a place: from the bit at [`Place`] on, for `bits` bit times, the nodes it
+/// reaches read `level` (`true` recessive), whatever the bus carries.
+#[derive(Clone, Copy, PartialEq, Eq, Hash, Debug, Serialize, Deserialize)]
+pub struct Disturb {
+    /// Where it starts, for each node as that node is in the frame.
+    pub place: Place,
+    /// The level read: `true` recessive, `false` dominant.
+    pub level: bool,
+    /// How many bit times it lasts (at least 1).
+    pub bits: u16,
 }
 
 /// Who sees a hit.
@@ -131,13 +278,25 @@ pub struct Decision {
     pub corrupt: Option<(Effect, u16, SeenBy)>,
     /// Overload frames after the frame: how many, and which receivers send them.
     pub overload: Option<(u8, SeenBy)>,
+    /// Disturbances at places, with the rule each comes from and the nodes it reaches (all
+    /// controllers, transmitters included, for [`SeenBy::All`]).
+    pub disturb: Vec<(RuleId, Disturb, SeenBy)>,
 }
 
 impl Decision {
     /// Nothing happens to the attempt.
     pub fn is_none(&self) -> bool {
-        self.corrupt.is_none() && self.overload.is_none()
+        self.corrupt.is_none() && self.overload.is_none() && self.disturb.is_empty()
     }
+}
+
+/// What became of the attempts a [`Effect::Disturb`] rule selected.
+#[derive(Clone, Copy, PartialEq, Eq, Debug, Default, Serialize, Deserialize)]
+pub struct DisturbCounts {
+    /// Attempts in which at least one node it reaches read the disturbance.
+    pub hits: u64,
+    /// Attempts without its place (not in the frame, or reached by none of its nodes).
+    pub misses: u64,
 }
 
 /// Handle of an installed rule, to remove it.
@@ -158,6 +317,9 @@ pub struct Injector {
     rules: Vec<Installed>,
     next_id: u64,
     rng: ChaCha8Rng,
+    /// Hits and misses of every disturbance rule ever installed (kept after it is removed, so
+    /// that a run's report can tell them; one entry per rule).
+    disturbed: Vec<(RuleId, DisturbCounts)>,
 }
 
 impl Injector {
@@ -167,6 +329,23 @@ impl Injector {
             rules: Vec::new(),
             next_id: 1,
             rng: ChaCha8Rng::seed_from_u64(seed),
+            disturbed: Vec::new(),
+        }
+    }
+
+    /// Hits and misses of a disturbance rule, removed or not; `None` for another rule.
+    pub fn disturb_counts(&self, id: RuleId) -> Option<DisturbCounts> {
+        self.disturbed.iter().find(|(r, _)| *r == id).map(|(_, c)| *c)
+    }
+
+    /// Counts an attempt a disturbance rule selected: hit or missed.
+    pub(crate) fn count_disturb(&mut self, id: RuleId, hit: bool) {
+        if let Some((_, c)) = self.disturbed.iter_mut().find(|(r, _)| *r == id) {
+            if hit {
+                c.hits += 1;
+            } else {
+                c.misses += 1;
+            }
         }
     }
 
@@ -174,6 +353,9 @@ impl Injector {
     pub fn add(&mut self, rule: Rule) -> RuleId {
         let id = RuleId(self.next_id);
         self.next_id += 1;
+        if matches!(rule.effect, Effect::Disturb(_)) {
+            self.disturbed.push((id, DisturbCounts::default()));
+        }
         self.rules.push(Installed {
             id,
             rule,
@@ -200,19 +382,22 @@ impl Injector {
         self.rules.is_empty()
     }
 
-    /// Decides whether this attempt is corrupted, and at which stuffed bit. `first` and `last`
-    /// bound the positions a random wire flip may take (after arbitration, up to the last CRC
-    /// bit); `positions` gives the bits where another effect can fall (empty: it cannot, and the
-    /// rule does not fire on this attempt).
+    /// Decides whether this attempt of `frame` is corrupted, and at which stuffed bit. `first`
+    /// and `last` bound the positions a random wire flip may take (after arbitration, up to the
+    /// last CRC bit); `positions` gives the bits where another effect can fall (empty: it
+    /// cannot, and the rule does not fire on this attempt). A disturbance whose place the frame
+    /// lacks is counted a miss here.
     pub(crate) fn decide(
         &mut self,
         node: NodeId,
-        raw_id: u32,
+        frame: &crate::Frame,
         first: u16,
         last: u16,
         positions: &mut dyn FnMut(Effect) -> Vec<u16>,
     ) -> Decision {
+        let raw_id = frame.raw_id();
         let mut decision = Decision::default();
+        let mut missed = Vec::new();
         for r in &mut self.rules {
             let matches = match r.rule.target {
                 Target::Any => true,
@@ -239,6 +424,13 @@ impl Injector {
                 continue;
             }
             match r.rule.effect {
+                Effect::Disturb(d) => {
+                    r.fired += 1;
+                    match d.place.field.bits_in(frame) {
+                        Some(bits) if d.place.bit >= bits => missed.push(r.id),
+                        _ => decision.disturb.push((r.id, d, r.rule.seen_by.clone())),
+                    }
+                }
                 Effect::Overload(frames) => {
                     if decision.overload.is_none() {
                         r.fired += 1;
@@ -278,6 +470,9 @@ impl Injector {
                 }
             }
         }
+        for id in missed {
+            self.count_disturb(id, false);
+        }
         decision
     }
 }
@@ -292,7 +487,8 @@ mod tests {
 
     /// The wire-flip bit an attempt got, if any.
     fn flip(inj: &mut Injector, node: u16, raw_id: u32, first: u16, last: u16) -> Option<u16> {
-        inj.decide(NodeId(node), raw_id, first, last, &mut |_| Vec::new())
+        let frame = crate::Frame::extended(raw_id, &[]).unwrap();
+        inj.decide(NodeId(node), &frame, first, last, &mut |_| Vec::new())
             .corrupt
             .map(|(_, b, _)| b)
     }

@@ -25,8 +25,10 @@
 //! An attempt that goes through cleanly (one frame or identical ones, acknowledged, nothing
 //! injected, every controller idle) is committed in closed form. Any other attempt runs bit by
 //! bit (`episode`): every controller's protocol state machine (`wire`) drives the bus, which is
-//! the wired AND of their levels; injected faults and [`Disturbance`]s change what chosen
-//! controllers sample; and every controller detects what it would detect: bit, stuff, CRC, form
+//! the wired AND of their levels; injected faults, [`Disturbance`]s and disturbances at places
+//! ([`Effect::Disturb`], which each controller finds by its own state: an episode goes on until a
+//! delimiter or intermission place it still waits for is past) change what chosen controllers
+//! sample; and every controller detects what it would detect: bit, stuff, CRC, form
 //! and ACK errors at their detection points, active and passive error flags (a passive flag is
 //! recessive, so others do not see it), superposed flags of 6 to 12 bits as they fall, overload
 //! frames, delimiters, and every fault-confinement rule and exception of [`crate::fault`]. What is
@@ -56,7 +58,10 @@ pub use controller::{
     Controller, ControllerConfig, ControllerCounters, Filter, NodeId, Received, Recovery, SJA1000_FIFO_BYTES,
     fifo_bytes,
 };
-pub use inject::{BitPosition, Decision, Effect, Injector, Rule, RuleId, Schedule, SeenBy, Target};
+pub use inject::{
+    BitPosition, Decision, Disturb, DisturbCounts, Effect, Field, Injector, Place, Rule, RuleId, Schedule,
+    SeenBy, Target,
+};
 pub use stats::Stats;
 pub use wire::Location;
 
@@ -66,7 +71,7 @@ use crate::filter::{AcceptanceFilter, kernel_can_id};
 use crate::time::{BusDuration, BusTime};
 use crate::{Error, Frame};
 use controller::Pending;
-use episode::{Flip, Plan, Who};
+use episode::{Anchored, Flip, Plan, Who};
 use smallvec::SmallVec;
 
 /// Intermission.
@@ -460,6 +465,11 @@ impl Bus {
         self.late_submissions
     }
     /// The injection rules.
+    pub fn injector(&self) -> &Injector {
+        &self.injector
+    }
+
+    /// The injection rules, to change them.
     pub fn injector_mut(&mut self) -> &mut Injector {
         &mut self.injector
     }
@@ -1009,7 +1019,7 @@ impl Bus {
             let last = (stuffed_len - 1) as u16;
             let first = (arb_bits + arb_bits / 4).min(last);
             self.injector
-                .decide(NodeId(w as u16), frame.raw_id(), first, last, &mut |effect| {
+                .decide(NodeId(w as u16), &frame, first, last, &mut |effect| {
                     positions(&frame, effect, first)
                 })
         };
@@ -1076,8 +1086,25 @@ impl Bus {
                 self.drop_single_shot(i, end, token);
             }
         } else {
+            let n = self.controllers.len();
+            let anchored = decision
+                .disturb
+                .into_iter()
+                .map(|(rule, d, seen_by)| Anchored {
+                    rule,
+                    place: d.place,
+                    level: d.level,
+                    bits: u32::from(d.bits.max(1)),
+                    who: match seen_by {
+                        SeenBy::All => Who::All,
+                        SeenBy::Nodes(list) => Who::Nodes(list),
+                    },
+                    from: vec![None; n],
+                })
+                .collect();
             let mut plan = Plan {
                 flips: Vec::new(),
+                anchored,
                 overload: decision.overload,
             };
             if let Some((effect, at, seen_by)) = decision.corrupt {
@@ -1262,7 +1289,7 @@ fn positions(frame: &Frame, effect: Effect, first: u16) -> Vec<u16> {
             v.extend((wire::tail::EOF..=wire::tail::EOF6).map(t));
             v
         }
-        Effect::Bit | Effect::Overload(_) => Vec::new(),
+        Effect::Bit | Effect::Overload(_) | Effect::Disturb(_) => Vec::new(),
     }
 }
 

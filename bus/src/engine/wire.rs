@@ -11,6 +11,7 @@
 //!
 //! Levels are `bool`s, `true` for recessive (1), as in [`crate::bits::BitStream`].
 
+use super::inject::{Field, Place};
 use crate::bits::BitStream;
 
 /// Recessive.
@@ -139,6 +140,8 @@ pub(crate) struct Decoder {
     /// Position in the tail, once the stuffed part is over.
     pub tail: Option<u8>,
     crc_ok: bool,
+    /// Stuff bits taken so far.
+    stuffs: u16,
 }
 
 /// What one sampled bit was to a decoder.
@@ -215,6 +218,48 @@ impl Decoder {
         }
     }
 
+    /// The field and bit the next bit is, as a disturbance names them; `extended` says what
+    /// the frame on the bus is while the decoder cannot know yet (its bit 12, before IDE).
+    pub fn place(&self, extended: bool) -> Place {
+        let at = |field, bit: u32| Place {
+            field,
+            bit: u16::try_from(bit).unwrap_or(u16::MAX),
+        };
+        if let Some(t) = self.tail {
+            return match t {
+                tail::CRC_DEL => at(Field::CrcDelimiter, 0),
+                tail::ACK => at(Field::AckSlot, 0),
+                tail::ACK_DEL => at(Field::AckDelimiter, 0),
+                t => at(Field::Eof, u32::from(t - tail::EOF)),
+            };
+        }
+        if self.expects_stuff_bit() {
+            return at(Field::StuffBit, u32::from(self.stuffs));
+        }
+        let i = self.n;
+        if self.end > 0 && i >= self.end - 15 {
+            return at(Field::Crc, i - (self.end - 15));
+        }
+        let ext = if i > 13 { self.ide } else { extended };
+        match i {
+            0 => at(Field::Sof, 0),
+            1..=11 => at(Field::Identifier, i - 1),
+            12 if ext => at(Field::Srr, 0),
+            12 => at(Field::Rtr, 0),
+            13 => at(Field::Ide, 0),
+            _ if !ext => match i {
+                14 => at(Field::Reserved, 0),
+                15..=18 => at(Field::Dlc, i - 15),
+                _ => at(Field::Data, i - 19),
+            },
+            14..=31 => at(Field::Identifier, i - 3),
+            32 => at(Field::Rtr, 0),
+            33 | 34 => at(Field::Reserved, i - 33),
+            35..=38 => at(Field::Dlc, i - 35),
+            _ => at(Field::Data, i - 39),
+        }
+    }
+
     /// First unstuffed index of the DLC.
     fn dlc_start(&self) -> u32 {
         if self.ide { 35 } else { 15 }
@@ -238,6 +283,7 @@ impl Decoder {
             }
             self.last = bit;
             self.run = 1;
+            self.stuffs = self.stuffs.saturating_add(1);
             if self.end > 0 && self.n == self.end {
                 self.tail = Some(tail::CRC_DEL);
             }
@@ -294,8 +340,9 @@ pub(crate) enum Phase {
     Idle,
     /// In a frame, transmitting or receiving.
     Frame,
-    /// Sending an error flag: `sent` bits of an active one; a passive one ends after six equal
-    /// bits (`run` of `last`) and remembers whether it saw a dominant bit (exception 3a).
+    /// Sending an error flag, `sent` bits of it so far: an active one ends after six; a passive
+    /// one after six equal bits (`run` of `last`), and remembers whether it saw a dominant bit
+    /// (exception 3a).
     ErrorFlag {
         active: bool,
         sent: u8,
@@ -312,9 +359,9 @@ pub(crate) enum Phase {
         active: bool,
         dominant: u32,
     },
-    /// `done` bits of an error or overload delimiter seen (the first is the recessive bit that
-    /// ended [`Phase::AfterFlag`]).
-    Delimiter { done: u8 },
+    /// `done` bits of an error (`error`) or overload delimiter seen (the first is the recessive
+    /// bit that ended [`Phase::AfterFlag`]).
+    Delimiter { done: u8, error: bool },
     /// `done` bits of intermission seen.
     Intermission { done: u8 },
     /// `done` bits of suspend transmission seen.
@@ -449,6 +496,31 @@ impl Mac {
         )
     }
 
+    /// Where it is for the next bit, as a disturbance names places: `None` where no field is
+    /// (idle, suspending, waiting after its flag for a recessive bit). `sof` says the next bit
+    /// is an attempt's start of frame, which a controller that is not sending takes as such only
+    /// once it has read it; `extended` what that frame is (see [`Decoder::place`]).
+    pub fn place(&self, sof: bool, extended: bool) -> Option<Place> {
+        let at = |field, bit: u8| {
+            Some(Place {
+                field,
+                bit: u16::from(bit),
+            })
+        };
+        match self.phase {
+            _ if sof && self.idle_for_sof() => at(Field::Sof, 0),
+            Phase::Frame => Some(self.dec.place(extended)),
+            Phase::ErrorFlag { sent, .. } => at(Field::ErrorFlag, sent),
+            Phase::OverloadFlag { sent } => at(Field::OverloadFlag, sent),
+            Phase::AfterFlag {
+                error, dominant: 0, ..
+            } => at(delimiter(error), 0),
+            Phase::Delimiter { done, error } => at(delimiter(error), done),
+            Phase::Intermission { done } => at(Field::Intermission, done),
+            Phase::Idle | Phase::Suspend { .. } | Phase::AfterFlag { .. } => None,
+        }
+    }
+
     /// The level it drives for the next bit.
     pub fn drive(&self) -> bool {
         if self.silent {
@@ -556,10 +628,10 @@ impl Mac {
             }
             Phase::ErrorFlag {
                 active: false,
+                sent,
                 last,
                 run,
                 saw_dominant,
-                ..
             } => {
                 let run = if run > 0 && bit == last { run + 1 } else { 1 };
                 let saw_dominant = saw_dominant || bit == DOM;
@@ -573,7 +645,7 @@ impl Mac {
                 } else {
                     self.phase = Phase::ErrorFlag {
                         active: false,
-                        sent: 0,
+                        sent: sent.saturating_add(1),
                         last: bit,
                         run,
                         saw_dominant,
@@ -603,7 +675,7 @@ impl Mac {
                 dominant,
             } => {
                 if bit == REC {
-                    self.phase = Phase::Delimiter { done: 1 };
+                    self.phase = Phase::Delimiter { done: 1, error };
                     return Detected::Nothing;
                 }
                 let dominant = dominant + 1;
@@ -620,7 +692,7 @@ impl Mac {
                     Detected::Nothing
                 }
             }
-            Phase::Delimiter { done } => {
+            Phase::Delimiter { done, error } => {
                 if bit == DOM {
                     if done + 1 == DELIMITER_BITS {
                         // Overload condition: a dominant last delimiter bit.
@@ -636,7 +708,10 @@ impl Mac {
                 if done + 1 == DELIMITER_BITS {
                     self.enter_intermission()
                 } else {
-                    self.phase = Phase::Delimiter { done: done + 1 };
+                    self.phase = Phase::Delimiter {
+                        done: done + 1,
+                        error,
+                    };
                     Detected::Nothing
                 }
             }
@@ -791,6 +866,15 @@ impl Mac {
             self.sample(sent, REC);
         }
         (self.phase == Phase::Idle).then_some(bits)
+    }
+}
+
+/// The delimiter that follows an error flag (`error`) or an overload flag.
+fn delimiter(error: bool) -> Field {
+    if error {
+        Field::ErrorDelimiter
+    } else {
+        Field::OverloadDelimiter
     }
 }
 

@@ -710,6 +710,11 @@ impl Scheduler {
         self.bus.injector_mut().remove(id);
     }
 
+    /// Hits and misses of a disturbance rule, removed or not ([`crate::engine::Effect::Disturb`]).
+    pub fn disturb_counts(&self, id: RuleId) -> Option<crate::engine::DisturbCounts> {
+        self.bus.injector().disturb_counts(id)
+    }
+
     /// Wakes a node at the present, so that it reports its next deadline: a logic driven from
     /// outside ([`crate::node::NodeLogic`] state changed between wakes) says when it is next due.
     pub fn poke(&mut self, node: NodeId) -> Result<(), Error> {
