@@ -10,9 +10,9 @@ use super::babbler::Babblers;
 use super::plan::Act;
 use crate::Error;
 use crate::harvester::Running;
-use bus::engine::{Rule, RuleId};
+use bus::engine::{DisturbCounts, Rule, RuleId};
 use bus::node::NodeFault;
-use bus_runtime::hub::{Control, Submit};
+use bus_runtime::hub::{Control, GetDisturbCounts, Submit};
 use bus_runtime::node::Inject;
 use std::collections::BTreeMap;
 
@@ -22,6 +22,8 @@ pub(crate) struct Actions {
     file: String,
     /// Rules by timeline entry, so that its `until_s` removes them.
     rules: BTreeMap<usize, RuleId>,
+    /// Every disturbance rule installed, by timeline entry (for its hits and misses).
+    disturbs: Vec<(usize, RuleId)>,
     babblers: Babblers,
 }
 
@@ -31,6 +33,7 @@ impl Actions {
         Actions {
             file,
             rules: BTreeMap::new(),
+            disturbs: Vec::new(),
             babblers: Babblers::default(),
         }
     }
@@ -73,10 +76,26 @@ impl Actions {
     }
 
     async fn add_rule(&mut self, running: &Running, index: usize, rule: Rule) -> crate::Result<()> {
+        let disturb = matches!(rule.effect, bus::engine::Effect::Disturb(_));
         if let Some(r) = running.hub.send(Control::AddRule(rule)).await?? {
             self.rules.insert(index, r);
+            if disturb {
+                self.disturbs.push((index, r));
+            }
         }
         Ok(())
+    }
+
+    /// Hits and misses of every disturbance the timeline installed, by timeline entry.
+    pub(crate) async fn disturbed(&self, running: &Running) -> crate::Result<Vec<(usize, DisturbCounts)>> {
+        let ids = self.disturbs.iter().map(|(_, id)| *id).collect();
+        let counts = running.hub.send(GetDisturbCounts(ids)).await?;
+        Ok(self
+            .disturbs
+            .iter()
+            .zip(counts)
+            .filter_map(|((index, _), c)| c.map(|c| (*index, c)))
+            .collect())
     }
 }
 

@@ -33,17 +33,71 @@ fn verdict(e: &Expect, passed: bool, at: Option<BusTime>, observed: String) -> V
     }
 }
 
-/// Checks every expectation, resolved ([`Check`]: its node's id known).
-pub fn all(checks: &[Check], r: &Running, snap: &Snapshot, books: &Books) -> Vec<Verdict> {
+/// Checks every expectation, resolved ([`Check`]: its node's id known); `kinds` holds the
+/// errors the `ErrorKinds` expectations asked the trace to count.
+pub fn all(
+    checks: &[Check],
+    r: &Running,
+    snap: &Snapshot,
+    books: &Books,
+    kinds: &[(super::kinds::Query, u64)],
+) -> Vec<Verdict> {
     checks
         .iter()
-        .map(|c| one(&c.expect, c.node, r, snap, books))
+        .enumerate()
+        .map(|(i, c)| {
+            let counted = kinds.iter().find(|(q, _)| q.check == i).map(|(_, n)| *n);
+            one(&c.expect, c.node, r, snap, books, counted)
+        })
         .collect()
 }
 
-fn one(e: &Expect, id: Option<NodeId>, r: &Running, snap: &Snapshot, books: &Books) -> Verdict {
+fn one(
+    e: &Expect,
+    id: Option<NodeId>,
+    r: &Running,
+    snap: &Snapshot,
+    books: &Books,
+    counted: Option<u64>,
+) -> Verdict {
     let display = r.display.as_ref().map(|d| d.borrow().clone()).unwrap_or_default();
     match e {
+        Expect::Counters { node, at_s, tec, rec } => {
+            let t = timeline(snap, id);
+            let at = BusTime::from_secs_f64(*at_s);
+            let (p, since) = t.at(at);
+            let since = since.map_or("since the start".to_string(), |s| format!("since {s} s"));
+            let observed = format!("{node}: TEC {}, REC {} at {at} s ({since})", p.tec, p.rec);
+            if !t.counters_exact(at, at) {
+                return verdict(
+                    e,
+                    false,
+                    Some(at),
+                    format!("cannot tell: {node}'s history merged its spans there; {observed}"),
+                );
+            }
+            verdict(e, p.tec == *tec && p.rec == *rec, Some(at), observed)
+        }
+        Expect::ErrorKinds {
+            node,
+            kind,
+            min,
+            max,
+            from_s,
+            to_s,
+        } => {
+            let from = BusTime::from_secs_f64(*from_s);
+            let to = to_s.map_or(snap.now, BusTime::from_secs_f64);
+            match counted {
+                Some(n) => verdict(
+                    e,
+                    (*min..=*max).contains(&n),
+                    Some(to),
+                    format!("{node} detected {n} {kind:?} error(s) from {from} s to {to} s"),
+                ),
+                None => verdict(e, false, None, "the errors were not counted".into()),
+            }
+        }
         Expect::AlarmRaised {
             node,
             alarm,

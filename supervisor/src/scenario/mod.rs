@@ -19,6 +19,7 @@ mod babbler;
 pub mod books;
 mod check;
 pub mod junit;
+mod kinds;
 mod load;
 mod model;
 mod plan;

@@ -93,6 +93,21 @@ pub enum ErrorKind {
     Form,
 }
 
+/// An error a controller detects, as SocketCAN reports it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum DetectedError {
+    /// It read back another level than it sent.
+    Bit,
+    /// Six equal bits where stuffing applies.
+    Stuff,
+    /// The CRC sequence did not match.
+    Crc,
+    /// A fixed-form bit was dominant.
+    Form,
+    /// Nobody acknowledged its frame.
+    Ack,
+}
+
 /// Which nodes detect the error a hit frame meets.
 #[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub enum SeenBy {
@@ -102,6 +117,29 @@ pub enum SeenBy {
     /// Only these receivers (a local disturbance at their transceivers); the others see the
     /// frame as it was sent until the error flag destroys it.
     Nodes(Vec<String>),
+}
+
+/// The level a disturbance makes nodes read.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Level {
+    /// Logical 0, the level that wins on the bus.
+    Dominant,
+    /// Logical 1.
+    Recessive,
+}
+
+/// Which nodes read a disturbance.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ReadBy {
+    /// Every controller on the bus, the frame's transmitter included.
+    #[default]
+    All,
+    /// These nodes only (a transmitter among them included).
+    Nodes(Vec<String>),
+}
+
+fn one_bit() -> u16 {
+    1
 }
 
 /// Stimuli and faults.
@@ -122,6 +160,30 @@ pub enum Action {
         /// Who detects it (only `All` for a bit error).
         #[serde(default)]
         seen_by: SeenBy,
+    },
+    /// In the frames `target` and `hits` select (until `until_s`, if given), the `seen_by`
+    /// nodes read `level` for `bits` bit times from bit `bit` (0-based, in the field's bits as
+    /// sent) of `field`, each node finding the place as it is in the frame itself.
+    Disturb {
+        /// Which frames.
+        target: Target,
+        /// Which of them.
+        hits: Hits,
+        /// End of the fault, s.
+        #[serde(default)]
+        until_s: Option<f64>,
+        /// The field it starts in.
+        field: bus::engine::Field,
+        /// The bit of the field it starts at, from 0.
+        bit: u16,
+        /// The level read.
+        level: Level,
+        /// How many bit times it lasts.
+        #[serde(default = "one_bit")]
+        bits: u16,
+        /// Who reads it.
+        #[serde(default)]
+        seen_by: ReadBy,
     },
     /// Receivers that are not ready send overload frames after the frames `target` and `hits`
     /// select (until `until_s`, if given).
@@ -200,6 +262,7 @@ impl Action {
     pub fn name(&self) -> &'static str {
         match self {
             Action::BitErrors { .. } => "BitErrors",
+            Action::Disturb { .. } => "Disturb",
             Action::Overload { .. } => "Overload",
             Action::AckFailure(_) => "AckFailure",
             Action::AckRestored(_) => "AckRestored",
@@ -357,6 +420,37 @@ pub enum Expect {
         from_s: f64,
         /// To, s.
         to_s: f64,
+    },
+    /// A node's error counters are exactly these at the instant `at_s` (inside a frame: as
+    /// the last change before it left them).
+    Counters {
+        /// Node.
+        node: String,
+        /// The instant, s.
+        at_s: f64,
+        /// Transmit error counter.
+        tec: u16,
+        /// Receive error counter.
+        rec: u16,
+    },
+    /// A node's controller detected errors of `kind` between `min` and `max` times from
+    /// `from_s` to `to_s` (both included; at the first bit of its error flag, as its trace lines
+    /// show them).
+    ErrorKinds {
+        /// Node.
+        node: String,
+        /// The kind of error.
+        kind: DetectedError,
+        /// At least.
+        min: u64,
+        /// At most.
+        max: u64,
+        /// From, s.
+        #[serde(default)]
+        from_s: f64,
+        /// To, s (the end of the run when absent).
+        #[serde(default)]
+        to_s: Option<f64>,
     },
     /// A node's transmit error counter stays at or below `max` from `from_s` to `to_s`.
     TecMax {

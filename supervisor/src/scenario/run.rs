@@ -12,7 +12,7 @@ use super::check::{self, Verdict};
 use super::model::Expect;
 use super::plan::Todo;
 use super::series::{self, Series};
-use super::{Loaded, trace_count};
+use super::{Loaded, kinds, trace_count};
 use crate::harvester::{self, Running, SupervisorEvent};
 use crate::stop::{Signal, Stop};
 use actix::prelude::*;
@@ -51,6 +51,8 @@ pub struct Outcome {
     /// The firmware images' code coverage, when the harvester counts it
     /// ([`crate::harvester::Harvester::coverage`]).
     pub coverage: Option<crate::coverage::Coverage>,
+    /// Hits and misses of each `Disturb` step, by timeline entry.
+    pub disturbed: Vec<(usize, bus::engine::DisturbCounts)>,
 }
 
 impl Outcome {
@@ -75,8 +77,14 @@ pub fn run(l: &Loaded, trace: Option<Box<dyn Sink>>, progress: impl FnMut(f64)) 
         sinks.push(Box::new(counting));
         tally
     });
+    let queries = kind_queries(l);
+    let kinds = (!queries.is_empty()).then(|| {
+        let (counting, counts) = kinds::Counting::new(queries);
+        sinks.push(Box::new(counting));
+        counts
+    });
     let system = System::with_tokio_rt(|| runtime(true).expect("a tokio runtime"));
-    let mut outcome = system.block_on(play(l, sinks, tally, progress))?;
+    let mut outcome = system.block_on(play(l, sinks, tally, kinds, progress))?;
     outcome.wall_seconds = started.elapsed().as_secs_f64();
     Ok(outcome)
 }
@@ -86,6 +94,7 @@ async fn play(
     l: &Loaded,
     sinks: Vec<Box<dyn Sink>>,
     tally: Option<Rc<RefCell<TraceTally>>>,
+    kinds: Option<kinds::Counts>,
     mut progress: impl FnMut(f64),
 ) -> crate::Result<Outcome> {
     let (s, h) = (&l.scenario, &l.harvester);
@@ -135,11 +144,13 @@ async fn play(
     } = p;
     running.hub.send(FlushTrace).await??;
     let snap = running.hub.send(GetSnapshot).await?;
+    let disturbed = actions.disturbed(&running).await?;
+    let kinds = kinds.map(|k| k.borrow().clone()).unwrap_or_default();
     let monitor = running
         .node("F5")
         .zip(running.display.as_ref().map(|d| d.borrow().tally));
     let books = Books::gather(&snap, monitor, tally.map(|t| *t.borrow()));
-    let mut verdicts = check::all(&l.plan.checks, &running, &snap, &books);
+    let mut verdicts = check::all(&l.plan.checks, &running, &snap, &books, &kinds);
     let hardware = running.hardware(snap.now).await;
     let coverage = running.end_coverage(snap.now).await;
     if let Some(signal) = interrupted {
@@ -164,7 +175,33 @@ async fn play(
         snapshot: Some(snap),
         hardware,
         coverage,
+        disturbed,
     })
+}
+
+/// The questions of the `ErrorKinds` expectations, for the sink that counts their answers.
+fn kind_queries(l: &Loaded) -> Vec<kinds::Query> {
+    let end = l.scenario.duration_s;
+    l.plan
+        .checks
+        .iter()
+        .enumerate()
+        .filter_map(|(check, c)| match (&c.expect, c.node) {
+            (
+                Expect::ErrorKinds {
+                    kind, from_s, to_s, ..
+                },
+                Some(node),
+            ) => Some(kinds::Query {
+                check,
+                node,
+                kind: *kind,
+                from: BusTime::from_secs_f64(*from_s),
+                to: BusTime::from_secs_f64(to_s.unwrap_or(end)),
+            }),
+            _ => None,
+        })
+        .collect()
 }
 
 /// The harvester on its way through the run, with what stops it and what it has shown so far.

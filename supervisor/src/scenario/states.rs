@@ -122,6 +122,19 @@ impl<'a> Timeline<'a> {
         (Some(n.checked_sub(1).map_or(START, |i| self.point(i).1)), n)
     }
 
+    /// The node's counters and state at the instant `t`: as the last point at or before `t`
+    /// left them, and when that point was (`None`: no point yet, the start).
+    pub fn at(&self, t: BusTime) -> (Point, Option<BusTime>) {
+        let n = self.points.partition_point(|s| s.from <= t);
+        match n.checked_sub(1) {
+            Some(i) => {
+                let (at, p) = self.point(i);
+                (p, Some(at))
+            }
+            None => (START, None),
+        }
+    }
+
     /// The first moment in `[from, to]` at which `cond` holds: `from` itself if it held on
     /// entering the window. Points at `from` belong to the window: a state that ends exactly at
     /// `from` is not in it.

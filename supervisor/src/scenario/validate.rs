@@ -58,6 +58,7 @@ pub fn resolve(file: &str, s: &Scenario, h: &Harvester) -> Result<Plan, Vec<Prob
         duration_s: s.duration_s,
         signals: Plant::signal_names(),
         found: Vec::new(),
+        sent: sent_frames(s, h),
     };
     // Both reach JUnit XML and the HTML report, which cannot carry control characters.
     for (field, text) in [("name", &s.name), ("description", &s.description)] {
@@ -120,6 +121,7 @@ pub fn action(
         duration_s: f64::INFINITY,
         signals: Plant::signal_names(),
         found: Vec::new(),
+        sent: Vec::new(),
     };
     let resolved = timeline::step(&mut c, "action", index, step);
     match resolved {
@@ -138,6 +140,36 @@ struct Checks<'a> {
     /// The plant's signals.
     signals: Vec<String>,
     found: Vec<Problem>,
+    /// The frames of the nodes whose frames are all known (scripted nodes: their messages, with
+    /// the timeline's `SendFrame`s of them), in the shape that tells their fields apart.
+    sent: Vec<(String, Vec<bus::Frame>)>,
+}
+
+/// The frames each scripted node sends: a frame of each catalogue message its script sends (an
+/// extended data frame of the message's length), and the timeline's `SendFrame`s of it. Nodes
+/// whose frames cannot be known (firmware, the monitor) are not listed.
+fn sent_frames(s: &Scenario, h: &Harvester) -> Vec<(String, Vec<bus::Frame>)> {
+    h.scripts
+        .iter()
+        .map(|script| {
+            let mut frames: Vec<bus::Frame> = script
+                .messages
+                .iter()
+                .flat_map(|m| &m.frames)
+                .filter_map(|f| protocol::catalogue::by_name(&f.message))
+                .filter_map(|m| bus::Frame::extended(0, &vec![0; usize::from(m.dlc.min(8))]).ok())
+                .collect();
+            for step in &s.timeline {
+                if let super::model::Action::SendFrame { node, frame } = &step.action
+                    && node == &script.name
+                    && let Ok(f) = bus::candump::parse_frame(frame)
+                {
+                    frames.push(f);
+                }
+            }
+            (script.name.clone(), frames)
+        })
+        .collect()
 }
 
 impl Checks<'_> {
@@ -158,6 +190,11 @@ impl Checks<'_> {
             self.push(field, message);
         }
         found
+    }
+
+    /// The frames `node` sends, when they are all known.
+    fn frames_of(&self, node: &str) -> Option<Vec<bus::Frame>> {
+        self.sent.iter().find(|(n, _)| n == node).map(|(_, f)| f.clone())
     }
 
     /// A signal of the plant: true when it is one.

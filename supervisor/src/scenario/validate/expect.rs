@@ -62,6 +62,40 @@ pub(super) fn expectation(c: &mut Checks, at: &str, e: &Expect, h: &Harvester) -
                 );
             }
         }
+        Expect::Counters {
+            node, at_s, tec, rec, ..
+        } => {
+            id = c.node(format!("{at}.node"), node);
+            c.time(format!("{at}.at_s"), *at_s);
+            for (name, value, ceiling) in [("tec", *tec, TEC_CEILING), ("rec", *rec, bus::fault::REC_MAX)] {
+                if value > ceiling {
+                    c.push(
+                        format!("{at}.{name}"),
+                        format!(
+                            "{} never exceeds {ceiling}: {value} cannot be",
+                            name.to_uppercase()
+                        ),
+                    );
+                }
+            }
+        }
+        Expect::ErrorKinds {
+            node,
+            min,
+            max,
+            from_s,
+            to_s,
+            ..
+        } => {
+            id = c.node(format!("{at}.node"), node);
+            match to_s {
+                Some(to) => c.window(at, *from_s, *to),
+                None => c.time(format!("{at}.from_s"), *from_s),
+            }
+            if min > max {
+                c.push(format!("{at}.min"), format!("min {min} is above max {max}"));
+            }
+        }
         Expect::BusOffCount { node, min, max } => {
             id = c.node(format!("{at}.node"), node);
             if min > max {

@@ -2,10 +2,10 @@
 //! turned into what the run carries out ([`Act`]), or the problems that stop it.
 
 use super::{Checks, MAX_OVERLOAD_FRAMES};
-use crate::scenario::model::{Action, ErrorKind, Hits, SeenBy, Step, Target};
+use crate::scenario::model::{Action, ErrorKind, Hits, Level, ReadBy, SeenBy, Step, Target};
 use crate::scenario::plan::{Act, Resolved, Todo};
 use bus::candump::parse_frame;
-use bus::engine::{BitPosition, Effect, Rule, Schedule};
+use bus::engine::{BitPosition, Disturb, Effect, Field, Place, Rule, Schedule};
 use bus::node::NodeFault;
 use bus::text::quote;
 use bus::time::BusTime;
@@ -18,9 +18,9 @@ pub(super) fn step(c: &mut Checks, at: &str, index: usize, step: &Step) -> Optio
     let act = action(c, at, step.at_s, &step.action);
     let end = |t: f64, what| Some((BusTime::from_secs_f64(t), what));
     let ends = match &step.action {
-        Action::BitErrors { until_s: Some(u), .. } | Action::Overload { until_s: Some(u), .. } => {
-            end(*u, Todo::EndRule(index))
-        }
+        Action::BitErrors { until_s: Some(u), .. }
+        | Action::Overload { until_s: Some(u), .. }
+        | Action::Disturb { until_s: Some(u), .. } => end(*u, Todo::EndRule(index)),
         Action::Babble { until_s, .. } => end(*until_s, Todo::EndBabble),
         _ => None,
     };
@@ -32,6 +32,48 @@ pub(super) fn step(c: &mut Checks, at: &str, index: usize, step: &Step) -> Optio
         act,
         ends,
     })
+}
+
+/// The longest disturbance, bit times: far past anything the rules count (rule 6 adds 8 for
+/// every 8 dominant bits; 32 of those put any node bus off).
+pub const MAX_DISTURB_BITS: u16 = 4096;
+
+/// Checks that bit `bit` of `field` can exist in a frame `target` selects: in any frame at all,
+/// and, where the frames are known (a scripted node's messages and the timeline's `SendFrame`s
+/// of it), in one of them.
+fn place(c: &mut Checks, at: &str, target: &Target, field: Field, bit: u16) {
+    let most = field.max_bits();
+    if bit >= most {
+        c.push(
+            format!("{at}.action.bit"),
+            format!(
+                "bit {bit} is past the field {field:?}, which has at most {most} bit(s), 0 to {}",
+                most - 1
+            ),
+        );
+        return;
+    }
+    let Target::Node(name) = target else { return };
+    let Some(frames) = c.frames_of(name) else { return };
+    if field == Field::StuffBit || field.after_error() {
+        return;
+    }
+    let fits = |f: &bus::Frame| field.bits_in(f).is_none_or(|n| bit < n);
+    if !frames.iter().any(fits) {
+        let most = frames.iter().filter_map(|f| field.bits_in(f)).max().unwrap_or(0);
+        let message = if frames.is_empty() {
+            format!(
+                "{name} sends no frame of its own (no message in its script, no SendFrame of it in the timeline): nothing to disturb"
+            )
+        } else if most == 0 {
+            format!("no frame {name} sends has a {field:?} field")
+        } else {
+            format!(
+                "bit {bit} of {field:?} is in no frame {name} sends: its frames have at most {most} bit(s) there"
+            )
+        };
+        c.push(format!("{at}.action.bit"), message);
+    }
 }
 
 /// Checks an action that starts at `at_s` and resolves it; `None` when a problem was found.
@@ -86,6 +128,62 @@ fn action(c: &mut Checks, at: &str, at_s: f64, action: &Action) -> Option<Act> {
                 schedule,
                 bit: BitPosition::Random,
                 effect,
+                seen_by: seen_by?,
+            }))
+        }
+        Action::Disturb {
+            target,
+            hits,
+            until_s,
+            field,
+            bit,
+            level,
+            bits,
+            seen_by,
+        } => {
+            let frames = c.frames(at, target, hits);
+            if let Some(u) = until_s {
+                c.end(format!("{at}.action.until_s"), at_s, *u);
+            }
+            place(c, at, target, *field, *bit);
+            if !(1..=MAX_DISTURB_BITS).contains(bits) {
+                c.push(
+                    format!("{at}.action.bits"),
+                    format!("{bits} bit times: a disturbance lasts 1 to {MAX_DISTURB_BITS}"),
+                );
+            }
+            let seen_by = match seen_by {
+                ReadBy::All => Some(bus::engine::SeenBy::All),
+                ReadBy::Nodes(nodes) => {
+                    if nodes.is_empty() {
+                        c.push(
+                            format!("{at}.action.seen_by"),
+                            "Nodes([]): name at least one node, or leave seen_by out for All",
+                        );
+                    }
+                    let ids: Vec<_> = nodes
+                        .iter()
+                        .enumerate()
+                        .map(|(k, n)| c.node(format!("{at}.action.seen_by[{k}]"), n))
+                        .collect();
+                    ids.into_iter()
+                        .collect::<Option<_>>()
+                        .map(bus::engine::SeenBy::Nodes)
+                }
+            };
+            let (target, schedule) = frames?;
+            Some(Act::Rule(Rule {
+                target,
+                schedule,
+                bit: BitPosition::Random,
+                effect: Effect::Disturb(Disturb {
+                    place: Place {
+                        field: *field,
+                        bit: *bit,
+                    },
+                    level: *level == Level::Recessive,
+                    bits: *bits,
+                }),
                 seen_by: seen_by?,
             }))
         }
