@@ -16,6 +16,7 @@ pub mod file;
 pub mod firmware;
 pub mod monitor;
 pub mod plant;
+pub mod ron_path;
 pub mod script;
 
 pub use error::{Error, Problem, parse_ron};

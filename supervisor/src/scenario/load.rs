@@ -77,6 +77,23 @@ pub fn from_text(
     parse(&Source::file(path), text, seed, None, |s| harvester(&s.path))
 }
 
+/// The problems of the file `file` (text `text`), each with the line and column of the field it
+/// names, where the text shows that field.
+fn placed(found: Vec<nodes::Problem>, file: &str, text: &str) -> Vec<nodes::Problem> {
+    found
+        .into_iter()
+        .map(|mut p| {
+            if p.position.is_none()
+                && p.file == file
+                && let Some(field) = &p.field
+            {
+                p.position = nodes::ron_path::position(text, field);
+            }
+            p
+        })
+        .collect()
+}
+
 fn parse(
     source: &Source,
     text: &str,
@@ -106,7 +123,8 @@ fn parse(
         let seed = r.seed.unwrap_or(harvester.config.network.seed);
         scenario.timeline.extend(random::expand(r, seed, length, &names));
     }
-    let plan = resolve(&file, &scenario, &harvester).map_err(Error::Invalid)?;
+    let plan =
+        resolve(&file, &scenario, &harvester).map_err(|found| Error::Invalid(placed(found, &file, text)))?;
     if let Some(s) = scenario.cruise_start_s {
         harvester.config.monitor.cruise.start_s = Some(s);
     }
