@@ -245,6 +245,7 @@ mod tests {
             snapshot: None,
             hardware: Vec::new(),
             coverage: None,
+            disturbed: Vec::new(),
         };
         let s = scenario("short");
         let page = html(&[("a.ron".into(), &s, &outcome)]);
