@@ -65,5 +65,10 @@ fn check(l: &Loaded, seed: Option<u64>) {
         if let Action::Babble { frame, .. } | Action::SendFrame { frame, .. } = &step.action {
             assert!(bus::candump::parse_frame(frame).is_ok(), "{frame}");
         }
+        // A disturbance that loads names a place some frame can have, for a time it can last.
+        if let Action::Disturb { field, bit, bits, .. } = &step.action {
+            assert!(*bit < field.max_bits(), "{field:?} bit {bit}");
+            assert!((1..=4096).contains(bits), "{bits} bit times");
+        }
     }
 }

@@ -93,8 +93,14 @@ fn false_counters_and_error_kinds_fail() {
     let o = run(&name, &wrong, 1);
     let failed = failures(&o);
     assert_eq!(failed.len(), 2, "{failed:#?}");
-    assert!(failed[0].contains("tec: 9") && failed[0].contains("TEC 8, REC 0"), "{failed:#?}");
-    assert!(failed[1].contains("Stuff") && failed[1].contains("detected 0"), "{failed:#?}");
+    assert!(
+        failed[0].contains("tec: 9") && failed[0].contains("TEC 8, REC 0"),
+        "{failed:#?}"
+    );
+    assert!(
+        failed[1].contains("Stuff") && failed[1].contains("detected 0"),
+        "{failed:#?}"
+    );
 }
 
 /// docs/CONFORMANCE.md's table has one row per case, in file order, with the case's name and
@@ -113,5 +119,8 @@ fn the_doc_lists_every_case() {
             )
         })
         .collect();
-    assert_eq!(rows, want, "regenerate the table of docs/CONFORMANCE.md from the cases");
+    assert_eq!(
+        rows, want,
+        "regenerate the table of docs/CONFORMANCE.md from the cases"
+    );
 }

@@ -89,6 +89,9 @@ fn section(out: &mut String, n: usize, file: &str, s: &Scenario, o: &Outcome) {
     ] {
         let _ = writeln!(out, "<tr><th>{key}</th><td>{}</td></tr>", escape(&value));
     }
+    for line in o.disturbances() {
+        let _ = writeln!(out, "<tr><th>disturbance</th><td>{}</td></tr>", escape(&line));
+    }
     out.push_str("</table>\n");
     let _ = writeln!(
         out,

@@ -56,6 +56,22 @@ pub struct Outcome {
 }
 
 impl Outcome {
+    /// Each `Disturb` step's hits and misses, in words: `timeline[2] Disturb: 1 hit, 0 misses`.
+    pub fn disturbances(&self) -> Vec<String> {
+        self.disturbed
+            .iter()
+            .map(|(i, c)| {
+                let plural =
+                    |n: u64, one: &str, many: &str| format!("{n} {}", if n == 1 { one } else { many });
+                format!(
+                    "timeline[{i}] Disturb: {}, {}",
+                    plural(c.hits, "hit", "hits"),
+                    plural(c.misses, "miss", "misses")
+                )
+            })
+            .collect()
+    }
+
     /// True when every expectation passed.
     pub fn passed(&self) -> bool {
         self.verdicts.iter().all(|v| v.passed)
