@@ -420,6 +420,7 @@ fn characters_xml_cannot_carry_become_replacement_characters_in_junit_and_the_re
         snapshot: None,
         hardware: Vec::new(),
         coverage: None,
+        disturbed: Vec::new(),
     };
     let runs = [(format!("dir/{bad}.ron"), &scenario, &outcome)];
     let xml = junit::xml(&runs);
