@@ -262,3 +262,105 @@ fn the_new_fields_have_their_defaults() {
         other => panic!("{other:?}"),
     }
 }
+
+/// B2 sends `param.fan` (DLC 3: data bits 0 to 23) and nothing else; every field of `Disturb`,
+/// `Counters` and `ErrorKinds` is checked.
+#[test]
+fn disturbances_counters_and_error_kinds_are_checked_field_by_field() {
+    let sound = problems(
+        10.0,
+        r#"(at_s: 1.0, action: Disturb(target: Node("B2"), hits: Once, field: Data, bit: 23, level: Recessive)),
+           (at_s: 1.0, action: Disturb(target: Node("B2"), hits: Once, field: ErrorFlag, bit: 5, level: Recessive,
+               bits: 2, seen_by: Nodes(["F5", "B2"]))),
+           (at_s: 2.0, action: Disturb(target: Any, hits: Always, until_s: Some(3.0), field: StuffBit, bit: 28,
+               level: Dominant, bits: 4096))"#,
+        r#"Counters(node: "B2", at_s: 1.5, tec: 263, rec: 255),
+           ErrorKinds(node: "F5", kind: Crc, min: 0, max: 3, from_s: 1.0, to_s: Some(2.0)),
+           ErrorKinds(node: "F5", kind: Ack, min: 1, max: 1)"#,
+    );
+    assert_problems(&sound, &[]);
+    let found = problems(
+        10.0,
+        r#"(at_s: 1.0, action: Disturb(target: Node("B2"), hits: Once, field: Data, bit: 24, level: Recessive)),
+           (at_s: 1.0, action: Disturb(target: Node("B2"), hits: Once, field: Eof, bit: 7, level: Dominant, bits: 0)),
+           (at_s: 1.0, action: Disturb(target: Node("X1"), hits: EveryNth(0), until_s: Some(0.5), field: Sof, bit: 0,
+               level: Dominant, bits: 4097, seen_by: Nodes([]))),
+           (at_s: 1.0, action: Disturb(target: Any, hits: Once, field: Identifier, bit: 29, level: Dominant,
+               seen_by: Nodes(["F5", "Q"])))"#,
+        r#"Counters(node: "Z", at_s: 11.0, tec: 264, rec: 256),
+           ErrorKinds(node: "F5", kind: Bit, min: 2, max: 1, from_s: 3.0, to_s: Some(2.0))"#,
+    );
+    assert_problems(
+        &found,
+        &[
+            "timeline[0].action.bit: bit 24 of Data is in no frame B2 sends: its frames have at most 24 bit(s)",
+            "timeline[1].action.bit: bit 7 is past the field Eof, which has at most 7 bit(s)",
+            "timeline[1].action.bits: 0 bit times",
+            "timeline[2].action.target: unknown node 'X1'",
+            "timeline[2].action.hits: EveryNth(0)",
+            "timeline[2].action.until_s: the fault ends at 0.5 s, not after it starts",
+            "timeline[2].action.bits: 4097 bit times",
+            "timeline[2].action.seen_by: Nodes([])",
+            "timeline[3].action.bit: bit 29 is past the field Identifier",
+            "timeline[3].action.seen_by[1]: unknown node 'Q'",
+            "expect[0].node: unknown node 'Z'",
+            "expect[0].at_s: time 11 s is after the end of the run",
+            "expect[0].tec: TEC never exceeds 263",
+            "expect[0].rec: REC never exceeds 255",
+            "expect[1].to_s: the window 3 s to 2 s is empty",
+            "expect[1].min: min 2 is above max 1",
+        ],
+    );
+}
+
+/// Unknown fields, levels and kinds are named with the ones accepted, at their line and column.
+#[test]
+fn unknown_names_in_the_new_steps_list_the_accepted_ones() {
+    for (timeline, expect, needle) in [
+        (
+            r#"(at_s: 1.0, action: Disturb(target: Any, hits: Once, field: Ack, bit: 0, level: Dominant))"#,
+            OK,
+            "`Sof`, `Identifier`",
+        ),
+        (
+            r#"(at_s: 1.0, action: Disturb(target: Any, hits: Once, field: Sof, bit: 0, level: High))"#,
+            OK,
+            "`Dominant` or `Recessive`",
+        ),
+        (
+            "",
+            r#"ErrorKinds(node: "F5", kind: Overload, min: 0, max: 1)"#,
+            "`Form`, or `Ack`",
+        ),
+        (
+            "",
+            r#"Counters(node: "F5", at_s: 1.0, tec: 0, rec: 0, state: Active)"#,
+            "`tec`, `rec`",
+        ),
+    ] {
+        let text =
+            format!("Scenario(name: \"t\", duration_s: 5.0, timeline: [{timeline}], expect: [{expect}])");
+        match from_text(Path::new("t.ron"), &text, None, harvester) {
+            Err(Error::Invalid(p)) => {
+                assert_eq!(p.len(), 1);
+                assert!(p[0].position.is_some(), "{p:?}");
+                assert!(p[0].message.contains(needle), "{needle} in {}", p[0].message);
+            }
+            other => panic!("{text}: {:?}", other.err()),
+        }
+    }
+}
+
+/// A problem found after parsing points at its field's line and column.
+#[test]
+fn problems_after_parsing_have_a_line_and_column() {
+    let text = "Scenario(name: \"t\", duration_s: 5.0,\n  timeline: [\n    (at_s: 1.0, action: Disturb(target: Any, hits: Once,\n      field: Crc, bit: 15, level: Dominant)),\n  ],\n  expect: [NoFrameLost])";
+    match from_text(Path::new("t.ron"), text, None, harvester) {
+        Err(Error::Invalid(p)) => {
+            assert_eq!(p.len(), 1, "{p:?}");
+            assert_eq!(p[0].field.as_deref(), Some("timeline[0].action.bit"));
+            assert_eq!(p[0].position, Some((4, 19)));
+        }
+        other => panic!("{:?}", other.err()),
+    }
+}
