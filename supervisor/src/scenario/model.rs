@@ -144,6 +144,7 @@ fn one_bit() -> u16 {
 
 /// Stimuli and faults.
 #[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub enum Action {
     /// Corrupt frames on the wire (until `until_s`, if given).
     BitErrors {
@@ -283,6 +284,7 @@ impl Action {
 
 /// What must be true.
 #[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub enum Expect {
     /// The monitor shows this alarm, raised within `within_ms` after `after_s`.
     AlarmRaised {

@@ -335,7 +335,12 @@ fn unknown_names_in_the_new_steps_list_the_accepted_ones() {
         (
             "",
             r#"Counters(node: "F5", at_s: 1.0, tec: 0, rec: 0, state: Active)"#,
-            "`tec`, `rec`",
+            "`tec`, or `rec`",
+        ),
+        (
+            r#"(at_s: 1.0, action: Disturb(target: Any, hits: Once, field: Sof, bit: 0, level: Dominant, length: 3))"#,
+            OK,
+            "`bits`, or `seen_by`",
         ),
     ] {
         let text =
