@@ -200,3 +200,59 @@ fn hits_and_misses_are_counted() {
     assert_eq!(counts(&n, past).misses, 2, "kept after removal");
     assert_eq!(n.b.injector().disturb_counts(RuleId(999)), None);
 }
+
+/// The places of an extended frame, `0300A0F5#0101`, by their unstuffed index (from CAN.md's
+/// field table: SOF 0, ID28..ID18 1..11, SRR 12, IDE 13, ID17..ID0 14..31, RTR 32, r1 33, r0 34,
+/// DLC 35..38, data from 39), put on the wire by `bits::stuffed_position`.
+#[test]
+fn the_places_of_an_extended_frame() {
+    let frame = Frame::extended(0x0300_A0F5, &[0x01, 0x01]).unwrap();
+    let mut places: Vec<(Field, u16, u32)> = vec![(Field::Sof, 0, 0)];
+    places.extend((0..11).map(|b| (Field::Identifier, b, 1 + u32::from(b))));
+    places.extend([(Field::Srr, 0, 12), (Field::Ide, 0, 13)]);
+    places.extend((11..29).map(|b| (Field::Identifier, b, 3 + u32::from(b))));
+    places.extend([
+        (Field::Rtr, 0, 32),
+        (Field::Reserved, 0, 33),
+        (Field::Reserved, 1, 34),
+    ]);
+    places.extend((0..4).map(|b| (Field::Dlc, b, 35 + u32::from(b))));
+    places.extend((0..16).map(|b| (Field::Data, b, 39 + u32::from(b))));
+    let run = |setup: &dyn Fn(&mut Bus, [NodeId; 3])| {
+        let mut b = Bus::new(BusConfig::default()).unwrap();
+        let ids = [0, 1, 2].map(|i| b.attach(ControllerConfig::named(format!("n{i}"))));
+        b.submit(ids[0], frame, BusTime::ZERO).unwrap();
+        setup(&mut b, ids);
+        b.run_until(BusTime::ZERO + BIT * 400);
+        let ev: Vec<Event> = b.take_events().collect();
+        let counters: Vec<(u16, u16)> = ids
+            .iter()
+            .map(|&i| {
+                let f = b.controller(i).unwrap().fault();
+                (f.tec(), f.rec())
+            })
+            .collect();
+        (ev, counters)
+    };
+    for (field, bit, index) in places {
+        let k = u64::from(bits::stuffed_position(&frame, index));
+        for level in [true, false] {
+            let by_place = run(&|b, ids| {
+                b.injector_mut()
+                    .add(rule(ids[0], Place { field, bit }, level, 1, SeenBy::All));
+            });
+            let by_time = run(&|b, _| {
+                b.disturb(Disturbance {
+                    at: at(k),
+                    bits: 1,
+                    level: Some(level),
+                    nodes: None,
+                });
+            });
+            assert_eq!(
+                by_place, by_time,
+                "{field:?} bit {bit} (unstuffed {index}, wire {k}), level {level}"
+            );
+        }
+    }
+}

@@ -105,6 +105,9 @@ pub(crate) struct Plan {
     pub flips: Vec<Flip>,
     /// Disturbances at places.
     pub anchored: Vec<Anchored>,
+    /// The frame on the bus (the winner's) is an extended one: what a receiver's bit 12 is (SRR
+    /// or RTR) before it has read IDE.
+    pub extended: bool,
     /// Overload frames the named receivers send after the frame (receivers not ready).
     pub overload: Option<(u8, super::inject::SeenBy)>,
 }
@@ -204,10 +207,7 @@ impl Bus {
         }
         let sending: Vec<bool> = (0..n).map(|i| starters.contains(&i)).collect();
         let last_flip = plan.flips.iter().map(|f| f.from + f.bits).max().unwrap_or(0);
-        let extended = starters
-            .first()
-            .and_then(|&s| self.controllers[s].tx.front())
-            .is_some_and(|p| p.frame.is_extended());
+        let extended = plan.extended;
         let mut anchored = plan.anchored;
         // Per disturbance at a place, the controllers it reaches.
         let reaches: Vec<Vec<bool>> = anchored

@@ -1105,6 +1105,7 @@ impl Bus {
             let mut plan = Plan {
                 flips: Vec::new(),
                 anchored,
+                extended: frame.is_extended(),
                 overload: decision.overload,
             };
             if let Some((effect, at, seen_by)) = decision.corrupt {
