@@ -46,14 +46,21 @@ pub(crate) enum Who {
     ReceiversIn(Vec<NodeId>),
 }
 
-impl Flip {
+impl Who {
+    /// True when it names `node`, a transmitter of the frame or not.
     fn reaches(&self, node: NodeId, transmitter: bool) -> bool {
-        match &self.who {
+        match self {
             Who::All => true,
             Who::Receivers => !transmitter,
             Who::Nodes(list) => list.contains(&node),
             Who::ReceiversIn(list) => !transmitter && list.contains(&node),
         }
+    }
+}
+
+impl Flip {
+    fn reaches(&self, node: NodeId, transmitter: bool) -> bool {
+        self.who.reaches(node, transmitter)
     }
 }
 
@@ -213,14 +220,8 @@ impl Bus {
         let reaches: Vec<Vec<bool>> = anchored
             .iter()
             .map(|a| {
-                let probe = Flip {
-                    from: 0,
-                    bits: 0,
-                    level: None,
-                    who: a.who.clone(),
-                };
                 (0..n)
-                    .map(|i| probe.reaches(NodeId(i as u16), sending[i]))
+                    .map(|i| a.who.reaches(NodeId(i as u16), sending[i]))
                     .collect()
             })
             .collect();
