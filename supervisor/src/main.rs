@@ -45,6 +45,7 @@ Examples:
 const SCENARIO_EXAMPLES: &str = "\
 Examples:
   harvemu scenario bus_off                           a built-in scenario, by its name
+  harvemu scenario conformance                       every scenario of a folder (here the built-in one)
   harvemu scenario configs/scenarios/*.ron --junit report.xml
   harvemu scenario configs/scenarios/bus_off.ron --seed 7 --report bus_off.html";
 
@@ -61,7 +62,8 @@ Examples:
 
 const VALIDATE_EXAMPLES: &str = "\
 Examples:
-  harvemu validate configs/harvester.ron configs/nodes/*.ron configs/scenarios/*.ron";
+  harvemu validate configs/harvester.ron configs/nodes/*.ron configs/scenarios/*.ron
+  harvemu validate configs/scenarios                 a folder: every .ron file directly in it";
 
 const INSPECT_EXAMPLES: &str = "\
 Examples:

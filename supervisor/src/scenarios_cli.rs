@@ -1,4 +1,5 @@
-//! `harvemu scenario FILE...` and `harvemu validate FILE...`.
+//! `harvemu scenario FILE...` and `harvemu validate FILE...`: a folder stands for the `.ron`
+//! files directly in it ([`configs::expand`]).
 
 use crate::configs::{self, Source};
 use crate::exit::Ended;
@@ -15,8 +16,9 @@ use std::path::PathBuf;
 /// Arguments of `harvemu scenario`.
 #[derive(clap::Args)]
 pub struct ScenarioArgs {
-    /// Scenario files (RON), or names of built-in scenarios (`bus_off` for
-    /// configs/scenarios/bus_off.ron; `harvemu config list` names them).
+    /// Scenario files (RON), folders (every .ron file directly in one, sorted by name), or names
+    /// of built-in scenarios and folders of them (`bus_off` for configs/scenarios/bus_off.ron,
+    /// `conformance` for configs/scenarios/conformance/; `harvemu config list` names them).
     #[arg(required = true, value_name = "SCENARIO")]
     files: Vec<PathBuf>,
     /// Seed for every scenario (default: the scenario's, else its config's).
@@ -57,7 +59,7 @@ pub fn run(args: &ScenarioArgs) -> crate::Result<Ended> {
     let mut loaded = Vec::new();
     let mut problems = Vec::new();
     let epoch = crate::record::epoch(args.start_time, false);
-    for f in &args.files {
+    for f in &expand(&args.files)? {
         match scenario::load_with(
             &configs::by_name(f, "scenarios"),
             args.seed,
@@ -199,6 +201,16 @@ pub fn run(args: &ScenarioArgs) -> crate::Result<Ended> {
     })
 }
 
+/// The files the arguments stand for, in their order, each folder expanded
+/// ([`configs::expand`]); the first argument that stands for nothing usable is the error.
+fn expand(args: &[PathBuf]) -> crate::Result<Vec<PathBuf>> {
+    let mut files = Vec::new();
+    for a in args {
+        files.extend(configs::expand(a, "scenarios")?);
+    }
+    Ok(files)
+}
+
 /// Writes a whole output and puts it in place.
 fn write(mut out: Output, bytes: &[u8]) -> crate::Result<()> {
     out.write_all(bytes)
@@ -228,8 +240,9 @@ fn run_one(l: &Loaded, record: Option<&PathBuf>) -> crate::Result<scenario::Outc
 /// Arguments of `harvemu validate`.
 #[derive(clap::Args)]
 pub struct ValidateArgs {
-    /// Harvester configs, node scripts, templates or scenarios (RON); the kind is read from the
-    /// file.
+    /// Harvester configs, node scripts, templates or scenarios (RON), or folders of them (every
+    /// .ron file directly in one; `conformance` is configs/scenarios/conformance/, on disk or
+    /// built in); the kind is read from the file.
     #[arg(required = true, value_name = "FILE")]
     files: Vec<PathBuf>,
 }
@@ -237,7 +250,7 @@ pub struct ValidateArgs {
 /// Runs `harvemu validate`: every problem of every file, exit code 2 when there is any.
 pub fn validate(args: &ValidateArgs) -> crate::Result<()> {
     let mut problems = Vec::new();
-    for f in &args.files {
+    for f in &expand(&args.files)? {
         let (source, text) = Source::file(f).read()?;
         // The struct name at the top of the file says what it is.
         let signals = nodes::environment::PlantSignals;

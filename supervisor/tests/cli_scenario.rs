@@ -48,9 +48,30 @@ fn a_failing_expectation_gives_exit_1_the_seed_the_command_and_junit() {
         "{text}"
     );
     assert!(text.contains("1 passed, 1 failed"), "{text}");
+    // One test case for the scenario, failed, its failure naming the expectation that failed.
     let xml = std::fs::read_to_string(&junit).unwrap();
-    assert!(xml.contains("tests=\"2\" failures=\"1\""), "{xml}");
-    assert_eq!(xml.matches("<failure").count(), 1);
+    assert!(
+        xml.contains("<testsuite name=\"harvemu scenario\" tests=\"1\" failures=\"1\""),
+        "{xml}"
+    );
+    assert!(
+        xml.contains(&format!(
+            "<testcase classname=\"harvemu.scenario\" name=\"too strict ({})\"",
+            file.display()
+        )),
+        "{xml}"
+    );
+    assert_eq!(xml.matches("<testcase ").count(), 1, "{xml}");
+    assert_eq!(xml.matches("<failure").count(), 1, "{xml}");
+    let failure = &xml[xml.find("<failure").unwrap()..xml.find("</failure>").unwrap()];
+    assert!(
+        failure.starts_with("<failure message=\"1 of 2 expectations failed\">FAIL BusLoadBelow(1.0)"),
+        "{failure}"
+    );
+    assert!(!failure.contains("ErrorFrames"), "only what failed: {failure}");
+    let output = &xml[xml.find("<system-out>").unwrap()..xml.find("</system-out>").unwrap()];
+    assert!(output.contains("FAIL BusLoadBelow(1.0)"), "{output}");
+    assert!(output.contains("PASS ErrorFrames"), "{output}");
 }
 
 #[test]

@@ -425,11 +425,23 @@ fn characters_xml_cannot_carry_become_replacement_characters_in_junit_and_the_re
     let runs = [(format!("dir/{bad}.ron"), &scenario, &outcome)];
     let xml = junit::xml(&runs);
     let doc = roxmltree::Document::parse(&xml).unwrap_or_else(|e| panic!("{e}:\n{xml}"));
-    let suite = doc.descendants().find(|n| n.has_tag_name("testsuite")).unwrap();
+    let case = doc.descendants().find(|n| n.has_tag_name("testcase")).unwrap();
     let clean = "a\u{FFFD}b\u{FFFD}[31m\u{FFFD}\u{FFFD}\u{FFFD}\u{7f}";
-    assert_eq!(suite.attribute("name"), Some(clean));
-    let failure = doc.descendants().find(|n| n.has_tag_name("failure")).unwrap();
+    assert_eq!(
+        case.attribute("name"),
+        Some(format!("{clean} (dir/{clean}.ron)").as_str())
+    );
+    let file = case
+        .descendants()
+        .find(|n| n.has_tag_name("property") && n.attribute("name") == Some("file"))
+        .unwrap();
+    assert_eq!(file.attribute("value"), Some(format!("dir/{clean}.ron").as_str()));
+    let failure = case.children().find(|n| n.has_tag_name("failure")).unwrap();
+    assert_eq!(failure.attribute("message"), Some("1 of 2 expectations failed"));
     assert!(failure.text().unwrap().contains(clean), "{xml}");
+    let output = case.children().find(|n| n.has_tag_name("system-out")).unwrap();
+    // Both verdicts (expectation and observation each) and the event (node and cause).
+    assert_eq!(output.text().unwrap().matches(clean).count(), 6, "{xml}");
     let html = report::html(&runs);
     let doc = parse(&html).unwrap_or_else(|e| panic!("{e}:\n{html}"));
     let page = text(doc.root_element());

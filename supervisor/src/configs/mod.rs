@@ -21,6 +21,9 @@
 //! file that names it; inside a built-in file it is looked up among the built-in files only, so
 //! the built-in harvester always runs the built-in scripts, whatever lies in the working
 //! directory. A built-in file is named `PATH (built in)` in every message and startup line.
+//!
+//! A folder given to `harvemu scenario` or `validate` stands for the `.ron` files directly in it,
+//! on disk first, else built in, as [`expand`] says.
 
 pub mod cli;
 
@@ -180,17 +183,154 @@ fn key(path: &Path) -> Option<String> {
 /// disk at `bus_off` itself. Anything else (a path with a folder or an extension, or a name
 /// that is there) is taken as it is.
 pub fn by_name(arg: &Path, folder: &str) -> PathBuf {
-    let bare = arg.components().count() == 1
-        && arg.extension().is_none()
-        && matches!(arg.components().next(), Some(Component::Normal(_)));
-    let absent = std::fs::symlink_metadata(arg).is_err_and(|e| e.kind() == io::ErrorKind::NotFound);
-    if bare && absent {
+    if bare(arg) && absent(arg) {
         let mut file = arg.as_os_str().to_owned();
         file.push(".ron");
         Path::new("configs").join(folder).join(file)
     } else {
         arg.to_path_buf()
     }
+}
+
+/// The files an argument on the command line stands for, in this order of precedence:
+/// 1. a folder on disk: every `.ron` file directly in it (not in its sub-folders), sorted by
+///    name, names starting with a dot left out;
+/// 2. anything else on disk: itself;
+/// 3. a built-in folder (the path as in the repository, `configs/scenarios/conformance`): its
+///    built-in `.ron` files, likewise;
+/// 4. a name (no folder, no extension) when there is no file `configs/FOLDER/NAME.ron`, on disk
+///    or built in, but a folder `configs/FOLDER/NAME`: that folder, on disk else built in, as
+///    above (`conformance` for the shipped conformance suite);
+/// 5. itself, for [`by_name`] and [`Source::read`] to find or to report missing.
+///
+/// A folder without a `.ron` file is an error naming it, and so is a path with `*` or `?` that
+/// none of the above finds: a pattern the shell left as it was. The paths of built-in files are
+/// their names in [`FILES`]: [`Source::read`] finds them (nothing is on disk there).
+pub fn expand(arg: &Path, folder: &str) -> crate::Result<Vec<PathBuf>> {
+    if is_dir(arg) {
+        return folder_on_disk(arg);
+    }
+    if !absent(arg) {
+        return Ok(vec![arg.to_path_buf()]);
+    }
+    if let Some(files) = built_in_folder(arg)? {
+        return Ok(files);
+    }
+    if bare(arg) {
+        let file = by_name(arg, folder);
+        let dir = Path::new("configs").join(folder).join(arg);
+        if absent(&file) && shipped(&file).is_none() {
+            if is_dir(&dir) {
+                return folder_on_disk(&dir);
+            }
+            if absent(&dir)
+                && let Some(files) = built_in_folder(&dir)?
+            {
+                return Ok(files);
+            }
+        }
+    }
+    let text = arg.to_string_lossy();
+    if text.contains(['*', '?']) {
+        let dir = arg
+            .parent()
+            .map(|p| p.to_string_lossy())
+            .filter(|p| !p.contains(['*', '?']))
+            .map_or("the folder".to_string(), |p| {
+                if p.is_empty() {
+                    ".".to_string()
+                } else {
+                    p.into_owned()
+                }
+            });
+        return Err(crate::Error::BadInput(format!(
+            "{text}: no such file or folder, and the shell did not expand this pattern (nothing \
+             matched it, or it was quoted): pass {dir} instead, which stands for every .ron file \
+             directly in it"
+        )));
+    }
+    Ok(vec![arg.to_path_buf()])
+}
+
+/// The built-in `.ron` files directly in the folder `path` (not in its sub-folders), sorted by
+/// name; `None` when no built-in file lies under that folder.
+pub fn shipped_folder(path: &Path) -> Option<Vec<&'static str>> {
+    let key = key(path)?;
+    if key.is_empty() {
+        return None;
+    }
+    let prefix = format!("{key}/");
+    let under: Vec<(&'static str, &'static str)> = FILES
+        .iter()
+        .filter_map(|(name, _)| name.strip_prefix(prefix.as_str()).map(|rest| (*name, rest)))
+        .collect();
+    if under.is_empty() {
+        return None;
+    }
+    Some(
+        under
+            .into_iter()
+            .filter(|(_, rest)| !rest.contains('/') && !rest.starts_with('.') && rest.ends_with(".ron"))
+            .map(|(name, _)| name)
+            .collect(),
+    )
+}
+
+/// A name alone: one part, no extension.
+fn bare(arg: &Path) -> bool {
+    arg.components().count() == 1
+        && arg.extension().is_none()
+        && matches!(arg.components().next(), Some(Component::Normal(_)))
+}
+
+/// Nothing on disk at `path` (not even a broken link).
+fn absent(path: &Path) -> bool {
+    std::fs::symlink_metadata(path).is_err_and(|e| e.kind() == io::ErrorKind::NotFound)
+}
+
+/// A folder on disk (through links).
+fn is_dir(path: &Path) -> bool {
+    std::fs::metadata(path).is_ok_and(|m| m.is_dir())
+}
+
+/// Every `.ron` file directly in the folder `dir` on disk, sorted by name, hidden ones left out;
+/// an error when there is none.
+fn folder_on_disk(dir: &Path) -> crate::Result<Vec<PathBuf>> {
+    let cannot = |source| crate::Error::Input {
+        path: dir.to_path_buf(),
+        source,
+    };
+    let mut names = Vec::new();
+    for entry in std::fs::read_dir(dir).map_err(cannot)? {
+        let name = entry.map_err(cannot)?.file_name();
+        let path = dir.join(&name);
+        let hidden = name.as_encoded_bytes().starts_with(b".");
+        if !hidden && path.extension().is_some_and(|e| e == "ron") && !is_dir(&path) {
+            names.push(name);
+        }
+    }
+    if names.is_empty() {
+        return Err(no_ron(&dir.display().to_string()));
+    }
+    names.sort();
+    Ok(names.into_iter().map(|n| dir.join(n)).collect())
+}
+
+/// The built-in `.ron` files directly in the folder `dir`, as paths; `None` when there is no
+/// such built-in folder, an error when it holds no `.ron` file.
+fn built_in_folder(dir: &Path) -> crate::Result<Option<Vec<PathBuf>>> {
+    match shipped_folder(dir) {
+        None => Ok(None),
+        Some(names) if names.is_empty() => Err(no_ron(&format!("{}{BUILT_IN}", dir.display()))),
+        Some(names) => Ok(Some(names.into_iter().map(PathBuf::from).collect())),
+    }
+}
+
+fn no_ron(dir: &str) -> crate::Error {
+    crate::Error::BadInput(format!(
+        "{dir}: a folder with no .ron file directly in it (a folder stands for those; its \
+         sub-folders are not searched)"
+    ))
 }
 
 #[cfg(test)]
@@ -264,5 +404,145 @@ mod tests {
         );
         // The crate's folder holds src: a name that is on disk is taken as it is.
         assert_eq!(by_name(Path::new("src"), "scenarios"), Path::new("src"));
+    }
+
+    #[test]
+    fn a_built_in_folder_is_its_ron_files_directly_in_it() {
+        let scenarios = shipped_folder(Path::new("configs/scenarios")).unwrap_or_default();
+        assert!(
+            scenarios.contains(&"configs/scenarios/bus_off.ron"),
+            "{scenarios:?}"
+        );
+        assert!(scenarios.iter().all(|n| {
+            n.strip_prefix("configs/scenarios/")
+                .is_some_and(|rest| rest.ends_with(".ron") && !rest.contains('/'))
+        }));
+        assert!(scenarios.windows(2).all(|w| w[0] < w[1]));
+        // What lies in sub-folders is built in too, and left out.
+        assert!(
+            FILES
+                .iter()
+                .any(|(n, _)| n.starts_with("configs/scenarios/conformance/"))
+        );
+        let nodes = shipped_folder(Path::new("./configs/scenarios/../nodes")).unwrap_or_default();
+        assert!(nodes.contains(&"configs/nodes/b1.ron"), "{nodes:?}");
+        assert!(
+            FILES
+                .iter()
+                .any(|(n, _)| n.starts_with("configs/nodes/templates/"))
+        );
+        assert!(!nodes.iter().any(|n| n.contains("templates")), "{nodes:?}");
+        // A file, a folder that is not built in, the root: no built-in folder.
+        assert_eq!(shipped_folder(Path::new("configs/scenarios/bus_off.ron")), None);
+        assert_eq!(shipped_folder(Path::new("configs/nowhere")), None);
+        assert_eq!(shipped_folder(Path::new("configs/scen")), None);
+        assert_eq!(shipped_folder(Path::new(".")), None);
+        assert_eq!(shipped_folder(Path::new("/configs/scenarios")), None);
+    }
+
+    /// The tests run in supervisor/, where configs/ is not: built-in folders are found.
+    #[test]
+    fn a_name_or_path_of_a_built_in_folder_stands_for_its_files() {
+        let expected: Vec<PathBuf> = shipped_folder(Path::new("configs/scenarios/conformance"))
+            .unwrap_or_default()
+            .into_iter()
+            .map(PathBuf::from)
+            .collect();
+        assert!(!expected.is_empty());
+        assert!(
+            expected
+                .iter()
+                .all(|p| p.parent() == Some(Path::new("configs/scenarios/conformance")))
+        );
+        for arg in [
+            "conformance",
+            "configs/scenarios/conformance",
+            "configs/scenarios/conformance/",
+        ] {
+            let files = expand(Path::new(arg), "scenarios").unwrap_or_else(|e| panic!("{arg}: {e}"));
+            assert_eq!(files, expected, "{arg}");
+        }
+        // Each is read as the built-in copy.
+        let (found, text) = Source::file(&expected[0])
+            .read()
+            .unwrap_or_else(|e| panic!("{e}"));
+        assert!(found.built_in && text.contains("Scenario("));
+        // A name of a scenario file stays a name (by_name finds the file); a name of nothing,
+        // or of a folder elsewhere than under the folder given, stays as it is.
+        for arg in ["bus_off", "nothing", "nodes"] {
+            assert_eq!(
+                expand(Path::new(arg), "scenarios").unwrap_or_else(|e| panic!("{arg}: {e}")),
+                [Path::new(arg)]
+            );
+        }
+    }
+
+    #[test]
+    fn a_folder_on_disk_is_its_ron_files_sorted_hidden_and_sub_folders_left_out() {
+        let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+        let d = dir.path();
+        for f in [
+            "b.ron",
+            "a.ron",
+            "c.RON.txt",
+            ".hidden.ron",
+            "notes.txt",
+            "sub/x.ron",
+            "folder.ron/y.ron",
+        ] {
+            let path = d.join(f);
+            std::fs::create_dir_all(path.parent().unwrap_or(d)).unwrap_or_else(|e| panic!("{e}"));
+            std::fs::write(path, "").unwrap_or_else(|e| panic!("{e}"));
+        }
+        let files = expand(d, "scenarios").unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(files, [d.join("a.ron"), d.join("b.ron")]);
+        // A file is itself.
+        assert_eq!(
+            expand(&d.join("notes.txt"), "scenarios").unwrap_or_else(|e| panic!("{e}")),
+            [d.join("notes.txt")]
+        );
+        // No .ron file directly in it: an error naming it, exit code 2.
+        let empty = d.join("empty");
+        std::fs::create_dir_all(&empty).unwrap_or_else(|e| panic!("{e}"));
+        std::fs::write(empty.join(".x.ron"), "").unwrap_or_else(|e| panic!("{e}"));
+        let e = expand(&empty, "scenarios").unwrap_err();
+        assert_eq!(e.exit_code(), crate::exit::BAD_INPUT);
+        assert_eq!(
+            e.to_string(),
+            format!(
+                "{}: a folder with no .ron file directly in it (a folder stands for those; its sub-folders are not searched)",
+                empty.display()
+            )
+        );
+    }
+
+    #[test]
+    fn a_pattern_the_shell_left_is_an_error_that_names_the_folder_to_pass() {
+        let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+        let pattern = dir.path().join("*.ron");
+        let e = expand(&pattern, "scenarios").unwrap_err();
+        assert_eq!(e.exit_code(), crate::exit::BAD_INPUT);
+        let text = e.to_string();
+        assert!(
+            text.starts_with(&format!("{}: no such file or folder", pattern.display())),
+            "{text}"
+        );
+        assert!(text.contains("the shell did not expand this pattern"), "{text}");
+        assert!(
+            text.contains(&format!("pass {} instead", dir.path().display())),
+            "{text}"
+        );
+        for (arg, folder) in [
+            ("run-?.ron", "."),
+            ("configs/scenarios/*.ron", "configs/scenarios"),
+            ("*/x.ron", "the folder"),
+        ] {
+            let text = expand(Path::new(arg), "scenarios").unwrap_err().to_string();
+            assert!(text.contains(&format!("pass {folder} instead")), "{arg}: {text}");
+        }
+        // A name with a `?` that is on disk is taken as it is.
+        let odd = dir.path().join("what?.ron");
+        std::fs::write(&odd, "").unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(expand(&odd, "scenarios").unwrap_or_else(|e| panic!("{e}")), [odd]);
     }
 }
