@@ -130,6 +130,9 @@ pub fn run(args: &ScenarioArgs) -> crate::Result<Ended> {
         for e in &o.events {
             let _ = writeln!(out, "  event {} {} {}", e.at, e.node, e.what);
         }
+        for line in o.disturbances() {
+            let _ = writeln!(out, "  {line}");
+        }
         for v in &o.verdicts {
             let at = v.at.map_or("-".to_string(), |t| format!("{t}"));
             let _ = writeln!(

@@ -301,3 +301,45 @@ fn placed(err: &str, file: &std::path::Path, needle: &str) -> bool {
                 .is_some_and(|m| m.strip_prefix(' ') == Some(needle) || m.trim_start().starts_with(needle))
     })
 }
+
+/// The terminal tells each `Disturb` step's hits and misses: an error flag in an attempt without
+/// error is a miss, a data bit of the frame a hit (it makes the flag that the next attempt's rule
+/// would find, but that rule is spent on the first attempt).
+#[test]
+fn disturb_hits_and_misses_are_printed() {
+    let dir = scratch("disturb-counts");
+    let file = dir.join("counts.ron");
+    let bench =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs/scenarios/conformance/bench/network.ron");
+    std::fs::write(
+        &file,
+        format!(
+            "Scenario(name: \"counts\", config: {:?}, duration_s: 0.05, timeline: [\n\
+             (at_s: 0.01, action: Disturb(target: Node(\"TX\"), hits: Once, field: ErrorFlag, bit: 0, level: Recessive)),\n\
+             (at_s: 0.01, action: SendFrame(node: \"TX\", frame: \"012#80\")),\n\
+             (at_s: 0.02, action: Disturb(target: Node(\"TX\"), hits: Always, field: Data, bit: 1, level: Recessive)),\n\
+             (at_s: 0.02, action: Disturb(target: Any, hits: Always, until_s: Some(0.03), field: Data, bit: 8, level: Recessive)),\n\
+             (at_s: 0.02, action: SendFrame(node: \"TX\", frame: \"012#80\")),\n\
+             ], expect: [ErrorFrames(min: 1, max: 100)])",
+            bench.display().to_string()
+        ),
+    )
+    .unwrap();
+    let out = harvemu(&["scenario", file.to_str().unwrap()]);
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    assert!(
+        stdout.contains("  timeline[0] Disturb: 0 hits, 1 miss\n"),
+        "{stdout}"
+    );
+    // Every attempt from 0.02 s on meets the data-bit error until TX is bus off: 32 attempts.
+    assert!(
+        stdout.contains("  timeline[2] Disturb: 32 hits, 0 misses\n"),
+        "{stdout}"
+    );
+    // A one-byte frame has no data bit 8 (with target Any the frames are not known at load):
+    // each of those attempts is a miss.
+    assert!(
+        stdout.contains("  timeline[3] Disturb: 0 hits, 32 misses\n"),
+        "{stdout}"
+    );
+}

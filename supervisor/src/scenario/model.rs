@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, rename = "Scenario")]
 pub struct Scenario {
-    /// Short name (JUnit test suite name).
+    /// Short name (in the JUnit test case's name and the report).
     pub name: String,
     /// What it shows.
     #[serde(default)]
