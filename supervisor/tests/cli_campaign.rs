@@ -269,6 +269,15 @@ fn kubernetes_index_and_shard_count_pick_the_shard() {
         "{}",
         text(&o)
     );
+    // And the shard count without an index: which shard is unknown, nothing runs.
+    let o = run(&dir.join("count"), &[("HARVEMU_SHARDS", "4")], &[]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("JOB_COMPLETION_INDEX"),
+        "{}",
+        text(&o)
+    );
+    assert!(!dir.join("count/summary.json").exists());
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

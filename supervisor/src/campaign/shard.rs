@@ -3,7 +3,7 @@
 //! Contract: shard `K/M` (1 ≤ K ≤ M) takes the runs `i` with `i mod M = K − 1`, so the M shards
 //! of a campaign take every run exactly once. Without `--shard`, Kubernetes' 0-based
 //! `JOB_COMPLETION_INDEX` gives K = index + 1, with M from `HARVEMU_SHARDS`; with neither the
-//! campaign is one shard. A run's seed depends only on the campaign's seed and the run's number.
+//! campaign is one shard, and `HARVEMU_SHARDS` alone is an error. A run's seed depends only on the campaign's seed and the run's number.
 
 use std::fmt;
 
@@ -53,7 +53,14 @@ impl Shard {
     /// values of [`INDEX_VAR`] and [`SHARDS_VAR`], when set.
     pub fn from_env(index: Option<&str>, shards: Option<&str>) -> Result<Shard, String> {
         let Some(index) = index else {
-            return Ok(Shard::ALL);
+            // Sharding asked for without saying which shard: taking the whole campaign would
+            // run every shard's runs in every pod.
+            return match shards {
+                Some(m) => Err(format!(
+                    "{SHARDS_VAR}={m:?} is set but {INDEX_VAR} is not: set it to this pod's                      0-based index (a Kubernetes Indexed Job does), or pass --shard K/M"
+                )),
+                None => Ok(Shard::ALL),
+            };
         };
         let index: u64 = index
             .trim()
@@ -140,7 +147,9 @@ mod tests {
     #[test]
     fn kubernetes_index_is_zero_based() {
         assert_eq!(Shard::from_env(None, None).unwrap(), Shard::ALL);
-        assert_eq!(Shard::from_env(None, Some("4")).unwrap(), Shard::ALL);
+        let e = Shard::from_env(None, Some("4")).unwrap_err();
+        assert!(e.contains("JOB_COMPLETION_INDEX") && e.contains("--shard"), "{e}");
+        assert_eq!(Shard::from_env(None, None).unwrap(), Shard::ALL);
         assert_eq!(
             Shard::from_env(Some("0"), Some("4")).unwrap(),
             Shard { k: 1, m: 4 }
