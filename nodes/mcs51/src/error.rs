@@ -50,6 +50,17 @@ pub enum Error {
         /// The record type.
         kind: u8,
     },
+    /// Something other than blank lines follows the end-of-file record: records there would be
+    /// silently left out of the image.
+    #[error(
+        "HEX line {line}: text after the end-of-file record of line {eof} (only blank lines may follow it)"
+    )]
+    AfterEof {
+        /// 1-based line number of the first such text.
+        line: usize,
+        /// 1-based line number of the end-of-file record.
+        eof: usize,
+    },
     /// The file ends without an end-of-file (01) record.
     #[error("HEX file has no end-of-file record")]
     MissingEof,

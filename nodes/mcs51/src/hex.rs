@@ -3,8 +3,8 @@
 //! Records 00 (data), 01 (end of file), 02 (extended segment address: base = value × 16) and 04
 //! (extended linear address: base = value × 65536) are honoured; 03 and 05 (start addresses) are
 //! ignored because an 8051 starts at 0000h (the caller can `set_pc`). Blank lines and trailing
-//! whitespace are allowed; anything after the end-of-file record is ignored. A missing EOF record
-//! is an error: a truncated file must not run as if it were whole.
+//! whitespace are allowed. A missing EOF record is an error (a truncated file must not run as if it
+//! were whole), and so is anything but blank lines after it (records there would be left out).
 
 use crate::error::Error;
 use std::ops::Range;
@@ -59,6 +59,13 @@ pub fn parse(text: &str, code_size: usize) -> Result<Image, Error> {
                 }
             }
             0x01 => {
+                let after = text.lines().enumerate().skip(index + 1);
+                if let Some((i, _)) = after.into_iter().find(|(_, l)| !l.trim().is_empty()) {
+                    return Err(Error::AfterEof {
+                        line: i + 1,
+                        eof: line,
+                    });
+                }
                 return Ok(Image {
                     code,
                     written: ranges(&owner),
@@ -175,6 +182,15 @@ mod tests {
             Err(Error::Malformed { line: 1, .. })
         ));
         assert_eq!(parse(":03000000020040BB\n", 4096), Err(Error::MissingEof));
+        // A data record after the end-of-file record is not left out silently.
+        assert_eq!(
+            parse(":00000001FF\n\n:03000000020040BB\n", 4096),
+            Err(Error::AfterEof { line: 3, eof: 1 })
+        );
+        assert!(
+            parse(":00000001FF\n  \n\n", 4096).is_ok(),
+            "blank lines may follow"
+        );
         let overlap = ":03000000020040BB\n:01000200AA53\n:00000001FF\n";
         assert_eq!(
             parse(overlap, 4096),
