@@ -190,6 +190,37 @@ fn bad_hex_files_are_refused_with_file_and_line() {
         &out,
         &["can_seed.hex", "HEX line 1", "beyond the 4096-byte code memory"],
     );
+    // A record after the end-of-file record would be left out of the image.
+    let after = format!("{}\n:03000000020040BB\n", hex.trim_end());
+    let out = run_bad("after-eof", &receiver("bad.hex", CPU, CHIP), &after);
+    let eof = lines.len();
+    assert_refused(
+        &out,
+        &[
+            "bad.hex",
+            &format!(
+                "HEX line {}: text after the end-of-file record of line {eof}",
+                eof + 1
+            ),
+        ],
+    );
+}
+
+/// `receiver` starts at 4000h; with a 16 KB code memory (0000h to 3FFFh) that is nowhere, and
+/// the program counter would wrap. The image (irq_receiver.hex, from 0000h) fits.
+#[test]
+fn an_entry_outside_code_memory_is_refused() {
+    let hex = std::fs::read_to_string(root().join("configs/firmware/irq_receiver.hex")).expect("HEX");
+    let cpu = "I80C51(clock_hz: 12000000, code_bytes: 16384)";
+    let out = run_bad("entry", &receiver("bad.hex", cpu, CHIP), &hex);
+    assert_refused(
+        &out,
+        &[
+            "receiver.ron",
+            "entry",
+            "4000h is outside the chip's 16384-byte code memory",
+        ],
+    );
 }
 
 #[test]

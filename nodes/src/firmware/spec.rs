@@ -331,6 +331,24 @@ pub fn load(file: &str, path: &Path, text: &str, read: Reader) -> Result<Firmwar
             }
         },
     };
+    if let (Some(entry), Some(image)) = (f.entry, image.as_ref())
+        && usize::from(entry) >= image.code.len()
+    {
+        // The program counter would wrap to an address the program does not mean.
+        problems.push(Problem {
+            node: Some(f.name.clone()),
+            position: crate::ron_path::position(text, "entry"),
+            ..Problem::at(
+                file,
+                "entry",
+                format!(
+                    "{entry:04X}h is outside the chip's {}-byte code memory (0000h to {:04X}h)",
+                    image.code.len(),
+                    image.code.len() - 1
+                ),
+            )
+        });
+    }
     match (image, clock, found) {
         (Some(image), Some(clock), Some((image_file, image_sha256, debug, debug_problems)))
             if problems.is_empty() =>
