@@ -250,6 +250,18 @@ fn bad_node_files_are_refused_with_file_and_line() {
 
     let out = run_bad("missing", &receiver("nothing.hex", CPU, CHIP), &hex);
     assert_refused(&out, &["receiver.ron", "image", "nothing.hex"]);
+
+    // A control character in the name (as PROMISES.md says of every name): line 2, column 5.
+    let named = receiver("can_seed.hex", CPU, CHIP).replace("RECEIVER", "RE\u{1F}CEIVER");
+    let out = run_bad("control", &named, &hex);
+    assert_refused(
+        &out,
+        &[
+            "receiver.ron:2:5:",
+            "name",
+            "holds the control character '\\u{1f}'",
+        ],
+    );
 }
 
 /// The lab's receiver with two more SJA1000s, at D500h and D600h, which the lab program never

@@ -223,6 +223,14 @@ pub fn load(file: &str, path: &Path, text: &str, read: Reader) -> Result<Firmwar
     if f.name.is_empty() {
         problems.push(at("name", "empty".into()));
     }
+    // As for a script's name: it goes into traces, reports and terminal lines, which a NUL, a
+    // line break or an escape would break or garble.
+    if let Some(ch) = f.name.chars().find(|ch| ch.is_control()) {
+        problems.push(Problem {
+            position: crate::ron_path::position(text, "name"),
+            ..at("name", format!("{:?} holds the control character {ch:?}", f.name))
+        });
+    }
     let (variant, clock_hz, code_bytes, vref_mv) = match f.cpu {
         CpuFile::I80C51 { clock_hz, code_bytes } => (mcs51::Variant::I8051, clock_hz, code_bytes, 0),
         CpuFile::I80C52 { clock_hz, code_bytes } => (mcs51::Variant::I8052, clock_hz, code_bytes, 0),
