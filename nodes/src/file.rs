@@ -1,5 +1,6 @@
-//! Reading the hand-written RON files harvemu takes: harvester configs, node scripts and their
-//! templates, scenarios. [`read_text`] is the one function that reads them.
+//! Reading the text files harvemu takes: harvester configs, node scripts and their templates,
+//! scenarios, firmware node files, Intel HEX images and their debug information. [`read_text`]
+//! is the one function that reads them.
 //!
 //! Contract: [`read_text`] reads at most [`MAX_FILE`] + 1 bytes of a file, so a file over the
 //! limit is refused as soon as that much has been read: `/dev/zero`, a FIFO that never ends or a
@@ -10,8 +11,9 @@ use crate::Error;
 use std::io::{self, Read};
 use std::path::Path;
 
-/// The largest config, node script or scenario read, bytes: 1 MiB, over a hundred times the
-/// largest shipped one (about 7 KiB).
+/// The largest input file read, bytes: 1 MiB, over seventy times the largest shipped one (the
+/// C0 image's debug information, about 14 KiB) and over five times the Intel HEX text of a full
+/// 64 KiB code memory (about 180 KiB).
 pub const MAX_FILE: u64 = 1024 * 1024;
 
 /// The text of the file at `path`, when it is at most [`MAX_FILE`] bytes of UTF-8.
@@ -31,7 +33,7 @@ fn read_limited(path: &Path, limit: u64) -> io::Result<String> {
         return Err(io::Error::new(
             io::ErrorKind::FileTooLarge,
             format!(
-                "larger than {} MiB ({limit} bytes), the limit for a config, node script or scenario",
+                "larger than {} MiB ({limit} bytes), the limit for an input file",
                 limit / (1024 * 1024)
             ),
         ));
@@ -68,7 +70,7 @@ mod tests {
         assert_eq!(
             e,
             format!(
-                "{}: larger than 1 MiB (1048576 bytes), the limit for a config, node script or scenario",
+                "{}: larger than 1 MiB (1048576 bytes), the limit for an input file",
                 over.display()
             )
         );

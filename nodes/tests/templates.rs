@@ -286,7 +286,7 @@ fn the_size_limit_holds_for_the_template_and_for_the_expansion() {
     assert_eq!(
         said,
         [format!(
-            "{}: template: {}: larger than 1 MiB (1048576 bytes), the limit for a config, node script or scenario",
+            "{}: template: {}: larger than 1 MiB (1048576 bytes), the limit for an input file",
             file(&instance),
             file(&dir.join("t.ron"))
         )]

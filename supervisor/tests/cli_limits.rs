@@ -149,9 +149,7 @@ fn a_file_of_the_limit_is_read_one_byte_more_is_refused() {
         std::fs::write(&file, padded(&text, MAX_FILE + 1)).unwrap();
         refused(
             &["validate", path],
-            &format!(
-                "{path}: larger than 1 MiB (1048576 bytes), the limit for a config, node script or scenario"
-            ),
+            &format!("{path}: larger than 1 MiB (1048576 bytes), the limit for an input file"),
         );
     }
     let _ = std::fs::remove_dir_all(&dir);
