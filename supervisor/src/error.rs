@@ -85,6 +85,8 @@ impl Error {
             Error::BadInput(_) | Error::Config(_) | Error::Interface(_) | Error::Input { .. } => {
                 exit::BAD_INPUT
             }
+            // The address is the user's: in use, not on this machine, or not theirs to take.
+            Error::Runtime(bus_runtime::Error::Listen { .. }) => exit::BAD_INPUT,
             Error::Output { .. } => exit::OUTPUT_FAILED,
             // Neither the input's fault nor an output's: an actor gone, a runtime that could
             // not start, a bug.
@@ -159,6 +161,6 @@ mod tests {
             listen.report().to_string(),
             "cannot listen on 127.0.0.1:1: Address already in use (os error 98)"
         );
-        assert_eq!(listen.exit_code(), exit::INTERNAL);
+        assert_eq!(listen.exit_code(), exit::BAD_INPUT);
     }
 }

@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{finish_within, root, scratch, signal, spawn};
+use common::{finish_within, harvemu, root, scratch, signal, spawn};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
@@ -152,4 +152,17 @@ fn bad_input_is_2_and_an_absurd_scenario_length_is_refused() {
         LIMIT,
     );
     assert_eq!(out.status.code(), Some(2), "a config that is not there");
+}
+
+/// A socketcand address that cannot be listened on (taken here by another listener) is the
+/// user's input: exit 2, naming the address and the reason, before the run starts.
+#[test]
+fn a_gateway_address_in_use_is_exit_2_with_the_address_and_the_reason() {
+    let taken = std::net::TcpListener::bind("127.0.0.1:0").expect("a free port");
+    let addr = taken.local_addr().unwrap().to_string();
+    let out = harvemu(&["run", "--fast", "--for", "1s", "--socketcand", &addr]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains(&format!("cannot listen on {addr}")), "{err}");
+    assert!(err.contains("in use"), "{err}");
 }
