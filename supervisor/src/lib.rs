@@ -22,6 +22,7 @@ pub mod record;
 pub mod replay;
 pub mod report;
 pub mod run;
+pub mod say;
 pub mod scenario;
 pub mod scenarios_cli;
 pub mod session;

@@ -143,9 +143,17 @@ fn main() -> ExitCode {
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         Err(e) => {
-            // clap prints its own help and errors; its exit code for bad usage is 2.
-            let _ = e.print();
-            return ExitCode::from(if e.use_stderr() { 2 } else { 0 });
+            // clap prints its own help and errors; its exit code for bad usage is 2. Help or a
+            // version that does not reach its output is an output that failed.
+            let code = if e.use_stderr() { exit::BAD_INPUT } else { exit::OK };
+            let printed = e
+                .print()
+                .and_then(|()| std::io::Write::flush(&mut std::io::stdout()));
+            return ExitCode::from(if printed.is_err() {
+                exit::OUTPUT_FAILED
+            } else {
+                code
+            });
         }
     };
     // RUST_LOG controls diagnostics (default: warnings); they go to stderr, never into traces.
@@ -153,7 +161,7 @@ fn main() -> ExitCode {
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()),
         )
-        .with_writer(std::io::stderr)
+        .with_writer(supervisor::say::Log)
         // Colours only for a terminal: a log file or a CI job's output gets plain text.
         .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .init();
@@ -166,7 +174,7 @@ fn main() -> ExitCode {
     let handled = stop::ignore_file_size_limit().and_then(|()| if runs { stop::install() } else { Ok(()) });
     if let Err(e) = handled {
         // The system refused: not the input's fault, nor an output's.
-        eprintln!("harvemu: error: cannot handle signals: {e}");
+        supervisor::say!("harvemu: error: cannot handle signals: {e}");
         return ExitCode::from(exit::INTERNAL);
     }
     let done = Ended::default();
@@ -185,9 +193,16 @@ fn main() -> ExitCode {
         Command::Protocol { markdown } => protocol(markdown).map(|()| done),
     };
     if let Err(e) = &result {
-        eprintln!("harvemu: error: {}", e.report());
+        supervisor::say!("harvemu: error: {}", e.report());
     }
-    ExitCode::from(exit::code(&result, stop::received()))
+    let code = exit::code(&result, stop::received());
+    // A message standard error did not take is an output that failed; any other failure's code
+    // says more.
+    ExitCode::from(if code == exit::OK && supervisor::say::failed() {
+        exit::OUTPUT_FAILED
+    } else {
+        code
+    })
 }
 
 /// `harvemu protocol`: the catalogue on standard output.

@@ -110,7 +110,7 @@ pub fn run(args: &ScenarioArgs) -> crate::Result<Ended> {
         }
     }
     if let Some(signal) = crate::stop::received() {
-        eprintln!("harvemu: interrupted by {}", signal.describe());
+        crate::say!("harvemu: interrupted by {}", signal.describe());
     }
     let mut out = String::new();
     let mut all_passed = true;
@@ -176,7 +176,7 @@ pub fn run(args: &ScenarioArgs) -> crate::Result<Ended> {
     for o in &outcomes {
         for name in &o.down {
             node_down = true;
-            eprintln!(
+            crate::say!(
                 "harvemu: node {name} crashed more often than the restart policy allows and stays down"
             );
         }

@@ -166,3 +166,55 @@ fn a_gateway_address_in_use_is_exit_2_with_the_address_and_the_reason() {
     assert!(err.contains(&format!("cannot listen on {addr}")), "{err}");
     assert!(err.contains("in use"), "{err}");
 }
+
+/// `harvemu ARGS` with standard output and standard error each either discarded or `/dev/full`.
+fn with_full(args: &[&str], stdout_full: bool, stderr_full: bool) -> std::process::Output {
+    let sink = |full: bool| {
+        let path = if full { "/dev/full" } else { "/dev/null" };
+        std::process::Stdio::from(std::fs::OpenOptions::new().write(true).open(path).unwrap())
+    };
+    std::process::Command::new(env!("CARGO_BIN_EXE_harvemu"))
+        .current_dir(root())
+        .args(args)
+        .stdout(sink(stdout_full))
+        .stderr(sink(stderr_full))
+        .output()
+        .unwrap()
+}
+
+/// A standard error that takes nothing is no panic (exit 101): the run goes on, its trace is
+/// whole, and the exit code is 3 (an output failed); help and the version on a full standard
+/// output are 3 as well.
+#[test]
+fn a_full_standard_error_or_help_output_is_exit_3_not_a_panic() {
+    let dir = scratch("exit-codes", "stderr-full");
+    let trace = dir.join("t.log");
+    let out = with_full(
+        &[
+            "run",
+            "--fast",
+            "--for",
+            "1s",
+            "--record",
+            trace.to_str().unwrap(),
+        ],
+        false,
+        true,
+    );
+    assert_eq!(out.status.code(), Some(3));
+    let text = std::fs::read_to_string(&trace).unwrap();
+    assert!(
+        text.lines().count() > 100,
+        "the trace is written: {} lines",
+        text.lines().count()
+    );
+    assert!(text.ends_with('\n'), "and whole");
+    for args in [&["--help"][..], &["--version"], &["run", "--help"]] {
+        let out = with_full(args, true, false);
+        assert_eq!(out.status.code(), Some(3), "{args:?}");
+    }
+    // Nothing to say and nothing refused: a clean exit.
+    let out = with_full(&["validate", "configs/scenarios/bus_off.ron"], false, true);
+    assert_eq!(out.status.code(), Some(0));
+    std::fs::remove_dir_all(&dir).unwrap();
+}

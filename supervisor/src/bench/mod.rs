@@ -395,11 +395,11 @@ pub fn run(args: &Args) -> crate::Result<()> {
     };
     for (name, workload, buses, threads, seconds) in plan {
         let threads = threads.clamp(1, buses.max(1));
-        eprintln!("bench: {name}, {buses} bus(es) on {threads} thread(s), {seconds} s of virtual time ...");
+        crate::say!("bench: {name}, {buses} bus(es) on {threads} thread(s), {seconds} s of virtual time ...");
         print(&measure(name, &workload, buses, threads, seconds).map_err(crate::Error::Internal)?)?;
     }
     if wanted("firmware-cpu") {
-        eprintln!(
+        crate::say!(
             "bench: firmware-cpu, {} machine cycles of an 80C51 busy loop ...",
             args.cpu_cycles
         );
@@ -419,7 +419,7 @@ pub fn run(args: &Args) -> crate::Result<()> {
     }
     if wanted("campaign") {
         let jobs = std::thread::available_parallelism().map_or(1, |n| n.get());
-        eprintln!(
+        crate::say!(
             "bench: campaign, {} runs of the built-in campaign harvest on {jobs} job(s) ...",
             args.campaign_runs
         );
@@ -435,9 +435,10 @@ pub fn run(args: &Args) -> crate::Result<()> {
         }
     }
     if args.only.iter().any(|o| o == "python-monitor") {
-        eprintln!(
+        crate::say!(
             "bench: python-monitor, {} s of bus time with {} -m harvemu.monitor ...",
-            args.python_seconds, args.python
+            args.python_seconds,
+            args.python
         );
         let m = python::measure(&args.python, args.python_seconds)?;
         if args.json {
@@ -451,7 +452,7 @@ pub fn run(args: &Args) -> crate::Result<()> {
         }
     }
     if let (Some(seconds), Some(h)) = (realtime, &harvester) {
-        eprintln!("bench: realtime, the harvester for {seconds} s of wall-clock time ...");
+        crate::say!("bench: realtime, the harvester for {seconds} s of wall-clock time ...");
         print(&realtime::measure(h, seconds).map_err(crate::Error::Internal)?)?;
     }
     Ok(())

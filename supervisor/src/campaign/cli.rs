@@ -227,7 +227,7 @@ impl Progress {
         self.bar.inc(1);
         // A tenth of the way more (or the last run): a line for a log that has no bar.
         if self.log && (before * 10 / self.total.max(1) != self.done.get() * 10 / self.total.max(1)) {
-            eprintln!(
+            crate::say!(
                 "harvemu: campaign {}: {}/{} runs, {}",
                 self.bar.prefix(),
                 self.done.get(),

@@ -71,7 +71,7 @@ pub(super) fn finish(s: &Summary, out: &Path, text: &str) -> Result<Ended> {
         s.junit().map_err(Error::Internal)?.as_bytes(),
     )?;
     if let Some(signal) = crate::stop::received() {
-        eprintln!("harvemu: interrupted by {}", signal.describe());
+        crate::say!("harvemu: interrupted by {}", signal.describe());
     }
     output::stdout(text)?;
     Ok(Ended {

@@ -79,7 +79,7 @@ fn export(args: &ExportArgs) -> crate::Result<()> {
         }
         output::write_whole(path, bytes)?;
     }
-    eprintln!("harvemu: wrote {} files under {}", files.len(), dir.display());
+    crate::say!("harvemu: wrote {} files under {}", files.len(), dir.display());
     Ok(())
 }
 

@@ -53,14 +53,14 @@ pub fn check(h: &crate::harvester::Harvester) -> crate::Result<()> {
 /// Writes `coverage` to `dir` and says on stderr what each image's covers.
 pub fn report(dir: &std::path::Path, coverage: &Coverage) -> crate::Result<()> {
     if coverage.images.is_empty() {
-        eprintln!(
+        crate::say!(
             "harvemu: coverage: no firmware node ran: nothing written to {}",
             dir.display()
         );
         return Ok(());
     }
     for line in write(dir, coverage)? {
-        eprintln!("harvemu: coverage: {line}");
+        crate::say!("harvemu: coverage: {line}");
     }
     Ok(())
 }

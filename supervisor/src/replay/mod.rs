@@ -257,7 +257,7 @@ pub fn run(args: &Args) -> crate::Result<Ended> {
     let epoch = crate::record::epoch(args.start_time, !args.fast);
     h.epoch = Some(epoch);
     let (trace, recording) = crate::record::create_opt(args.record.as_ref(), epoch)?;
-    eprintln!(
+    crate::say!(
         "harvemu: replaying {} ({} records, {} to send per pass) onto {} from {}, {}",
         args.file.display(),
         counts.read,
@@ -311,12 +311,12 @@ pub fn run(args: &Args) -> crate::Result<Ended> {
             }
         }
         if let Some(s) = interrupted {
-            eprintln!("\nharvemu: interrupted by {}", s.describe());
+            crate::say!("\nharvemu: interrupted by {}", s.describe());
         }
         running.hub.send(FlushTrace).await??;
         let snap = running.hub.send(GetSnapshot).await?;
-        eprintln!("{}", crate::run::summary(&snap, &running));
-        eprintln!(
+        crate::say!("{}", crate::run::summary(&snap, &running));
+        crate::say!(
             "harvemu: replay: {} records read, {} error frames (not replayable), {} frames skipped (emulated sources), {} replayed, {} refused (queue full), {} pass(es)",
             counts.read,
             counts.error_frames,
@@ -326,7 +326,7 @@ pub fn run(args: &Args) -> crate::Result<Ended> {
             schedule.passes_begun()
         );
         if let Some(line) = crate::realtime::overruns_line(&snap) {
-            eprintln!("{line}");
+            crate::say!("{line}");
         }
         Ok::<_, Error>(Ended {
             expectations_failed: false,

@@ -158,7 +158,7 @@ pub fn run(args: &Args) -> crate::Result<Ended> {
     h.epoch = Some(epoch);
     let (trace, recording) = crate::record::create_opt(args.record.as_ref(), epoch)?;
     let end = args.duration.map(BusTime::from_duration);
-    eprintln!(
+    crate::say!(
         "harvemu: {} ({} nodes) from {}, seed {}, {}",
         h.config.network.name,
         h.scripts.len() + h.firmware.len() + usize::from(h.config.monitor.enabled),
@@ -175,13 +175,13 @@ pub fn run(args: &Args) -> crate::Result<Ended> {
     let (tui, machine) = (args.tui, h.config.network.name.clone());
     let socketcand = args.socketcand;
     if fast && socketcand.is_some() {
-        eprintln!(
+        crate::say!(
             "harvemu: note: with --fast the bus runs in virtual time, far faster than clients can follow"
         );
     }
     if args.realtime {
         for line in crate::realtime::enter() {
-            eprintln!("{line}");
+            crate::say!("{line}");
         }
     }
     let system = System::with_tokio_rt(move || runtime(fast).expect("a tokio runtime"));
@@ -195,7 +195,7 @@ pub fn run(args: &Args) -> crate::Result<Ended> {
                 let b = bus_runtime::backend::socketcan::bridge(running.hub.clone(), name)
                     .await
                     .map_err(Error::Interface)?;
-                eprintln!("harvemu: bridged to CAN interface {name}");
+                crate::say!("harvemu: bridged to CAN interface {name}");
                 Some(b)
             }
             None => None,
@@ -203,7 +203,7 @@ pub fn run(args: &Args) -> crate::Result<Ended> {
         let _gateway = match socketcand {
             Some(addr) => {
                 let gw = bus_runtime::gateway::Gateway::start(running.hub.clone(), addr, Default::default()).await?;
-                eprintln!("harvemu: socketcand gateway on {}, bus harv0", gw.addr);
+                crate::say!("harvemu: socketcand gateway on {}, bus harv0", gw.addr);
                 Some(gw)
             }
             None => None,
@@ -213,7 +213,7 @@ pub fn run(args: &Args) -> crate::Result<Ended> {
         if tui {
             crate::tui::live(&mut running, &machine, fast, end).await?;
             for e in &running.events {
-                eprintln!("harvemu: {} {} {}", e.at, e.node, e.what);
+                crate::say!("harvemu: {} {} {}", e.at, e.node, e.what);
             }
         }
         let mut console = Console::stderr(fast, end);
@@ -250,13 +250,13 @@ pub fn run(args: &Args) -> crate::Result<Ended> {
         console.finish(&Summary::of(&snap, &running), interrupted);
         if let Some(b) = &bridge {
             let s = b.stats();
-            eprintln!(
+            crate::say!(
                 "harvemu: interface: {} frames in ({} with kernel timestamps, longest wait {} us), {} out, {} error frames, {} write errors",
                 s.received, s.kernel_stamped, s.max_wait_us, s.sent, s.error_frames, s.write_errors
             );
         }
         if let Some(line) = crate::realtime::overruns_line(&snap) {
-            eprintln!("{line}");
+            crate::say!("{line}");
         }
         if let Some(path) = &dump_state {
             let nodes: serde_json::Map<String, serde_json::Value> = running
@@ -293,7 +293,7 @@ pub fn run(args: &Args) -> crate::Result<Ended> {
 pub fn report_down(running: &harvester::Running) -> bool {
     let down = running.down_by_themselves();
     for name in &down {
-        eprintln!("harvemu: node {name} crashed more often than the restart policy allows and stays down");
+        crate::say!("harvemu: node {name} crashed more often than the restart policy allows and stays down");
     }
     !down.is_empty()
 }

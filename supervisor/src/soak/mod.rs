@@ -93,7 +93,7 @@ pub fn run(args: &Args) -> crate::Result<Ended> {
     let outcome = outcome?;
     finished?;
     if let Some(signal) = crate::stop::received() {
-        eprintln!("harvemu: interrupted by {}", signal.describe());
+        crate::say!("harvemu: interrupted by {}", signal.describe());
     }
     if let Some(k) = memory::vm_rss_kib() {
         let end = outcome
@@ -105,7 +105,7 @@ pub fn run(args: &Args) -> crate::Result<Ended> {
     crate::output::stdout(&report(&loaded, &outcome, &rss, args.hours))?;
     let flat = rss.verdict().is_none_or(|(flat, _)| flat);
     for name in &outcome.down {
-        eprintln!("harvemu: node {name} crashed more often than the restart policy allows and stays down");
+        crate::say!("harvemu: node {name} crashed more often than the restart policy allows and stays down");
     }
     Ok(Ended {
         expectations_failed: !(outcome.passed() && flat),
