@@ -222,3 +222,32 @@ fn long_names_in_configs_scripts_and_scenarios_are_quoted_short() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `campaign merge` reads at most 64 MiB of a shard's summary.json (PROMISES.md): `/dev/zero`
+/// in its place is refused at once, naming the file and the limit, within the 1 GiB address
+/// space (reading up to a gigabyte, as before, fails here).
+#[test]
+fn dev_zero_as_a_campaign_summary_ends_at_once() {
+    let dir = scratch("cli_limits", "summary");
+    let shard = dir.join("shard-1");
+    std::fs::create_dir_all(&shard).unwrap();
+    let summary = shard.join("summary.json");
+    let _ = std::fs::remove_file(&summary);
+    std::os::unix::fs::symlink("/dev/zero", &summary).unwrap();
+    let out = dir.join("merged");
+    refused(
+        &[
+            "campaign",
+            "merge",
+            shard.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &format!(
+            "{}: larger than 64 MiB (67108864 bytes), the limit for a campaign summary",
+            summary.display()
+        ),
+    );
+    assert!(!out.join("summary.json").exists());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
