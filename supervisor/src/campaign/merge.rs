@@ -47,10 +47,10 @@ pub(super) fn merge(dirs: &[PathBuf], out: &Path) -> Result<Ended> {
     finish(&merged, out, &text)
 }
 
-/// Largest summary read: 64 MiB. A failing run takes well under 1 KiB of a summary (its
-/// expectation and observation are a few hundred characters), so a 10,000-run campaign whose
-/// every run failed stays near 10 MiB; a file much larger is no summary, and reading it stops
-/// here (`/dev/zero` costs 64 MiB, not a gigabyte).
+/// Largest summary read: 64 MiB. A failing run is one entry of a few hundred bytes (its number,
+/// seed, first failed expectation and observation), so even a 10,000-run campaign whose every
+/// run failed is far below it; a larger file is no summary, and reading it stops here
+/// (`/dev/zero` costs 64 MiB, not a gigabyte).
 pub const MAX_SUMMARY: u64 = 64 << 20;
 
 /// A shard's summary.json as text: at most [`MAX_SUMMARY`] bytes of UTF-8.
