@@ -74,9 +74,13 @@ impl Slot {
         }
     }
 
-    /// An input at `at`: an event for the logic, if any, and whether it wakes the node.
+    /// An input at `at`: an event for the logic, if any, and whether it wakes the node. A node
+    /// without a logic (a replay, a gateway client, a bridge) keeps no events: nobody would
+    /// read them, and its confirmations would pile up for as long as it sends.
     pub fn input(&mut self, at: BusTime, event: Option<ControllerEvent>, wakes: bool) {
-        if let Some(e) = event {
+        if let Some(e) = event
+            && self.logic
+        {
             self.events.push((at, e));
         }
         if wakes && self.pending_since.is_none() {

@@ -487,3 +487,24 @@ fn a_node_with_a_far_deadline_is_woken_by_its_frames() {
     assert!(d.wakes_of(rx).len() > 400, "{} wakes", d.wakes_of(rx).len());
     assert_eq!(d.sched.dues.len(), d.sched.slots.len());
 }
+
+#[test]
+fn a_node_without_a_logic_keeps_nothing_of_what_it_sent() {
+    // A replay or a gateway client submits frames for ever; their confirmations must not pile
+    // up where no logic will ever read them.
+    let heard = Heard::default();
+    let mut d = Driver::new();
+    let gw = d.attach(&["gw"], 0, None)[0];
+    d.attach(&["rx"], 0, Some(Probe::new(&heard)));
+    for i in 0..200u64 {
+        let frame = parse_frame("123#11").unwrap();
+        assert!(d.sched.submit_at(gw, frame, ms(i)).unwrap(), "frame {i} refused");
+        d.run_until(ms(i + 1));
+    }
+    assert_eq!(heard.borrow().iter().filter(|h| h.1 == "frame 123").count(), 200);
+    assert!(
+        d.sched.slots[gw.index()].events.is_empty(),
+        "{} events kept",
+        d.sched.slots[gw.index()].events.len()
+    );
+}
