@@ -525,3 +525,67 @@ fn the_beacon_goes_to_port_42000_by_default() {
         panic!("no beacon for {} on port 42000", gw.addr);
     });
 }
+
+/// What a fmt subscriber writes, kept for the test to read.
+#[derive(Clone, Default)]
+struct Captured(std::sync::Arc<std::sync::Mutex<Vec<u8>>>);
+
+impl std::io::Write for Captured {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.0.lock().unwrap().extend_from_slice(buf);
+        Ok(buf.len())
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+#[test]
+fn a_burst_of_300_connections_gets_256_served_and_44_closed_at_once() {
+    let log = Captured::default();
+    let writer = log.clone();
+    let subscriber = tracing_subscriber::fmt()
+        .with_max_level(tracing::Level::WARN)
+        .with_ansi(false)
+        .with_writer(move || writer.clone())
+        .finish();
+    let _guard = tracing::subscriber::set_default(subscriber);
+    in_real_time(async {
+        let (_hub, gw) = bus_with_ticker(5_000).await;
+        // All 300 connect at once: the kernel completes the connections in the listener's
+        // backlog (1024), and the accept loop finds them there in a burst.
+        let connects = (0..300).map(|_| connect(gw.addr, None));
+        let mut clients = futures_util::future::join_all(connects).await;
+        let mut greeted = 0;
+        let mut closed = 0;
+        for c in &mut clients {
+            let mut buf = [0u8; 64];
+            let n = tokio::time::timeout(Duration::from_secs(10), c.s.read(&mut buf))
+                .await
+                .unwrap_or_else(|_| {
+                    panic!(
+                        "neither a greeting nor a close within 10 s: {greeted} {closed} {:?}",
+                        gw.stats()
+                    )
+                });
+            match n {
+                Ok(0) | Err(_) => closed += 1,
+                Ok(n) => {
+                    assert!(String::from_utf8_lossy(&buf[..n]).starts_with("< hi >"));
+                    greeted += 1;
+                }
+            }
+        }
+        assert_eq!((greeted, closed), (256, 44));
+        let stats = gw.stats();
+        assert_eq!((stats.clients, stats.accepted, stats.turned_away), (256, 256, 44));
+    });
+    let text = String::from_utf8(log.0.lock().unwrap().clone()).unwrap();
+    let warnings: Vec<&str> = text.lines().filter(|l| l.contains("gateway full")).collect();
+    // Rate-limited: the first at once, the rest counted for the next (10 s away).
+    assert_eq!(warnings.len(), 1, "{text}");
+    assert!(
+        warnings[0].contains("(256 clients): 1 connection closed"),
+        "{text}"
+    );
+}

@@ -70,6 +70,8 @@ pub struct GatewayStats {
     pub malformed: u64,
     /// Failed `accept` calls (e.g. out of file descriptors).
     pub accept_errors: u64,
+    /// Connections closed at once because `max_clients` were connected.
+    pub turned_away: u64,
 }
 
 struct Client {
@@ -108,20 +110,29 @@ struct LogLimit {
 }
 
 impl LogLimit {
-    fn note(&mut self, client: u64, what: &str) {
-        tracing::debug!(client, "gateway ignored a message: {what}");
+    /// Counts one more; the count to report when a warning is due (the first at once, then at
+    /// most one per interval), `None` when it is not.
+    fn tick(&mut self) -> Option<u64> {
         self.unreported += 1;
         let now = Instant::now();
         if self
             .last
             .is_none_or(|t| now.saturating_duration_since(t) >= REPORT_INTERVAL)
         {
-            let n = std::mem::take(&mut self.unreported);
             self.last = Some(now);
+            return Some(std::mem::take(&mut self.unreported));
+        }
+        None
+    }
+
+    fn note(&mut self, client: u64, what: &str) {
+        tracing::debug!(client, "gateway ignored a message: {what}");
+        if let Some(n) = self.tick() {
             tracing::warn!(
                 client,
                 ignored = n,
-                "gateway ignored {n} client message(s), last: {what}"
+                "gateway ignored {n} client message{}, last: {what}",
+                if n == 1 { "" } else { "s" }
             );
         }
     }
@@ -134,6 +145,8 @@ struct Shared {
     in_flight: VecDeque<(u64, Frame)>,
     stats: GatewayStats,
     log: LogLimit,
+    /// Warnings about connections turned away, rate-limited apart from `log`.
+    full: LogLimit,
     hub: Addr<Hub>,
     /// The gateway's controller on the bus, once attached.
     node: Option<NodeId>,
@@ -181,9 +194,7 @@ impl Gateway {
     /// background of the current actor system; sends the discovery beacon if the configuration
     /// asks for it and the address allows it.
     pub async fn start(hub: Addr<Hub>, bind: SocketAddr, config: GatewayConfig) -> Result<Gateway, Error> {
-        let listener = TcpListener::bind(bind)
-            .await
-            .map_err(|source| Error::Listen { addr: bind, source })?;
+        let listener = listen(bind).map_err(|source| Error::Listen { addr: bind, source })?;
         let addr = listener
             .local_addr()
             .map_err(|source| Error::Listen { addr: bind, source })?;
@@ -193,6 +204,7 @@ impl Gateway {
             in_flight: VecDeque::new(),
             stats: GatewayStats::default(),
             log: LogLimit::default(),
+            full: LogLimit::default(),
             hub: hub.clone(),
             node: None,
             armed: None,
@@ -235,6 +247,22 @@ impl Gateway {
     pub fn stats(&self) -> GatewayStats {
         self.shared.borrow().stats.clone()
     }
+}
+
+/// Connections the kernel completes and keeps for `accept`. The usual 128 would let a burst of
+/// clients overflow it: the kernel then drops or answers with SYN cookies, and a connection the
+/// client thinks is made may never reach the gateway, neither served nor closed.
+const BACKLOG: u32 = 1024;
+
+/// A listener on `bind` with [`BACKLOG`], reusing the address as servers do.
+fn listen(bind: SocketAddr) -> std::io::Result<TcpListener> {
+    let socket = match bind {
+        SocketAddr::V4(_) => tokio::net::TcpSocket::new_v4()?,
+        SocketAddr::V6(_) => tokio::net::TcpSocket::new_v6()?,
+    };
+    socket.set_reuseaddr(true)?;
+    socket.bind(bind)?;
+    socket.listen(BACKLOG)
 }
 
 /// Runs the BCM clients' cyclic sends and throttle timers when the hub wakes it, at the bus's
@@ -370,9 +398,23 @@ async fn accept(
                 continue;
             }
         };
-        if shared.borrow().clients.len() >= config.max_clients {
-            // Closed at once: socketcand's clients have no message for this.
-            tracing::warn!(%peer, "gateway full ({} clients): connection closed", config.max_clients);
+        // Counted here, before the next accept, so that a burst of connections cannot pass
+        // the limit while the ones before it are still starting.
+        let mut sh = shared.borrow_mut();
+        if sh.clients.len() >= config.max_clients {
+            // Closed at once (the stream is dropped): socketcand's clients have no message
+            // for this.
+            sh.stats.turned_away += 1;
+            tracing::debug!(%peer, "gateway full: connection closed");
+            if let Some(n) = sh.full.tick() {
+                tracing::warn!(
+                    %peer,
+                    closed = n,
+                    "gateway full ({} clients): {n} connection{} closed",
+                    config.max_clients,
+                    if n == 1 { "" } else { "s" }
+                );
+            }
             continue;
         }
         let _ = stream.set_nodelay(true);
@@ -381,16 +423,35 @@ async fn accept(
         let _ = socket2::SockRef::from(&stream).set_send_buffer_size(SEND_BUFFER);
         let id = next_id;
         next_id += 1;
+        let (tx, rx) = mpsc::channel::<String>(config.client_queue.max(1));
+        sh.clients.push(Client {
+            id,
+            mode: None,
+            tx: tx.clone(),
+            dropped: 0,
+            bcm: Bcm::default(),
+        });
+        sh.stats.clients += 1;
+        sh.stats.accepted += 1;
+        drop(sh);
         tracing::info!(client = id, %peer, "gateway client connected");
+        let link = Link { tx, rx };
         actix::spawn(serve(
             stream,
             id,
+            link,
             hub.clone(),
             node,
-            config.clone(),
+            config.bus_name.clone(),
             shared.clone(),
         ));
     }
+}
+
+/// The queue of one client's outgoing messages, made when it was counted in.
+struct Link {
+    tx: mpsc::Sender<String>,
+    rx: mpsc::Receiver<String>,
 }
 
 /// Carries out one action for client `id`, whose session is now in `mode`; what the connection
@@ -451,28 +512,18 @@ fn apply(sh: &mut Shared, id: u64, mode: Option<Mode>, action: Action) -> Action
     action
 }
 
+/// Serves client `id`, already among the shared clients, until it goes; then forgets it.
 async fn serve(
     stream: TcpStream,
     id: u64,
+    link: Link,
     hub: Addr<Hub>,
     node: NodeId,
-    config: GatewayConfig,
+    bus_name: String,
     shared: Rc<RefCell<Shared>>,
 ) {
     let (mut reader, mut writer) = stream.into_split();
-    let (tx, mut rx) = mpsc::channel::<String>(config.client_queue.max(1));
-    {
-        let mut sh = shared.borrow_mut();
-        sh.clients.push(Client {
-            id,
-            mode: None,
-            tx: tx.clone(),
-            dropped: 0,
-            bcm: Bcm::default(),
-        });
-        sh.stats.clients += 1;
-        sh.stats.accepted += 1;
-    }
+    let Link { tx, mut rx } = link;
     // The writer: one write per message, as python-can reads the greeting and each `< ok >`
     // separately; and a pause after each `< ok >`, since python-can takes the next read for the
     // `< ok >` alone and fails when a frame came with it (TCP joins writes that a slow reader
@@ -501,7 +552,7 @@ async fn serve(
             Ok(n) => n,
         };
         for message in splitter.push(&buf[..n]) {
-            let action = session.handle(&config.bus_name, message);
+            let action = session.handle(&bus_name, message);
             // Bound first: a borrow in the match's head would last through the arms.
             let action = apply(&mut shared.borrow_mut(), id, session.mode, action);
             match action {
