@@ -58,6 +58,10 @@ pub fn network(h: &Harvester) -> Network {
 
 /// Runs `harvemu dbc`.
 pub fn run(args: &Args) -> crate::Result<()> {
+    crate::output::distinct(
+        &[("--output", args.output.as_deref())],
+        &[("--config", &args.config)],
+    )?;
     let h = Harvester::load(&args.config)?;
     let text = dbc::generate(MESSAGES, &network(&h));
     match &args.output {

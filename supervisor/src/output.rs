@@ -145,6 +145,53 @@ pub fn write_whole(path: &Path, bytes: &[u8]) -> Result<()> {
     out.commit()
 }
 
+/// Where `path` leads: its canonical form when it exists, else its folder's with its name, else
+/// the path made absolute. Two names for one file (`./t.log`, `t.log`, a symbolic link to it)
+/// lead to the same place.
+fn place(path: &Path) -> PathBuf {
+    if let Ok(p) = std::fs::canonicalize(path) {
+        return p;
+    }
+    let absolute = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
+    match (absolute.parent(), absolute.file_name()) {
+        (Some(dir), Some(name)) => std::fs::canonicalize(dir).map_or(absolute.clone(), |d| d.join(name)),
+        _ => absolute,
+    }
+}
+
+/// Refuses, before anything runs, two outputs of one run on the same file, and an output on a
+/// file the run reads: one would overwrite the other. `outputs` and `inputs` are the options'
+/// names (`--record`, `TRACE`) with their paths. Streams (`/dev/null`, `/dev/stdout`, a pipe)
+/// may be shared: writing two outputs to `/dev/null` loses nothing that was wanted. An input
+/// that is not on disk (a built-in config's name) is no file to overwrite.
+pub fn distinct(outputs: &[(&str, Option<&Path>)], inputs: &[(&str, &Path)]) -> Result<()> {
+    let outputs: Vec<(&str, &Path, PathBuf)> = outputs
+        .iter()
+        .filter_map(|(name, path)| path.map(|p| (*name, p)))
+        .filter(|(_, p)| !is_stream(p))
+        .map(|(name, p)| (name, p, place(p)))
+        .collect();
+    for (k, (name, path, at)) in outputs.iter().enumerate() {
+        if let Some((other, _, _)) = outputs[..k].iter().find(|o| &o.2 == at) {
+            return Err(Error::BadInput(format!(
+                "{other} and {name} both write {}: one would overwrite the other; give each \
+                 its own file",
+                path.display()
+            )));
+        }
+        for (input, source) in inputs {
+            if source.exists() && &place(source) == at {
+                return Err(Error::BadInput(format!(
+                    "{name} {} is the file {input} reads: writing it would destroy what is \
+                     read; write elsewhere",
+                    path.display()
+                )));
+            }
+        }
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

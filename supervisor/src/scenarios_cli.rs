@@ -11,7 +11,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use nodes::Error;
 use std::fmt::Write as _;
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Arguments of `harvemu scenario`.
 #[derive(clap::Args)]
@@ -55,6 +55,19 @@ pub struct ScenarioArgs {
 /// The JUnit XML and the HTML report are written whole at the end, also when an expectation
 /// failed or a stop signal ended the batch (they then say so).
 pub fn run(args: &ScenarioArgs) -> crate::Result<Ended> {
+    let mut inputs: Vec<(&str, &Path)> = args.files.iter().map(|f| ("SCENARIO", f.as_path())).collect();
+    if let Some(c) = &args.config {
+        inputs.push(("--config", c));
+    }
+    crate::output::distinct(
+        &[
+            ("--junit", args.junit.as_deref()),
+            ("--record", args.record.as_deref()),
+            ("--report", args.report.as_deref()),
+            ("--coverage", args.coverage.as_deref()),
+        ],
+        &inputs,
+    )?;
     // Load everything first: a bad file stops the whole batch before anything runs.
     let mut loaded = Vec::new();
     let mut problems = Vec::new();

@@ -256,3 +256,119 @@ fn a_failed_trace_in_a_batch_still_leaves_the_report_and_junit() {
         &html[html.len().saturating_sub(200)..]
     );
 }
+
+#[test]
+fn two_outputs_on_one_file_or_an_output_on_an_input_are_refused_before_anything_runs() {
+    let dir = scratch("cli-outputs", "same");
+    let p = |name: &str| dir.join(name).to_str().unwrap().to_string();
+    // A trace to replay, whose bytes must survive.
+    let trace = p("t.log");
+    std::fs::write(&trace, "(1.000000) harv0 123#01\n").unwrap();
+    let config = p("h.ron");
+    assert!(harvemu(&["config", "export", &p("cfg")]).status.success());
+    std::fs::copy(dir.join("cfg/harvester.ron"), &config).ok();
+    let same = p("x");
+    let dotted = format!("{}/./x", dir.display());
+    // A folder a merge reads (empty: the refusal comes before it is read).
+    let shard = p("m");
+    std::fs::create_dir(&shard).unwrap();
+    let shard_too = format!("{}/m/", dir.display());
+    let soak = p("s.ron");
+    let original = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs/soak/soak_24h.ron");
+    std::fs::copy(&original, &soak).unwrap();
+    let cases: Vec<(Vec<&str>, &str, &str)> = vec![
+        (
+            vec![
+                "run",
+                "--fast",
+                "--for",
+                "1s",
+                "--record",
+                &same,
+                "--dump-state",
+                &dotted,
+            ],
+            "--record",
+            "--dump-state",
+        ),
+        (
+            vec!["scenario", "bit_error_once", "--junit", &same, "--report", &same],
+            "--junit",
+            "--report",
+        ),
+        (
+            vec!["scenario", "bit_error_once", "--record", &same, "--report", &same],
+            "--record",
+            "--report",
+        ),
+        (
+            vec!["replay", &trace, "--fast", "--record", &trace],
+            "--record",
+            "TRACE",
+        ),
+        (
+            vec!["soak", &soak, "--hours", "0.001", "--record", &soak],
+            "--record",
+            "SCENARIO",
+        ),
+        (
+            vec![
+                "campaign",
+                "harvest",
+                "--runs",
+                "1",
+                "--out",
+                &same,
+                "--coverage",
+                &same,
+            ],
+            "--out",
+            "--coverage",
+        ),
+        (
+            vec!["campaign", "merge", &shard, "--out", &shard_too],
+            "--out",
+            "DIR",
+        ),
+        (vec!["coverage", "merge", &shard, "--out", &shard], "--out", "DIR"),
+    ];
+    for (args, first, second) in cases {
+        let out = harvemu(&args);
+        let err = stderr(&out);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(first) && err.contains(second), "{args:?}: {err}");
+        // Nothing ran: no output was made, and what is read is as it was.
+        assert!(!dir.join("x").exists(), "{args:?} wrote x");
+        assert_eq!(
+            std::fs::read_to_string(&trace).unwrap(),
+            "(1.000000) harv0 123#01\n"
+        );
+        assert_eq!(
+            std::fs::read_dir(&shard).unwrap().count(),
+            0,
+            "{args:?} wrote into m"
+        );
+        assert_eq!(std::fs::read(&soak).unwrap(), std::fs::read(&original).unwrap());
+    }
+    // A config is an input too; streams may be shared.
+    std::fs::write(&same, "").unwrap();
+    let out = harvemu(&["dbc", "--config", &config, "--output", &config]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("--output") && stderr(&out).contains("--config"),
+        "{}",
+        stderr(&out)
+    );
+    let out = harvemu(&[
+        "run",
+        "--fast",
+        "--for",
+        "1s",
+        "--record",
+        "/dev/null",
+        "--dump-state",
+        "/dev/null",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -73,11 +73,21 @@ enum MergeCommand {
 /// Runs `harvemu campaign` (or its `merge`): exit code 1 when a run failed.
 pub fn run(args: &Args) -> Result<Ended> {
     if let Some(MergeCommand::Merge { dirs, out }) = &args.merge {
+        let inputs: Vec<(&str, &Path)> = dirs.iter().map(|d| ("DIR", d.as_path())).collect();
+        output::distinct(&[("--out", Some(out))], &inputs)?;
         return super::merge::merge(dirs, out);
     }
     let (Some(scenario), Some(runs), Some(out)) = (&args.scenario, args.runs, &args.out) else {
         return Err(Error::BadInput("give SCENARIO, --runs and --out".into()));
     };
+    let mut inputs = vec![("SCENARIO", scenario.as_path())];
+    if let Some(c) = &args.config {
+        inputs.push(("--config", c));
+    }
+    output::distinct(
+        &[("--out", Some(out)), ("--coverage", args.coverage.as_deref())],
+        &inputs,
+    )?;
     let shard = match args.shard {
         Some(s) => s,
         None => Shard::from_env(

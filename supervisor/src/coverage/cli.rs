@@ -2,7 +2,7 @@
 
 use super::read_dir;
 use crate::{Error, Result};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Arguments of `harvemu coverage`.
 #[derive(clap::Subcommand)]
@@ -22,6 +22,8 @@ pub enum Args {
 /// Runs `harvemu coverage`.
 pub fn run(args: &Args) -> Result<()> {
     let Args::Merge { dirs, out } = args;
+    let inputs: Vec<(&str, &Path)> = dirs.iter().map(|d| ("DIR", d.as_path())).collect();
+    crate::output::distinct(&[("--out", Some(out))], &inputs)?;
     let mut merged = super::Coverage::default();
     for dir in dirs {
         let coverage = read_dir(dir)?;

@@ -213,6 +213,10 @@ fn readable_twice(path: &Path) -> crate::Result<()> {
 /// Runs `harvemu replay`. A stop signal ends it at any moment; the trace is finished in every
 /// case.
 pub fn run(args: &Args) -> crate::Result<Ended> {
+    crate::output::distinct(
+        &[("--record", args.record.as_deref())],
+        &[("TRACE", &args.file), ("--config", &args.config)],
+    )?;
     let mut h = Harvester::load(&args.config)?;
     h.without(&args.without)?;
     let passes = match args.passes {

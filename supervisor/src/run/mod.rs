@@ -114,6 +114,14 @@ pub fn summary(s: &Snapshot, running: &harvester::Running) -> String {
 /// Runs `harvemu run`. It stops at `--for`, at a stop signal (at any moment, start-up included)
 /// or, with the terminal display, at a quit key; the trace is finished in every case.
 pub fn run(args: &Args) -> crate::Result<Ended> {
+    crate::output::distinct(
+        &[
+            ("--record", args.record.as_deref()),
+            ("--dump-state", args.dump_state.as_deref()),
+            ("--coverage", args.coverage.as_deref()),
+        ],
+        &[("CONFIG", &args.config)],
+    )?;
     if args.tui {
         crate::tui::require_terminal()?;
     }

@@ -45,6 +45,10 @@ pub struct Args {
 /// Runs `harvemu soak`: expectations failed unless every expectation passed and memory stayed
 /// flat.
 pub fn run(args: &Args) -> crate::Result<Ended> {
+    crate::output::distinct(
+        &[("--record", args.record.as_deref())],
+        &[("SCENARIO", &args.scenario)],
+    )?;
     let duration = match args.hours {
         Some(h) if h.is_finite() && h > 0.0 => Some(h * 3600.0),
         Some(h) => {
