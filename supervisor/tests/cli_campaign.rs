@@ -606,3 +606,99 @@ fn a_planted_overlap_shrinks_to_the_two_faults_that_make_it() {
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// The files in `out/failing`, and the ones its summary.json lists: the same when nothing stale
+/// survived.
+fn failing_files(out: &Path) -> (Vec<String>, Vec<String>) {
+    let mut on_disk: Vec<String> = std::fs::read_dir(out.join("failing"))
+        .map(|d| {
+            d.map(|e| format!("failing/{}", e.unwrap().file_name().to_string_lossy()))
+                .collect()
+        })
+        .unwrap_or_default();
+    on_disk.sort();
+    let summary = json(&out.join("summary.json"));
+    let mut listed: Vec<String> = summary["failed"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f["shrunk"].as_str().unwrap().to_string())
+        .collect();
+    listed.sort();
+    (on_disk, listed)
+}
+
+#[test]
+fn a_reused_out_holds_one_campaign_and_nothing_stale() {
+    let dir = scratch("campaign", "reuse");
+    // 20 s runs: seeds 5 and 6 each fail two of four.
+    let file = campaign_file(&dir, 20.0);
+    let out = dir.join("out");
+    let campaign = |seed: &str, extra: &[&str]| {
+        let args = [
+            &[
+                "campaign",
+                s(&file),
+                "--runs",
+                "4",
+                "--seed",
+                seed,
+                "--shrink-trials",
+                "0",
+                "--jobs",
+                "2",
+            ],
+            &["--out", s(&out)][..],
+            extra,
+        ]
+        .concat();
+        harvemu(&args)
+    };
+    let first = campaign("5", &[]);
+    assert_eq!(first.status.code(), Some(1), "{}", text(&first));
+    // What an earlier, longer run of the same campaign left: a CI retry clears it.
+    std::fs::write(out.join("failing/run-999.ron"), "stale").unwrap();
+    let again = campaign("5", &[]);
+    assert_eq!(again.status.code(), first.status.code(), "{}", text(&again));
+    let (on_disk, listed) = failing_files(&out);
+    assert_eq!(on_disk, listed, "only the failing runs its summary lists");
+    assert!(!listed.is_empty());
+    assert!(!out.join("failing/run-999.ron").exists());
+
+    // Another seed is another campaign: refused, the results there untouched.
+    let before = std::fs::read(out.join("summary.json")).unwrap();
+    let other = campaign("6", &[]);
+    assert_eq!(other.status.code(), Some(2), "{}", text(&other));
+    let err = String::from_utf8_lossy(&other.stderr);
+    assert!(err.contains("seed 5, not 6") && err.contains("--force"), "{err}");
+    assert_eq!(std::fs::read(out.join("summary.json")).unwrap(), before);
+    // ...unless forced: then only its own results are there.
+    std::fs::write(out.join("failing/run-999.ron"), "stale").unwrap();
+    let forced = campaign("6", &["--force"]);
+    assert_eq!(forced.status.code(), Some(1), "{}", text(&forced));
+    assert_eq!(json(&out.join("summary.json"))["seed"], 6);
+    let (on_disk, listed) = failing_files(&out);
+    assert_eq!(on_disk, listed);
+    assert!(!listed.is_empty());
+
+    // Failing runs without a summary (a campaign killed outright): whose they are is unknown.
+    let orphan = dir.join("orphan");
+    std::fs::create_dir_all(orphan.join("failing")).unwrap();
+    std::fs::write(orphan.join("failing/run-1.ron"), "stale").unwrap();
+    let o = harvemu(&["campaign", s(&file), "--runs", "4", "--out", s(&orphan)]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("without a summary.json"),
+        "{}",
+        text(&o)
+    );
+
+    // A merge into a folder holding another campaign is refused the same way.
+    let merged = harvemu(&["campaign", "merge", s(&out), "--out", s(&orphan)]);
+    assert_eq!(merged.status.code(), Some(2), "{}", text(&merged));
+    let merged = harvemu(&["campaign", "merge", s(&out), "--out", s(&orphan), "--force"]);
+    assert_eq!(merged.status.code(), Some(1), "{}", text(&merged));
+    let (on_disk, listed) = failing_files(&orphan);
+    assert_eq!(on_disk, listed);
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -55,6 +55,11 @@ pub struct Args {
     /// shard's.
     #[arg(long, value_name = "DIR")]
     coverage: Option<PathBuf>,
+    /// Write into --out even when it holds another campaign's results (another scenario, seed,
+    /// run count or shard, as its summary.json says): they are removed first. The same
+    /// campaign run again needs no --force; its old results are removed all the same.
+    #[arg(long)]
+    force: bool,
 }
 
 #[derive(clap::Subcommand)]
@@ -67,15 +72,19 @@ enum MergeCommand {
         /// The merged campaign's folder.
         #[arg(long, value_name = "DIR")]
         out: PathBuf,
+        /// Write into --out even when it holds another campaign's results (they are removed
+        /// first).
+        #[arg(long)]
+        force: bool,
     },
 }
 
 /// Runs `harvemu campaign` (or its `merge`): exit code 1 when a run failed.
 pub fn run(args: &Args) -> Result<Ended> {
-    if let Some(MergeCommand::Merge { dirs, out }) = &args.merge {
+    if let Some(MergeCommand::Merge { dirs, out, force }) = &args.merge {
         let inputs: Vec<(&str, &Path)> = dirs.iter().map(|d| ("DIR", d.as_path())).collect();
         output::distinct(&[("--out", Some(out))], &inputs)?;
-        return super::merge::merge(dirs, out);
+        return super::merge::merge(dirs, out, *force);
     }
     let (Some(scenario), Some(runs), Some(out)) = (&args.scenario, args.runs, &args.out) else {
         return Err(Error::BadInput("give SCENARIO, --runs and --out".into()));
@@ -101,9 +110,25 @@ pub fn run(args: &Args) -> Result<Ended> {
         args.seed,
         args.config.as_deref(),
     )?;
+    let this = Summary {
+        campaign: campaign.name().to_string(),
+        scenario_id: campaign.id.clone(),
+        runs,
+        seed: campaign.seed,
+        shard: shard.to_string(),
+        done: 0,
+        passed: 0,
+        failed: Vec::new(),
+        interrupted: false,
+    };
+    if args.coverage.is_some() {
+        crate::coverage::check(&campaign.base.harvester)?;
+    }
+    // Checked everything else first: what claiming removes is only removed for a campaign
+    // that then runs.
+    super::claim::claim(out, &this, args.force)?;
     campaign.coverage = args.coverage.is_some();
     if let Some(dir) = &args.coverage {
-        crate::coverage::check(&campaign.base.harvester)?;
         crate::coverage::prepare(dir)?;
     }
     let mut coverage = crate::coverage::Coverage::default();
@@ -171,12 +196,15 @@ pub fn run(args: &Args) -> Result<Ended> {
         failed,
         interrupted: done < count,
     };
+    // The threads play() started: no more than the shard has runs.
+    let used = jobs.min(count as usize).max(1);
     let mut text = summary_lines(&s, out);
     let _ = writeln!(
         text,
-        "{:.1} s wall, {:.0} runs per hour on {jobs} job(s)",
+        "{:.1} s wall, {:.0} runs per hour on {used} job{}",
         wall,
-        done as f64 * 3600.0 / wall.max(1e-9)
+        done as f64 * 3600.0 / wall.max(1e-9),
+        if used == 1 { "" } else { "s" }
     );
     finish(&s, out, &text)
 }

@@ -11,7 +11,7 @@ use crate::{Error, Result};
 use std::path::{Path, PathBuf};
 
 /// `harvemu campaign merge`.
-pub(super) fn merge(dirs: &[PathBuf], out: &Path) -> Result<Ended> {
+pub(super) fn merge(dirs: &[PathBuf], out: &Path, force: bool) -> Result<Ended> {
     let mut parts = Vec::new();
     for d in dirs {
         let path = d.join("summary.json");
@@ -21,6 +21,7 @@ pub(super) fn merge(dirs: &[PathBuf], out: &Path) -> Result<Ended> {
         parts.push((d.display().to_string(), s));
     }
     let merged = super::summary::merge(&parts).map_err(|e| Error::BadInput(format!("cannot merge: {e}")))?;
+    super::claim::claim(out, &merged, force)?;
     let failing = out.join("failing");
     std::fs::create_dir_all(&failing).map_err(|e| output::failed("create", &failing, e))?;
     for (dir, s) in &parts {
@@ -54,7 +55,7 @@ pub(super) fn merge(dirs: &[PathBuf], out: &Path) -> Result<Ended> {
 pub const MAX_SUMMARY: u64 = 64 << 20;
 
 /// A shard's summary.json as text: at most [`MAX_SUMMARY`] bytes of UTF-8.
-fn read_summary(path: &Path) -> Result<String> {
+pub(super) fn read_summary(path: &Path) -> Result<String> {
     use std::io::Read;
     let bad = |why: String| Error::BadInput(format!("{}: {why}", path.display()));
     let file = std::fs::File::open(path).map_err(|e| bad(format!("cannot read it: {e}")))?;

@@ -12,6 +12,7 @@
 //! machine or the wall clock. A stop signal ends the campaign after the runs under way; the
 //! summary then covers the shard's runs before the first one left undone and says so.
 
+mod claim;
 pub mod cli;
 mod merge;
 mod outputs;
