@@ -363,3 +363,45 @@ fn a_frozen_real_time_replay_reports_its_overrun() {
         .unwrap_or_else(|| panic!("cannot read: {line}"));
     assert!(longest >= 300, "{line}");
 }
+
+#[test]
+fn a_long_pause_in_the_trace_is_warned_about_once_or_refused_with_max_gap() {
+    // Two hours between the frames on lines 8 and 9 (line numbers of the file, header and all),
+    // and another after line 9.
+    let asc = path("gap.asc");
+    std::fs::write(
+        &asc,
+        "date Mon Jan 01 12:00:00.000 am 2024\n\
+         base hex  timestamps absolute\n\
+         internal events logged\n\
+         // version 9.0.0\n\
+         Begin Triggerblock Mon Jan 01 12:00:00.000 am 2024\n\
+         \x20  0.000000 Start of measurement\n\
+         \x20  0.001000 1  123             Rx   d 1 01\n\
+         \x20  0.002000 1  123             Rx   d 1 02\n\
+         \x20  7200.002000 1  123             Rx   d 1 03\n\
+         \x20  14400.002000 1  123             Rx   d 1 04\n\
+         End TriggerBlock\n",
+    )
+    .unwrap();
+    let out = harvemu(&["replay", &asc, "--fast", "--for", "1s"]);
+    let err = ok(out);
+    let warnings: Vec<&str> = err.lines().filter(|l| l.contains("warning")).collect();
+    assert_eq!(warnings.len(), 1, "{err}");
+    assert!(
+        warnings[0].contains(&format!("{asc}:9: 2.0 h after the record before")),
+        "{err}"
+    );
+    assert!(warnings[0].contains("--max-gap"), "{err}");
+    // Under the limit: no word.
+    let out = harvemu(&["replay", &asc, "--fast", "--for", "1s", "--max-gap", "3h"]);
+    assert!(!ok(out).contains("warning"));
+    // Over it: refused at that line, before anything runs.
+    let out = harvemu(&["replay", &asc, "--fast", "--for", "1s", "--max-gap", "10m"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert_eq!(
+        err.trim(),
+        format!("harvemu: error: {asc}:9: 2.0 h after the record before, longer than --max-gap 10.0 min")
+    );
+}

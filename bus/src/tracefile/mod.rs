@@ -156,6 +156,14 @@ impl Reader {
 /// trace. A line that cannot be read (longer than [`MAX_LINE`], bad text, not UTF-8, an I/O
 /// error) ends it with an error naming the line.
 pub fn read(input: impl BufRead, errors: ErrorFrames) -> impl Iterator<Item = Result<Record, Error>> {
+    read_numbered(input, errors).map(|r| r.map(|(_, record)| record))
+}
+
+/// [`read`], each record with the number of its line (from 1).
+pub fn read_numbered(
+    input: impl BufRead,
+    errors: ErrorFrames,
+) -> impl Iterator<Item = Result<(u64, Record), Error>> {
     let mut reader = Reader::new(errors);
     let mut lines = Lines::new(input, MAX_LINE);
     let mut failed = false;
@@ -188,7 +196,7 @@ pub fn read(input: impl BufRead, errors: ErrorFrames) -> impl Iterator<Item = Re
                 }),
             };
             match result {
-                Ok(Some(record)) => return Some(Ok(record)),
+                Ok(Some(record)) => return Some(Ok((line as u64, record))),
                 Ok(None) => {}
                 Err(e) => {
                     failed = true;

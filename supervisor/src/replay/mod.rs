@@ -80,6 +80,52 @@ pub struct Args {
     /// stands in only for the nodes left out (--without, --skip-emulated).
     #[arg(long, requires = "iface")]
     with_emulated: bool,
+    /// Refuse a trace with a pause between two records longer than this (e.g. 10s, 1h). Without
+    /// it, a pause over an hour is only warned about: the replay plays it as bus time, which in
+    /// real time means waiting it out.
+    #[arg(long, value_name = "DURATION", value_parser = parse_duration)]
+    max_gap: Option<Duration>,
+}
+
+/// The longest pause between two records replayed without a word: one hour.
+pub const GAP_WARNING: Duration = Duration::from_secs(3600);
+
+/// `d` in the largest unit that keeps it readable: 3.2 years, 5.0 days, 2.5 h, 12 min, 30 s.
+fn readable(d: Duration) -> String {
+    let s = d.as_secs_f64();
+    const DAY: f64 = 86_400.0;
+    match s {
+        s if s >= 365.25 * DAY => format!("{:.1} years", s / (365.25 * DAY)),
+        s if s >= DAY => format!("{:.1} days", s / DAY),
+        s if s >= 3600.0 => format!("{:.1} h", s / 3600.0),
+        s if s >= 60.0 => format!("{:.1} min", s / 60.0),
+        s => format!("{s:.3} s"),
+    }
+}
+
+/// Says what a long pause in the trace means: with `--max-gap`, bad input at its line; without
+/// it, a warning (once) past [`GAP_WARNING`].
+fn check_gap(path: &Path, survey: &Survey, max_gap: Option<Duration>) -> crate::Result<()> {
+    let Some(gap) = survey.long_gap() else {
+        return Ok(());
+    };
+    let length = readable(Duration::from_nanos(gap.nanos));
+    match max_gap {
+        Some(limit) => Err(Error::BadInput(format!(
+            "{}:{}: {length} after the record before, longer than --max-gap {}",
+            path.display(),
+            gap.line,
+            readable(limit)
+        ))),
+        None => {
+            crate::say!(
+                "harvemu: warning: {}:{}: {length} after the record before; the replay plays                  it as bus time (in real time it waits it out). --max-gap refuses such a trace",
+                path.display(),
+                gap.line
+            );
+            Ok(())
+        }
+    }
 }
 
 /// What a replay did.
@@ -94,6 +140,11 @@ pub struct Played {
 /// The records of a trace file, read as they are taken; a bad line is bad input naming
 /// `file:line`, a file that cannot be opened is bad input too.
 pub fn records(path: &Path) -> Box<dyn Iterator<Item = crate::Result<Record>>> {
+    Box::new(numbered(path).map(|r| r.map(|(_, record)| record)))
+}
+
+/// [`records`], each with the number of its line.
+pub fn numbered(path: &Path) -> Box<dyn Iterator<Item = crate::Result<(u64, Record)>>> {
     let file = match std::fs::File::open(path) {
         Ok(f) => f,
         Err(source) => {
@@ -106,7 +157,7 @@ pub fn records(path: &Path) -> Box<dyn Iterator<Item = crate::Result<Record>>> {
     };
     let path = path.to_path_buf();
     Box::new(
-        tracefile::read(BufReader::new(file), ErrorFrames::Keep).map(move |r| {
+        tracefile::read_numbered(BufReader::new(file), ErrorFrames::Keep).map(move |r| {
             r.map_err(|e| match e {
                 bus::Error::TraceLine { line, reason } => {
                     Error::BadInput(format!("{}:{line}: {reason}", path.display()))
@@ -249,7 +300,10 @@ pub fn run(args: &Args) -> crate::Result<Ended> {
         BTreeSet::new()
     };
     readable_twice(&args.file)?;
-    let survey = Survey::new(records(&args.file), &skip)?;
+    let limit = args.max_gap.unwrap_or(GAP_WARNING);
+    let limit_ns = u64::try_from(limit.as_nanos()).unwrap_or(u64::MAX);
+    let survey = Survey::numbered(numbered(&args.file), &skip, limit_ns)?;
+    check_gap(&args.file, &survey, args.max_gap)?;
     if survey.counts().read == 0 {
         return Err(Error::BadInput(format!(
             "{}: no frames in this trace",

@@ -74,6 +74,15 @@ fn skipped(frame: &Frame, skip: &BTreeSet<Address>) -> bool {
     source(frame).is_some_and(|a| skip.contains(&a))
 }
 
+/// A pause between two records of a trace longer than the limit a survey was given.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Gap {
+    /// The line (or record number) of the record after it.
+    pub line: u64,
+    /// Its length, ns.
+    pub nanos: u64,
+}
+
 /// What one reading of a whole trace found: enough to plan every pass without its records.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Survey {
@@ -84,6 +93,8 @@ pub struct Survey {
     last: u64,
     /// The offset of the last frame sent in a pass.
     last_frame: Option<u64>,
+    /// The first pause longer than the limit given.
+    long_gap: Option<Gap>,
 }
 
 impl Survey {
@@ -92,12 +103,31 @@ impl Survey {
         records: impl IntoIterator<Item = Result<Record, E>>,
         skip: &BTreeSet<Address>,
     ) -> Result<Survey, E> {
+        let numbered = records.into_iter().zip(1..).map(|(r, n)| r.map(|r| (n, r)));
+        Survey::numbered(numbered, skip, u64::MAX)
+    }
+
+    /// [`Survey::new`] of records with their line numbers, noting the first pause between two
+    /// records longer than `gap_limit` ns ([`Survey::long_gap`]).
+    pub fn numbered<E>(
+        records: impl IntoIterator<Item = Result<(u64, Record), E>>,
+        skip: &BTreeSet<Address>,
+        gap_limit: u64,
+    ) -> Result<Survey, E> {
         let mut s = Survey::default();
+        let mut previous = None;
         for r in records {
-            let r = r?;
+            let (line, r) = r?;
             if s.counts.read == 0 {
                 s.first = r.at;
             }
+            if let Some(before) = previous {
+                let nanos = r.at.since(before).as_nanos();
+                if nanos > gap_limit && s.long_gap.is_none() {
+                    s.long_gap = Some(Gap { line, nanos });
+                }
+            }
+            previous = Some(r.at);
             s.counts.read += 1;
             s.last = s.last.max(r.at.since(s.first).as_nanos());
             match r.entry {
@@ -110,6 +140,11 @@ impl Survey {
             }
         }
         Ok(s)
+    }
+
+    /// The first pause between two records longer than the limit given, if any.
+    pub fn long_gap(&self) -> Option<Gap> {
+        self.long_gap
     }
 
     /// What was read, skipped and is sent per pass.
