@@ -343,3 +343,39 @@ fn disturb_hits_and_misses_are_printed() {
         "{stdout}"
     );
 }
+
+#[test]
+fn a_node_never_heard_is_missing_on_the_summary_line_and_in_the_report() {
+    let dir = scratch("missing");
+    // run --without D3: the machine still has D3, so the monitor misses it; alarms are no
+    // failure, so the exit code stays 0.
+    let out = harvemu(&["run", "--fast", "--for", "5s", "--without", "D3"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let last = err.lines().last().unwrap_or_default();
+    assert!(last.ends_with("1 alarm (missing D3)"), "{err}");
+    // Without a node left out: no alarm at all.
+    let out = harvemu(&["run", "--fast", "--for", "5s"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.lines().last().unwrap_or_default().ends_with("  0 alarms"),
+        "{err}"
+    );
+    // The shipped scenario, with its report: D3 raised at 0.5 s + 141 ms + 3 s, on the 10 ms
+    // loop after it, and never cleared.
+    let report = dir.join("r.html");
+    let out = harvemu(&[
+        "scenario",
+        "dead_from_power_on",
+        "--report",
+        report.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let page = std::fs::read_to_string(&report).unwrap();
+    assert!(page.contains("<h3>Monitor alarms</h3>"), "{page}");
+    assert!(
+        page.contains("<tr><td class=\"num\">3.650000</td><td>D3</td><td>missing</td><td class=\"num\">still active</td></tr>"),
+        "{page}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

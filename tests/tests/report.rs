@@ -421,6 +421,7 @@ fn characters_xml_cannot_carry_become_replacement_characters_in_junit_and_the_re
         hardware: Vec::new(),
         coverage: None,
         disturbed: Vec::new(),
+        alarms: Vec::new(),
     };
     let runs = [(format!("dir/{bad}.ron"), &scenario, &outcome)];
     let xml = junit::xml(&runs);

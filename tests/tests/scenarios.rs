@@ -40,6 +40,8 @@ const SHIPPED: &[(&str, &[&str])] = &[
     ("lab_disconnect.ron", &["Disconnect", "Reconnect"]),
     ("lab_ack_failure.ron", &["AckFailure", "AckRestored"]),
     ("c0_bus_off.ron", &["BitErrors"]),
+    ("dead_from_power_on.ron", &["Disconnect"]),
+    ("flood_from_power_on.ron", &["Babble"]),
 ];
 
 /// The shipped scenarios C0 takes part in, which its C firmware must pass as its script does.

@@ -15,6 +15,13 @@ pub(super) struct Switches {
     pub mistuned: Option<[RuleId; 2]>,
     /// The counters it last heard of.
     pub counters: (u16, u16),
+    /// Its logic took it off the bus (a chip in reset): it stays off until the logic puts it
+    /// back.
+    pub offline: bool,
+    /// Its cable is out ([`Scheduler::set_connected`]): it stays off the bus whatever its logic
+    /// does, until plugged in again. Kept apart from `offline`, so that firmware starting its
+    /// controller on an unplugged node does not plug it in.
+    pub unplugged: bool,
 }
 
 impl Scheduler {
@@ -34,18 +41,22 @@ impl Scheduler {
                 listen_only,
                 self_test,
             } => {
-                self.slots[i].switches.listen_only = listen_only;
-                let tuned = self.slots[i].switches.mistuned.is_none();
+                let switches = &mut self.slots[i].switches;
+                switches.listen_only = listen_only;
+                switches.offline = false;
+                let (tuned, plugged) = (switches.mistuned.is_none(), !switches.unplugged);
                 self.bus
-                    .set_connected(node, true, now)
+                    .set_connected(node, plugged, now)
                     .and_then(|()| self.bus.set_listen_only(node, listen_only, now))
                     .and_then(|()| self.bus.set_presume_ack(node, self_test))
                     .and_then(|()| self.bus.set_ack(node, tuned && !listen_only))
             }
-            ControllerCommand::Offline => self
-                .bus
-                .abort(node, now)
-                .and_then(|()| self.bus.set_connected(node, false, now)),
+            ControllerCommand::Offline => {
+                self.slots[i].switches.offline = true;
+                self.bus
+                    .abort(node, now)
+                    .and_then(|()| self.bus.set_connected(node, false, now))
+            }
             ControllerCommand::Abort => self.bus.abort(node, now),
             ControllerCommand::SetCounters { tec, rec } => {
                 let r = self.bus.set_counters(node, tec, rec, now);

@@ -664,9 +664,16 @@ impl Scheduler {
         self.bus.set_ack(node, on)
     }
 
-    /// Disconnects or reconnects a node, at the present.
+    /// Disconnects or reconnects a node (its cable), at the present. Reconnected, a controller
+    /// its logic holds off the bus (a chip in reset) stays off until the logic puts it back.
     pub fn set_connected(&mut self, node: NodeId, on: bool) -> Result<(), Error> {
         let now = self.present();
+        let Some(slot) = self.slots.get_mut(node.index()) else {
+            return Err(Error::NoNode(node.0));
+        };
+        slot.switches.unplugged = !on;
+        // Plugged in, a controller its logic holds off the bus stays off it.
+        let on = on && !slot.switches.offline;
         self.bus.set_connected(node, on, now)
     }
 

@@ -24,6 +24,9 @@ struct Probe {
     fail_at: Option<BusTime>,
     failed: Option<String>,
     unheeded: Option<crate::node::Unheeded>,
+    /// Commands for its controller 0, each given at the first wake at or after its time.
+    commands: Vec<(BusTime, crate::node::ControllerCommand)>,
+    due: Vec<crate::node::ControllerCommand>,
 }
 
 impl Probe {
@@ -39,6 +42,8 @@ impl Probe {
             fail_at: None,
             failed: None,
             unheeded: None,
+            commands: Vec::new(),
+            due: Vec::new(),
         }
     }
     fn ticking(mut self, first_ms: u64, period_ms: u64) -> Probe {
@@ -65,6 +70,9 @@ impl NodeLogic for Probe {
             self.next = None;
             return;
         }
+        while self.commands.first().is_some_and(|(t, _)| *t <= now) {
+            self.due.push(self.commands.remove(0).1);
+        }
         // The first wake of all (at attach) is not a tick.
         if let Some(next) = self.next.filter(|&t| t <= now) {
             self.note(now, "tick".into());
@@ -79,6 +87,9 @@ impl NodeLogic for Probe {
             other => format!("{other:?}"),
         };
         self.note(now, what);
+    }
+    fn poll_command(&mut self) -> Option<(usize, crate::node::ControllerCommand)> {
+        (!self.due.is_empty()).then(|| (0, self.due.remove(0)))
     }
     fn poll_transmit(&mut self) -> Option<Frame> {
         let frame = self.send.filter(|_| self.owed > 0)?;
@@ -506,5 +517,33 @@ fn a_node_without_a_logic_keeps_nothing_of_what_it_sent() {
         d.sched.slots[gw.index()].events.is_empty(),
         "{} events kept",
         d.sched.slots[gw.index()].events.len()
+    );
+}
+
+#[test]
+fn a_controller_its_logic_starts_stays_off_the_bus_while_its_cable_is_out() {
+    use crate::node::ControllerCommand::{Offline, Online};
+    let online = Online {
+        listen_only: false,
+        self_test: false,
+    };
+    let heard = Heard::default();
+    let mut d = Driver::new();
+    // Firmware-like: the chip in reset at 1 ms, started again at 3 ms; a frame every 2 ms.
+    let mut probe = Probe::new(&Heard::default()).ticking(2, 2).sending("123#11");
+    probe.commands = vec![(ms(1), Offline), (ms(3), online)];
+    let fw = d.attach(&["fw"], 0, Some(probe))[0];
+    d.attach(&["rx"], 0, Some(Probe::new(&heard)));
+    // The cable out before the chip starts: starting it does not plug it in.
+    d.sched.set_connected(fw, false).unwrap();
+    d.run_until(ms(10));
+    assert_eq!(heard.borrow().iter().filter(|h| h.1 == "frame 123").count(), 0);
+    // Plugged in again: its frames go out.
+    d.sched.set_connected(fw, true).unwrap();
+    d.run_until(ms(20));
+    assert!(
+        heard.borrow().iter().any(|h| h.1 == "frame 123"),
+        "{:?}",
+        heard.borrow()
     );
 }

@@ -598,6 +598,7 @@ mod tests {
         let spec = FirmwareSpec {
             name: "BENCH".into(),
             address: None,
+            start_up_ms: 0,
             file: "bench.ron".into(),
             image: Arc::new(mcs51::Image {
                 code,

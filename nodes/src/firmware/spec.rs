@@ -16,6 +16,8 @@ struct File {
     name: String,
     #[serde(default, deserialize_with = "present")]
     address: Option<u8>,
+    #[serde(default)]
+    start_up_ms: u64,
     image: String,
     #[serde(default, deserialize_with = "present")]
     sources: Option<String>,
@@ -150,6 +152,10 @@ pub struct FirmwareSpec {
     /// The harvester address its firmware uses, when the node file says: no two nodes of a
     /// harvester may claim one.
     pub address: Option<u8>,
+    /// Power-on to the end of its boot, ms, as the node file says (0 when it does not): from
+    /// then on the reference monitor expects to hear it (its missing-module alarm). It describes
+    /// what the firmware does; the firmware is not told.
+    pub start_up_ms: u64,
     /// The node file, for messages.
     pub file: String,
     /// The image, with the node file's configuration block in place.
@@ -364,6 +370,7 @@ pub fn load(file: &str, path: &Path, text: &str, read: Reader) -> Result<Firmwar
             Ok(FirmwareSpec {
                 name: f.name,
                 address: f.address,
+                start_up_ms: f.start_up_ms,
                 file: file.to_string(),
                 image: Arc::new(image),
                 image_file,

@@ -92,6 +92,9 @@ pub struct Monitor {
     next_tick: BusTime,
     /// Last frame time per node, for the silence check.
     heard: BTreeMap<Address, BusTime>,
+    /// Nodes not heard yet, with the time by which they should have been: past it, a
+    /// "missing" alarm ([`Monitor::expecting`]). Empty once each was heard or missed.
+    expected: Vec<(Address, BusTime)>,
     /// Active alarms by (node, name): index into `display.alarms`.
     /// Raised alarms by node and name (names are the catalogue's or the monitor's own).
     active: BTreeMap<(Address, &'static str), BusTime>,
@@ -134,6 +137,7 @@ impl Monitor {
             display,
             next_tick: power_on,
             heard: BTreeMap::new(),
+            expected: Vec::new(),
             active: BTreeMap::new(),
             last_flow: BTreeMap::new(),
             last_ground: None,
@@ -142,6 +146,21 @@ impl Monitor {
             next_setpoint: BusTime::NEVER,
             next_control: BusTime::NEVER,
         }
+    }
+
+    /// The monitor expects these nodes, each with the time its start-up ends (the time relay's
+    /// start plus its boot): one not heard `silence_ms` after that (or after the monitor's own
+    /// power-up, when that is later) raises a "missing" alarm, which its first frame clears. A
+    /// cab monitor raises a missing-module alarm the same way; the silence alarm covers only
+    /// nodes heard at least once.
+    pub fn expecting(mut self, nodes: impl IntoIterator<Item = (Address, BusTime)>) -> Monitor {
+        let grace = BusDuration::from_millis(self.config.silence_ms);
+        let power_on = self.next_tick;
+        self.expected = nodes
+            .into_iter()
+            .map(|(a, start)| (a, start.max(power_on).saturating_add(grace)))
+            .collect();
+        self
     }
 
     /// The display, shared.
@@ -212,7 +231,9 @@ impl Monitor {
             Ok(Some(d)) if d.message.direction == Direction::ToMonitor => d,
             _ => return,
         };
-        self.heard.insert(d.node, at);
+        if self.heard.insert(d.node, at).is_none() {
+            self.clear(d.node, "missing", at);
+        }
         self.clear(d.node, "silent", at);
         self.display.borrow_mut().frames += 1;
         if d.message.name.starts_with("alarm.") {
@@ -360,8 +381,26 @@ impl Monitor {
         }
     }
 
-    /// Nodes not heard for `silence_ms` raise an alarm.
+    /// Nodes not heard for `silence_ms` raise an alarm; so do expected nodes never heard by
+    /// their time.
     fn watch(&mut self, now: BusTime) {
+        if !self.expected.is_empty() {
+            let mut missing = Vec::new();
+            let heard = &self.heard;
+            self.expected.retain(|&(a, by)| {
+                if heard.contains_key(&a) {
+                    return false;
+                }
+                if now > by {
+                    missing.push(a);
+                    return false;
+                }
+                true
+            });
+            for a in missing {
+                self.raise(a, "missing", now);
+            }
+        }
         let limit = BusDuration::from_millis(self.config.silence_ms);
         let silent: Vec<Address> = self
             .heard

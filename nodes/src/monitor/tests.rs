@@ -136,3 +136,43 @@ fn the_tally_places_every_frame_and_survives_a_restart() {
     // The rest of the screen is blanked as before.
     assert_eq!(display.borrow().lost, 0);
 }
+
+#[test]
+fn an_expected_node_never_heard_is_missing_after_its_start_up_and_the_silence_time() {
+    let t = BusTime::from_millis;
+    // B1 ends its start-up at 0.585 s, B2 at 0.590 s; silence_ms is 3000 by default.
+    let mut m = monitor(16).expecting([(Address(0xB1), t(585)), (Address(0xB2), t(590))]);
+    // B1 is heard in time; B2 never.
+    m.handle_frame(t(3000), &parse_frame("0500F5B1#218C08").unwrap());
+    for ms in (0..=3590).step_by(10) {
+        m.handle_timeout(t(ms));
+    }
+    // At 3.590 s exactly B2 is not late yet: "past" is strictly after.
+    assert_eq!(m.display().borrow().active_alarms().count(), 0);
+    m.handle_timeout(t(3600));
+    {
+        let d = m.display();
+        let d = d.borrow();
+        let a: Vec<(&str, &str, BusTime)> = d
+            .alarms
+            .iter()
+            .map(|a| (a.name.as_str(), a.node.as_str(), a.raised))
+            .collect();
+        assert_eq!(a, [("missing", "B2", t(3600))]);
+    }
+    // Its first frame clears it; from then on the silence alarm watches it.
+    m.handle_frame(t(4000), &parse_frame("0500F5B2#22480D").unwrap());
+    m.handle_timeout(t(4010));
+    assert_eq!(m.display().borrow().alarms[0].cleared, Some(t(4000)));
+    m.handle_timeout(t(7010));
+    let d = m.display();
+    let active: Vec<(String, String)> = d
+        .borrow()
+        .active_alarms()
+        .map(|a| (a.name.clone(), a.node.clone()))
+        .collect();
+    assert_eq!(
+        active,
+        [("silent".into(), "B1".into()), ("silent".into(), "B2".into())]
+    );
+}

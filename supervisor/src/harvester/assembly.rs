@@ -6,7 +6,7 @@ use actix::prelude::*;
 use bus::bits::BitRate;
 use bus::engine::{BusConfig, ControllerConfig, Filter, NodeId};
 use bus::filter::SocketCanFilterSet;
-use bus::time::BusTime;
+use bus::time::{BusDuration, BusTime};
 use bus::trace::Sink;
 use bus_runtime::hub::{AttachControllers, Hub, HubConfig, RunUntil};
 use bus_runtime::node::NodeActor;
@@ -135,7 +135,12 @@ pub(super) fn build(
     match spec {
         Spec::Monitor => {
             let display = display.clone().unwrap_or_default();
-            Box::new(Monitor::with_display(h.config.monitor.clone(), display, power_on))
+            let relay = h.relay();
+            let expected = h
+                .expected
+                .iter()
+                .map(|(_, a, boot_ms)| (*a, relay.saturating_add(BusDuration::from_millis(*boot_ms))));
+            Box::new(Monitor::with_display(h.config.monitor.clone(), display, power_on).expecting(expected))
         }
         Spec::Firmware(spec) => {
             let env: SharedEnv = plant.clone();

@@ -105,6 +105,12 @@ pub struct Harvester {
     /// Count the firmware nodes' code coverage ([`crate::coverage`]; off unless a command asks):
     /// [`super::Running::end_coverage`] gives it.
     pub coverage: bool,
+    /// The field nodes the machine has, by name, with their addresses and start-up times (ms
+    /// from power-on to the end of boot: a script's `boot_delay_ms`, a firmware node file's
+    /// `start_up_ms`): what the
+    /// monitor expects to hear. Nodes left out with [`Harvester::without`] stay in it, since the
+    /// machine still has them (a real device is to take their place).
+    pub expected: Vec<(String, Address, u64)>,
 }
 
 impl Harvester {
@@ -235,6 +241,15 @@ impl Harvester {
             &firmware_places,
         ));
         if problems.is_empty() {
+            let expected = scripts
+                .iter()
+                .map(|s| (s.name.clone(), Address(s.address), s.boot_delay_ms))
+                .chain(
+                    firmware
+                        .iter()
+                        .filter_map(|f| f.address.map(|a| (f.name.clone(), Address(a), f.start_up_ms))),
+                )
+                .collect();
             Ok(Harvester {
                 source: source.clone(),
                 config,
@@ -243,6 +258,7 @@ impl Harvester {
                 network,
                 epoch: None,
                 coverage: false,
+                expected,
             })
         } else {
             Err(Error::Invalid(problems))

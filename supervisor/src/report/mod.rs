@@ -2,8 +2,9 @@
 //!
 //! Contract: [`html`] turns finished runs (file as given, scenario, outcome) into one page with a
 //! section per scenario: name, description, file, seed, the command that reproduces the run,
-//! a pass/fail summary, the verdicts, the supervisor events, and inline SVG plots of bus load,
-//! latency per priority class, error counters per node, yield and travel speed. Every text is
+//! a pass/fail summary, the verdicts, the supervisor events, the monitor's alarms, and inline
+//! SVG plots of bus load, latency per priority class, error counters per node, yield and travel
+//! speed. Every text is
 //! escaped; the page loads nothing from elsewhere (no links, scripts, fonts or images). The page
 //! is also well-formed XML, so that any XML parser can check it. No I/O: the caller writes it.
 
@@ -102,6 +103,7 @@ fn section(out: &mut String, n: usize, file: &str, s: &Scenario, o: &Outcome) {
     out.push_str(&summary(passed, failed));
     verdicts(out, o);
     events(out, o);
+    alarms(out, o);
     plots(out, n, o);
     out.push_str("</section>\n");
 }
@@ -139,6 +141,29 @@ fn events(out: &mut String, o: &Outcome) {
             e.at,
             escape(&e.node),
             escape(&e.what.to_string())
+        );
+    }
+    out.push_str("</tbody>\n</table>\n");
+}
+
+/// The reference monitor's alarms: each raised, and cleared if it was ("missing": an expected
+/// node never heard; "silent": one heard, then not).
+fn alarms(out: &mut String, o: &Outcome) {
+    out.push_str("<h3>Monitor alarms</h3>\n");
+    if o.alarms.is_empty() {
+        out.push_str("<p class=\"alarms\">none</p>\n");
+        return;
+    }
+    out.push_str("<table class=\"alarms\">\n<thead><tr><th>raised [s]</th><th>node</th><th>alarm</th><th>cleared [s]</th></tr></thead>\n<tbody>\n");
+    for a in &o.alarms {
+        let cleared = a.cleared.map_or("still active".to_string(), |t| t.to_string());
+        let _ = writeln!(
+            out,
+            "<tr><td class=\"num\">{}</td><td>{}</td><td>{}</td><td class=\"num\">{}</td></tr>",
+            a.raised,
+            escape(&a.node),
+            escape(&a.name),
+            escape(&cleared)
         );
     }
     out.push_str("</tbody>\n</table>\n");
@@ -249,6 +274,7 @@ mod tests {
             hardware: Vec::new(),
             coverage: None,
             disturbed: Vec::new(),
+            alarms: Vec::new(),
         };
         let s = scenario("short");
         let page = html(&[("a.ron".into(), &s, &outcome)]);

@@ -39,12 +39,14 @@ pub struct Summary {
 }
 
 /// What the reference monitor shows.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct MonitorSummary {
     /// Its total yield [kg].
     pub total_kg: f64,
     /// Its active alarms.
     pub alarms: usize,
+    /// The nodes among them with a "missing" alarm: expected, never heard.
+    pub missing: Vec<String>,
 }
 
 /// One field of the laid-out summary: its text and how important it is (0 most).
@@ -81,9 +83,22 @@ impl Summary {
             basket_pct: get("basket.fill"),
             monitor: running.display.as_ref().map(|d| {
                 let d = d.borrow();
+                // The config's name of each node, where the monitor knows only its address.
+                let name = |node: &str| {
+                    let expected = &running.harvester().expected;
+                    expected
+                        .iter()
+                        .find(|(_, a, _)| a.to_string() == node)
+                        .map_or(node.to_string(), |(n, _, _)| n.clone())
+                };
                 MonitorSummary {
                     total_kg: d.total_kg,
                     alarms: d.active_alarms().count(),
+                    missing: d
+                        .active_alarms()
+                        .filter(|a| a.name == "missing")
+                        .map(|a| name(&a.node))
+                        .collect(),
                 }
             }),
         }
@@ -106,9 +121,15 @@ impl Summary {
             fields.push(field(1, format!("harvested {:.1} kg", self.harvested_kg)));
             fields.push(field(9, format!("basket {:.1}%", self.basket_pct)));
         }
-        if let Some(m) = self.monitor {
+        if let Some(m) = &self.monitor {
             fields.push(field(8, format!("monitor {:.1} kg", m.total_kg)));
-            fields.push(field(3, format!("{} alarm(s)", m.alarms)));
+            let missing = if m.missing.is_empty() {
+                String::new()
+            } else {
+                format!(" (missing {})", m.missing.join(" "))
+            };
+            let s = if m.alarms == 1 { "" } else { "s" };
+            fields.push(field(3, format!("{} alarm{s}{missing}", m.alarms)));
         }
         fields
     }
@@ -183,6 +204,7 @@ mod tests {
             monitor: Some(MonitorSummary {
                 total_kg: 1230.0,
                 alarms: 2,
+                missing: vec!["D3".into()],
             }),
         }
     }
@@ -192,7 +214,7 @@ mod tests {
         assert_eq!(
             example().to_string(),
             "t=3723.4 s  frames 12345678  load 45.7%  (1 s 50.0%)  errors 3  not active 1  \
-             speed 5.3 km/h  harvested 1234.6 kg  basket 42.0%  monitor 1230.0 kg  2 alarm(s)"
+             speed 5.3 km/h  harvested 1234.6 kg  basket 42.0%  monitor 1230.0 kg  2 alarms (missing D3)"
         );
     }
 

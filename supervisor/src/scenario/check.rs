@@ -152,8 +152,9 @@ fn one(
                 first.map(|a| a.raised),
                 match first {
                     Some(a) => format!(
-                        "{} alarm(s), first {} {} at {}",
+                        "{} alarm{}, first {} {} at {}",
                         display.alarms.len(),
+                        if display.alarms.len() == 1 { "" } else { "s" },
                         a.node,
                         a.name,
                         a.raised

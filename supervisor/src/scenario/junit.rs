@@ -159,6 +159,7 @@ mod tests {
             hardware: Vec::new(),
             coverage: None,
             disturbed: Vec::new(),
+            alarms: Vec::new(),
         }
     }
 

@@ -53,6 +53,8 @@ pub struct Outcome {
     pub coverage: Option<crate::coverage::Coverage>,
     /// Hits and misses of each `Disturb` step, by timeline entry.
     pub disturbed: Vec<(usize, bus::engine::DisturbCounts)>,
+    /// The reference monitor's alarms at the end, in the order raised (none without a monitor).
+    pub alarms: Vec<nodes::monitor::Alarm>,
 }
 
 impl Outcome {
@@ -192,6 +194,10 @@ async fn play(
         hardware,
         coverage,
         disturbed,
+        alarms: running
+            .display
+            .as_ref()
+            .map_or_else(Vec::new, |d| d.borrow().alarms.clone()),
     })
 }
 
