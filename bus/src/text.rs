@@ -1,4 +1,4 @@
-//! Quoting input in error messages.
+//! Quoting input in error messages, and counts with their nouns.
 //!
 //! Contract: [`quote`] gives text from a file or a command line back in single quotes, short
 //! enough for a one-line error whatever the input: at most [`QUOTE_CHARS`] characters of it,
@@ -38,6 +38,11 @@ pub fn cut(text: &str, chars: usize) -> String {
         shown += width;
     }
     out
+}
+
+/// `n` and the noun that goes with it: `1 problem`, `2 problems`, `0 problems`.
+pub fn count(n: u64, one: &str, many: &str) -> String {
+    format!("{n} {}", if n == 1 { one } else { many })
 }
 
 #[cfg(test)]

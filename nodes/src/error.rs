@@ -65,7 +65,10 @@ pub enum Error {
 }
 
 fn list(problems: &[Problem]) -> String {
-    let mut s = format!("{} problem(s):", problems.len());
+    let mut s = format!(
+        "{}:",
+        bus::text::count(problems.len() as u64, "problem", "problems")
+    );
     for p in problems {
         s.push_str("\n  ");
         s.push_str(&p.to_string());

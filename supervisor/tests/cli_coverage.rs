@@ -157,7 +157,7 @@ fn merged_counts_are_the_sum_and_another_image_is_refused() {
     assert!(ca != cb, "two runs of different lengths count differently");
     let listing = std::fs::read_to_string(merged.join("c0_alarm.coverage.lst")).unwrap();
     assert!(
-        listing.contains("2 run(s)"),
+        listing.contains("2 runs"),
         "{}",
         listing.lines().next().unwrap_or("")
     );

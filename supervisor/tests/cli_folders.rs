@@ -1,6 +1,7 @@
 //! `harvemu scenario` and `harvemu validate` given folders: every `.ron` file directly in one,
 //! sorted by name; a built-in folder by its name or path from any directory; a folder without a
-//! `.ron` file and a pattern the shell did not expand are exit code 2, saying what to pass.
+//! `.ron` file is exit code 2; a pattern the shell left as it was is expanded on disk, else
+//! against the built-in files.
 
 mod common;
 
@@ -137,37 +138,60 @@ fn a_folder_without_ron_files_is_exit_2_naming_it() {
     }
 }
 
+/// A pattern the shell left as it was (quoted, or matching nothing there) is expanded by
+/// harvemu: on disk, else against the built-in files of its folder; matching nothing, it is
+/// exit code 2 naming it and the folder to pass instead.
 #[test]
-fn a_pattern_the_shell_did_not_expand_is_exit_2_suggesting_the_folder() {
+fn a_pattern_the_shell_left_is_expanded_on_disk_else_built_in() {
     let dir = scratch("glob");
-    let pattern = dir.join("*.ron");
+    // On disk: the matches in name order, hidden files left out.
+    for name in ["b.ron", "a.ron", ".c.ron", "d.txt"] {
+        std::fs::write(dir.join(name), "not read").unwrap();
+    }
+    let err = stderr(&harvemu_in(&dir, &["validate", "*.ron"]));
+    let named: Vec<&str> = err
+        .lines()
+        .skip(1)
+        .map(|l| l.trim().split(':').next().unwrap())
+        .collect();
+    assert_eq!(named, ["a.ron", "b.ron"], "{err}");
+    assert!(err.starts_with("harvemu: error: 2 problems:\n"), "{err}");
+    // Built in, from a directory with no configs/: every shipped scenario, in name order.
+    let mut shipped: Vec<String> = std::fs::read_dir(common::root().join("configs/scenarios"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".ron"))
+        .collect();
+    shipped.sort();
+    let out = harvemu_in(&dir, &["validate", "configs/scenarios/*.ron"]);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    let expected: String = shipped
+        .iter()
+        .map(|n| format!("configs/scenarios/{n} (built in): ok (scenario)\n"))
+        .collect();
+    assert_eq!(stdout(&out), expected);
+    let out = harvemu_in(&dir, &["scenario", "configs/scenarios/b?s_off.ron"]);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    assert!(
+        stdout(&out).contains("configs/scenarios/bus_off.ron"),
+        "{}",
+        stdout(&out)
+    );
+    // Matching nothing anywhere: exit 2, nothing ran.
     for command in ["scenario", "validate"] {
-        let out = harvemu(&[command, pattern.to_str().unwrap()]);
+        let out = harvemu_in(&dir, &[command, "configs/scenarios/zz*.ron"]);
         let err = stderr(&out);
         assert_eq!(out.status.code(), Some(2), "{command}: {err}");
         assert!(
-            err.contains(&format!(
-                "{}: no such file or folder, and the shell did not expand this pattern",
-                pattern.display()
-            )),
+            err.contains("configs/scenarios/zz*.ron: no file matches this pattern, on disk or built in"),
             "{command}: {err}"
         );
         assert!(
-            err.contains(&format!("pass {} instead", dir.display())),
-            "{command}: {err}"
+            err.contains("configs/scenarios stands for every .ron file directly in it"),
+            "{err}"
         );
         assert!(out.stdout.is_empty(), "{command}: nothing ran");
     }
-    // From an empty directory, the suggested folder is the built-in one, which then works.
-    let out = harvemu_in(&dir, &["validate", "configs/scenarios/conformance/*.ron"]);
-    let err = stderr(&out);
-    assert_eq!(out.status.code(), Some(2), "{err}");
-    assert!(
-        err.contains("pass configs/scenarios/conformance instead"),
-        "{err}"
-    );
-    let out = harvemu_in(&dir, &["validate", "configs/scenarios/conformance"]);
-    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
 }
 
 /// From an empty directory `conformance` and `configs/scenarios/conformance` are the built-in

@@ -395,7 +395,11 @@ pub fn run(args: &Args) -> crate::Result<()> {
     };
     for (name, workload, buses, threads, seconds) in plan {
         let threads = threads.clamp(1, buses.max(1));
-        crate::say!("bench: {name}, {buses} bus(es) on {threads} thread(s), {seconds} s of virtual time ...");
+        crate::say!(
+            "bench: {name}, {} on {}, {seconds} s of virtual time ...",
+            bus::text::count(buses as u64, "bus", "buses"),
+            bus::text::count(threads as u64, "thread", "threads")
+        );
         print(&measure(name, &workload, buses, threads, seconds).map_err(crate::Error::Internal)?)?;
     }
     if wanted("firmware-cpu") {
@@ -420,17 +424,24 @@ pub fn run(args: &Args) -> crate::Result<()> {
     if wanted("campaign") {
         let jobs = std::thread::available_parallelism().map_or(1, |n| n.get());
         crate::say!(
-            "bench: campaign, {} runs of the built-in campaign harvest on {jobs} job(s) ...",
-            args.campaign_runs
+            "bench: campaign, {} runs of the built-in campaign harvest on {} ...",
+            args.campaign_runs,
+            bus::text::count(jobs as u64, "job", "jobs")
         );
         let m = campaign::measure(args.campaign_runs, jobs)?;
         if args.json {
             crate::output::stdout(&format!("{}\n", serde_json::to_string(&m)?))?;
         } else {
             crate::output::stdout(&format!(
-                "campaign: {:.0} runs per hour on {} job(s) ({} runs of {:.0} s with {} random \
+                "campaign: {:.0} runs per hour on {} ({} runs of {:.0} s with {} random \
                  faults in all, {} failed, in {:.2} s)\n",
-                m.runs_per_hour, m.jobs, m.runs, m.virtual_seconds, m.faults, m.failed, m.wall_seconds
+                m.runs_per_hour,
+                bus::text::count(m.jobs as u64, "job", "jobs"),
+                m.runs,
+                m.virtual_seconds,
+                m.faults,
+                m.failed,
+                m.wall_seconds
             ))?;
         }
     }

@@ -286,10 +286,10 @@ fn shrunk_text(c: &Campaign, f: &super::runs::Failure, file: &Path) -> Result<St
     let mut s = f.scenario.clone();
     s.config = super::paths::config_field(&c.base.harvester.source, file);
     let about = format!(
-        "// Found by harvemu campaign, shrunk from {} to {} fault(s) in {} trial(s){}.\n// It fails {}: {}\n",
+        "// Found by harvemu campaign, shrunk from {} to {} in {}{}.\n// It fails {}: {}\n",
         f.faults_before,
-        f.faults_after,
-        f.trials,
+        bus::text::count(f.faults_after as u64, "fault", "faults"),
+        bus::text::count(u64::from(f.trials), "trial", "trials"),
         if f.complete {
             ""
         } else {

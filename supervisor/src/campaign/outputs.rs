@@ -38,13 +38,13 @@ pub(super) fn summary_lines(s: &Summary, out: &Path) -> String {
     for f in s.failed.iter().take(SHOWN) {
         let _ = writeln!(
             text,
-            "  FAIL run {} (seed {}): {}  {}\n    shrunk from {} to {} fault(s): harvemu scenario {}",
+            "  FAIL run {} (seed {}): {}  {}\n    shrunk from {} to {}: harvemu scenario {}",
             f.run,
             f.seed,
             f.expectation,
             f.observed,
             f.faults_before,
-            f.faults_after,
+            bus::text::count(f.faults_after as u64, "fault", "faults"),
             out.join(&f.shrunk).display()
         );
     }

@@ -228,9 +228,10 @@ impl Campaign {
         scenario.random_faults = None;
         scenario.name = format!("{} run {i}", self.name());
         scenario.description = format!(
-            "Run {i} of the campaign {:?} (seed {}), its {before} random fault(s) shrunk to {}: it fails {expectation}.",
+            "Run {i} of the campaign {:?} (seed {}), its {} shrunk to {}: it fails {expectation}.",
             self.name(),
             self.seed,
+            bus::text::count(before as u64, "random fault", "random faults"),
             shrunk.history.faults.len()
         );
         Some(RunResult {

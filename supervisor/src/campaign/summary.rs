@@ -92,12 +92,12 @@ impl Summary {
                 None => out += "/>\n",
                 Some(f) => {
                     out += &format!(
-                        ">\n      <failure message=\"{}\">{}: {}; shrunk from {} to {} fault(s); reproduce: harvemu scenario {}</failure>\n    </testcase>\n",
+                        ">\n      <failure message=\"{}\">{}: {}; shrunk from {} to {}; reproduce: harvemu scenario {}</failure>\n    </testcase>\n",
                         escape(&f.expectation),
                         escape(&f.expectation),
                         escape(&f.observed),
                         f.faults_before,
-                        f.faults_after,
+                        bus::text::count(f.faults_after as u64, "fault", "faults"),
                         escape(&f.shrunk)
                     );
                 }
@@ -144,8 +144,8 @@ pub fn merge(parts: &[(String, Summary)]) -> Result<Summary, String> {
         }
         if s.interrupted {
             return Err(format!(
-                "{name} (shard {shard}) was interrupted after {} run(s): run it again",
-                s.done
+                "{name} (shard {shard}) was interrupted after {}: run it again",
+                bus::text::count(s.done, "run", "runs")
             ));
         }
         // Every failing run is one of the shard's, once, in order, with its own file in
@@ -171,8 +171,8 @@ pub fn merge(parts: &[(String, Summary)]) -> Result<Summary, String> {
         let expected = shard.count(s.runs);
         if s.done != expected || s.passed + s.failed.len() as u64 != s.done {
             return Err(format!(
-                "{name} (shard {shard}) covers {} run(s), {} passed and {} failed: shard {shard} of {} runs has {expected}",
-                s.done,
+                "{name} (shard {shard}) covers {}, {} passed and {} failed: shard {shard} of {} runs has {expected}",
+                bus::text::count(s.done, "run", "runs"),
                 s.passed,
                 s.failed.len(),
                 s.runs
@@ -184,7 +184,8 @@ pub fn merge(parts: &[(String, Summary)]) -> Result<Summary, String> {
         .map(|k| format!("{k}/{m}"))
         .collect();
     if !missing.is_empty() {
-        return Err(format!("shard(s) {} missing", missing.join(", ")));
+        let which = if missing.len() == 1 { "shard" } else { "shards" };
+        return Err(format!("{which} {} missing", missing.join(", ")));
     }
     let mut failed: Vec<Failed> = parts.iter().flat_map(|(_, s)| s.failed.clone()).collect();
     failed.sort_by_key(|f| f.run);

@@ -201,11 +201,13 @@ pub fn by_name(arg: &Path, folder: &str) -> PathBuf {
 /// 4. a name (no folder, no extension) when there is no file `configs/FOLDER/NAME.ron`, on disk
 ///    or built in, but a folder `configs/FOLDER/NAME`: that folder, on disk else built in, as
 ///    above (`conformance` for the shipped conformance suite);
-/// 5. itself, for [`by_name`] and [`Source::read`] to find or to report missing.
+/// 5. a path whose last part is a pattern (`*`, `?`, `[...]`) the shell left as it was: the
+///    files it matches on disk, else the built-in `.ron` files of its folder it matches, sorted
+///    by name; an error naming it when it matches none;
+/// 6. itself, for [`by_name`] and [`Source::read`] to find or to report missing.
 ///
-/// A folder without a `.ron` file is an error naming it, and so is a path with `*` or `?` that
-/// none of the above finds: a pattern the shell left as it was. The paths of built-in files are
-/// their names in [`FILES`]: [`Source::read`] finds them (nothing is on disk there).
+/// A folder without a `.ron` file is an error naming it. The paths of built-in files are their
+/// names in [`FILES`]: [`Source::read`] finds them (nothing is on disk there).
 pub fn expand(arg: &Path, folder: &str) -> crate::Result<Vec<PathBuf>> {
     if is_dir(arg) {
         return folder_on_disk(arg);
@@ -230,26 +232,87 @@ pub fn expand(arg: &Path, folder: &str) -> crate::Result<Vec<PathBuf>> {
             }
         }
     }
-    let text = arg.to_string_lossy();
-    if text.contains(['*', '?']) {
-        let dir = arg
-            .parent()
-            .map(|p| p.to_string_lossy())
-            .filter(|p| !p.contains(['*', '?']))
-            .map_or("the folder".to_string(), |p| {
-                if p.is_empty() {
-                    ".".to_string()
-                } else {
-                    p.into_owned()
-                }
-            });
-        return Err(crate::Error::BadInput(format!(
-            "{text}: no such file or folder, and the shell did not expand this pattern (nothing \
-             matched it, or it was quoted): pass {dir} instead, which stands for every .ron file \
-             directly in it"
-        )));
+    if let Some(files) = pattern(arg)? {
+        return Ok(files);
     }
     Ok(vec![arg.to_path_buf()])
+}
+
+/// The characters that make a path's last part a pattern.
+const WILDCARDS: [char; 3] = ['*', '?', '['];
+
+/// A path whose last part is a pattern that the shell left as it was (quoted, or matching
+/// nothing there): the files it matches, sorted by name, hidden ones left out. On disk, else
+/// (nothing matching there) among the built-in `.ron` files of that folder; an error when it
+/// matches nothing. `None` for a path that is no pattern.
+fn pattern(arg: &Path) -> crate::Result<Option<Vec<PathBuf>>> {
+    let text = arg.to_string_lossy();
+    let Some(name) = arg.file_name().map(|n| n.to_string_lossy()) else {
+        return Ok(None);
+    };
+    if !name.contains(WILDCARDS) {
+        return Ok(None);
+    }
+    let bad = |why: String| crate::Error::BadInput(format!("{text}: {why}"));
+    let dir = arg.parent().filter(|p| !p.as_os_str().is_empty());
+    if dir.is_some_and(|d| d.to_string_lossy().contains(WILDCARDS)) {
+        return Err(bad(
+            "a pattern in a folder's name is not expanded; only the last part of a \
+                        path may be one"
+                .into(),
+        ));
+    }
+    let glob = glob::Pattern::new(&name).map_err(|e| bad(format!("not a valid pattern: {e}")))?;
+    let options = glob::MatchOptions {
+        require_literal_leading_dot: true,
+        ..glob::MatchOptions::new()
+    };
+    let matches = |n: &str| glob.matches_with(n, options);
+    let on_disk = dir.unwrap_or(Path::new("."));
+    let mut found: Vec<PathBuf> = if is_dir(on_disk) {
+        let cannot = |source| crate::Error::Input {
+            path: on_disk.to_path_buf(),
+            source,
+        };
+        let mut names = Vec::new();
+        for entry in std::fs::read_dir(on_disk).map_err(cannot)? {
+            let n = entry.map_err(cannot)?.file_name();
+            if matches(&n.to_string_lossy()) {
+                names.push(n);
+            }
+        }
+        names.sort();
+        // As the shell writes them: `./` only where the pattern had it.
+        names
+            .into_iter()
+            .map(|n| dir.map_or(PathBuf::from(&n), |d| d.join(&n)))
+            .collect()
+    } else {
+        Vec::new()
+    };
+    if found.is_empty() {
+        let built_in = dir.and_then(shipped_folder).unwrap_or_default();
+        found = built_in
+            .into_iter()
+            .filter(|full| {
+                Path::new(full)
+                    .file_name()
+                    .is_some_and(|n| matches(&n.to_string_lossy()))
+            })
+            .map(PathBuf::from)
+            .collect();
+    }
+    if found.is_empty() {
+        return Err(bad(format!(
+            "no file matches this pattern, on disk or built in (harvemu expands a pattern the \
+             shell left as it was){}",
+            dir.map_or(String::new(), |d| format!(
+                "; {} stands for every .ron file directly in it",
+                d.display()
+            ))
+        )));
+    }
+    Ok(Some(found))
 }
 
 /// The built-in `.ron` files directly in the folder `path` (not in its sub-folders), sorted by

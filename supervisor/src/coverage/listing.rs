@@ -115,11 +115,11 @@ pub fn text(image: &ImageCoverage, code: &[u8], counts: &Counts, items: &[Item])
     let mut out = String::new();
     let _ = writeln!(
         out,
-        "; harvemu coverage of {} (SHA-256 {}), nodes {}, {} run(s)",
+        "; harvemu coverage of {} (SHA-256 {}), nodes {}, {}",
         image.image,
         image.sha256,
         image.nodes.join(" "),
-        image.runs
+        bus::text::count(image.runs, "run", "runs")
     );
     let _ = writeln!(out, "; {}", describe(&totals(items, counts)));
     let _ = writeln!(

@@ -375,13 +375,13 @@ pub fn run(args: &Args) -> crate::Result<Ended> {
         let snap = running.hub.send(GetSnapshot).await?;
         crate::say!("{}", crate::run::summary(&snap, &running));
         crate::say!(
-            "harvemu: replay: {} records read, {} error frames (not replayable), {} frames skipped (emulated sources), {} replayed, {} refused (queue full), {} pass(es)",
+            "harvemu: replay: {} records read, {} error frames (not replayable), {} frames skipped (emulated sources), {} replayed, {} refused (queue full), {}",
             counts.read,
             counts.error_frames,
             counts.skipped,
             played.replayed,
             played.refused,
-            schedule.passes_begun()
+            bus::text::count(u64::from(schedule.passes_begun()), "pass", "passes")
         );
         if let Some(line) = crate::realtime::overruns_line(&snap) {
             crate::say!("{line}");

@@ -93,7 +93,10 @@ fn one(
                     e,
                     (*min..=*max).contains(&n),
                     Some(to),
-                    format!("{node} detected {n} {kind:?} error(s) from {from} s to {to} s"),
+                    format!(
+                        "{node} detected {} from {from} s to {to} s",
+                        n_of(n, &format!("{kind:?} error"))
+                    ),
                 ),
                 None => verdict(e, false, None, "the errors were not counted".into()),
             }
@@ -173,7 +176,11 @@ fn one(
                 e,
                 overruns == 0 && lost == 0 && broken == 0,
                 Some(snap.now),
-                format!("{overruns} overrun(s), {lost} lost by the monitor, {broken} broken group(s)"),
+                format!(
+                    "{}, {lost} lost by the monitor, {}",
+                    n_of(overruns, "overrun"),
+                    n_of(broken, "broken group")
+                ),
             )
         }
         Expect::NodeState {
@@ -221,7 +228,7 @@ fn one(
                 e,
                 (*min..=*max).contains(&n),
                 Some(snap.now),
-                format!("{n} error frame(s)"),
+                n_of(n, "error frame"),
             )
         }
         Expect::OverloadFrames { min, max } => {
@@ -230,7 +237,7 @@ fn one(
                 e,
                 (*min..=*max).contains(&n),
                 Some(snap.now),
-                format!("{n} overload flag(s)"),
+                n_of(n, "overload flag"),
             )
         }
         Expect::YieldWithin(percent) => {
@@ -280,7 +287,7 @@ fn one(
                 .filter(|ev| &ev.node == node && ev.what == Happened::Restarted)
                 .count();
             let at = r.events.iter().rev().find(|ev| &ev.node == node).map(|ev| ev.at);
-            verdict(e, n == *count, at, format!("{n} restart(s)"))
+            verdict(e, n == *count, at, n_of(n as u64, "restart"))
         }
         Expect::FramesAccounted => match &books.monitor {
             Some(m) => {
@@ -288,13 +295,14 @@ fn one(
                 let lost = m.on_bus - m.tally.processed.min(m.on_bus);
                 let observed = if failed.is_empty() {
                     format!(
-                        "{} frame(s) to F5: {} processed, {lost} accounted as lost or pending",
-                        m.on_bus, m.tally.processed
+                        "{} to F5: {} processed, {lost} accounted as lost or pending",
+                        n_of(m.on_bus, "frame"),
+                        m.tally.processed
                     )
                 } else {
                     format!(
-                        "{} frame(s) to F5, {} accounted; off: {}",
-                        m.on_bus,
+                        "{} to F5, {} accounted; off: {}",
+                        n_of(m.on_bus, "frame"),
                         m.accounted(),
                         failed.join("; ")
                     )
@@ -354,7 +362,11 @@ fn one(
             let more = if n > 5 { ", ..." } else { "" };
             let observed = match n {
                 0 => format!("{node} never went bus off"),
-                _ => format!("{node} went bus off {n} time(s), at {}{more}", listed.join(", ")),
+                _ => format!(
+                    "{node} went bus off {}, at {}{more}",
+                    n_of(n as u64, "time"),
+                    listed.join(", ")
+                ),
             };
             let passed = (u64::from(*min)..=u64::from(*max)).contains(&(n as u64));
             if passed {
@@ -382,8 +394,8 @@ fn one(
                 ),
                 Some((from, Some(ms))) => (
                     format!(
-                        "{node} went bus off {} time(s); the longest, from {from} s, lasted {ms:.3} ms",
-                        stays.len()
+                        "{node} went bus off {}; the longest, from {from} s, lasted {ms:.3} ms",
+                        n_of(stays.len() as u64, "time")
                     ),
                     ms <= *max_ms,
                     Some(from),
@@ -449,8 +461,8 @@ fn one(
                     false,
                     Some(first.at),
                     format!(
-                        "{} crash(es) by itself; first: {} {}",
-                        own.len(),
+                        "{} by itself; first: {} {}",
+                        bus::text::count(own.len() as u64, "crash", "crashes"),
                         first.node,
                         first.what
                     ),
@@ -463,8 +475,10 @@ fn one(
                 ok,
                 Some(snap.now),
                 format!(
-                    "{} frame(s) on the bus, {} frame(s) in the trace ({} error frame(s))",
-                    books.frames, t.frames, t.error_frames
+                    "{} on the bus, {} in the trace ({})",
+                    n_of(books.frames, "frame"),
+                    n_of(t.frames, "frame"),
+                    n_of(t.error_frames, "error frame")
                 ),
             ),
             _ => verdict(e, false, None, "the trace was not counted".into()),
@@ -517,4 +531,9 @@ fn judged(e: &Expect, t: &Timeline, node: &str, at: Option<BusTime>, observed: S
             ),
         )
     }
+}
+
+/// `n` and a noun that takes an `s` for more than one: `1 error frame`, `3 error frames`.
+fn n_of(n: u64, noun: &str) -> String {
+    bus::text::count(n, noun, &format!("{noun}s"))
 }

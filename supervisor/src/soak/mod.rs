@@ -142,9 +142,13 @@ fn report(l: &scenario::Loaded, o: &scenario::Outcome, rss: &memory::Samples, ho
     );
     let count = |which: fn(&Happened) -> bool| o.events.iter().filter(|e| which(&e.what)).count();
     out += &format!(
-        "supervisor: {} crash(es), {} restart(s), {} gave up\n",
-        count(|h| matches!(h, Happened::Crashed(_))),
-        count(|h| *h == Happened::Restarted),
+        "supervisor: {}, {}, {} gave up\n",
+        bus::text::count(
+            count(|h| matches!(h, Happened::Crashed(_))) as u64,
+            "crash",
+            "crashes"
+        ),
+        bus::text::count(count(|h| *h == Happened::Restarted) as u64, "restart", "restarts"),
         count(|h| matches!(h, Happened::GaveUp { .. }))
     );
     let virtual_s = o.snapshot.as_ref().map_or(0.0, |n| n.now.as_secs_f64());

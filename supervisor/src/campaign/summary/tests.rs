@@ -93,7 +93,7 @@ fn shards_of_other_campaigns_do_not_merge() {
     assert!(
         merge(&named(vec![shard(1, 2), short]))
             .unwrap_err()
-            .contains("covers 9 run(s)")
+            .contains("covers 9 runs")
     );
     assert!(merge(&[]).is_err());
 }
