@@ -185,7 +185,13 @@ fn startup(dir: &Path, args: &[&str]) -> String {
 #[test]
 fn the_command_line_beats_the_working_directory_which_beats_the_built_in() {
     let dir = common::scratch("cli-built-in", "precedence");
-    assert!(startup(&dir, &[]).contains("4MZ-6A (21 nodes) from configs/harvester.ron (built in),"));
+    let line = startup(&dir, &[]);
+    assert_eq!(
+        line,
+        "harvemu: 4MZ-6A (21 nodes) from configs/harvester.ron (built in), seed 2011"
+    );
+    // It fits a terminal of 80 columns.
+    assert!(line.chars().count() <= 80, "{line}");
 
     // A stray node script in the working directory does not leak into the built-in harvester.
     std::fs::create_dir_all(dir.join("configs/nodes")).unwrap();
@@ -202,7 +208,7 @@ fn the_command_line_beats_the_working_directory_which_beats_the_built_in() {
         .replacen("\"nodes/e0.ron\",", "", 1);
     assert_ne!(mine, text, "the edit took");
     std::fs::write(&path, mine).unwrap();
-    assert!(startup(&dir, &[]).contains("Mine (20 nodes) from configs/harvester.ron,"));
+    assert!(startup(&dir, &[]).contains("Mine (20 nodes) from configs/harvester.ron, seed"));
 
     // A config on the command line wins over both.
     std::fs::write(
@@ -211,7 +217,7 @@ fn the_command_line_beats_the_working_directory_which_beats_the_built_in() {
             .replace("\"nodes/", "\"configs/nodes/"),
     )
     .unwrap();
-    assert!(startup(&dir, &["other.ron"]).contains("Other (21 nodes) from other.ron,"));
+    assert!(startup(&dir, &["other.ron"]).contains("Other (21 nodes) from other.ron, seed"));
 
     // A file that is there but broken is an error, never a quiet switch to the built-in one.
     std::fs::write(&path, "(").unwrap();

@@ -166,14 +166,18 @@ pub fn run(args: &Args) -> crate::Result<Ended> {
     h.epoch = Some(epoch);
     let (trace, recording) = crate::record::create_opt(args.record.as_ref(), epoch)?;
     let end = args.duration.map(BusTime::from_duration);
+    // Two lines, so that the default config's fits 80 columns.
     crate::say!(
-        "harvemu: {} ({} nodes) from {}, seed {}, {}",
+        "harvemu: {} ({} nodes) from {}, seed {}",
         h.config.network.name,
         h.scripts.len() + h.firmware.len() + usize::from(h.config.monitor.enabled),
         h.source,
-        h.config.network.seed,
+        h.config.network.seed
+    );
+    crate::say!(
+        "harvemu: {}",
         if args.fast {
-            "virtual time"
+            "virtual time, as fast as the machine allows"
         } else {
             "real time (Ctrl-C stops)"
         }
