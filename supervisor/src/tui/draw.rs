@@ -25,6 +25,9 @@ const RATE_WIDTH: usize = 6;
 const MESSAGE_WIDTH: usize = 21;
 const ROUTE_WIDTH: usize = 6;
 const PAYLOAD_WIDTH: usize = 23;
+/// Room kept for the decoded fields before the route and the payload get theirs: a field such as
+/// `setpoint=8.00 km/h` and then some.
+const DECODED_MIN: usize = 24;
 /// Most lines the alarm list takes from the monitor panel.
 const ALARM_LINES: u16 = 6;
 
@@ -232,6 +235,21 @@ fn reading_row(r: &Reading, widths: [usize; 5]) -> String {
     row_text(widths, [&r.label, &shown, &truth, r.unit, &r.note], false)
 }
 
+/// As many of `parts` as fit `width` whole, with ` …` when some are left out (`…` alone when
+/// not even the first fits): a cell never looks complete when it is not.
+fn more(parts: &[String], width: usize) -> String {
+    let all = fit::parts(parts, " ", width);
+    if all.chars().count() == parts.join(" ").chars().count() {
+        return all;
+    }
+    let some = fit::parts(parts, " ", width.saturating_sub(2));
+    if some.is_empty() {
+        "…".chars().take(width).collect()
+    } else {
+        format!("{some} …")
+    }
+}
+
 /// Words of `text` that fit `width` whole.
 fn words(text: &str, width: usize) -> String {
     let words: Vec<String> = text.split(' ').map(str::to_owned).collect();
@@ -243,27 +261,41 @@ fn bus(frame: &mut Frame, area: Rect, b: &BusView) {
     let inner = block.inner(area);
     frame.render_widget(block, area);
     let width = usize::from(inner.width);
-    let load = Line::from(fit::parts(
-        &[
-            format!("load {:.1} %", b.load * 100.0),
-            format!("(last 1 s {:.1} %)", b.load_1s * 100.0),
-        ],
-        " ",
-        width,
-    ));
-    let counts = Line::from(fit::parts(
-        &[
-            format!("frames {}", b.frames),
-            format!("error frames {}", b.error_frames),
-            format!("overruns {}", b.overruns),
-        ],
-        "  ",
-        width,
-    ));
-    let cells: Vec<(String, Style)> = b.nodes.iter().map(node_cell).collect();
-    let cell_width = cells.iter().map(|(t, _)| t.chars().count()).max().unwrap_or(0) + 2;
-    let per_line = (usize::from(inner.width) / cell_width.max(1)).max(1);
-    let mut lines = vec![load, counts];
+    let load = [
+        format!("load {:.1} %", b.load * 100.0),
+        format!("(last 1 s {:.1} %)", b.load_1s * 100.0),
+    ];
+    let counts = [
+        format!("frames {}", b.frames),
+        format!("error frames {}", b.error_frames),
+        format!("overruns {}", b.overruns),
+    ];
+    // One line when it fits whole, else two.
+    let both = load.join(" ") + "  " + &counts.join("  ");
+    let mut lines = if both.chars().count() <= width {
+        vec![Line::from(both)]
+    } else {
+        vec![
+            Line::from(fit::parts(&load, " ", width)),
+            Line::from(fit::parts(&counts, "  ", width)),
+        ]
+    };
+    // Nodes and events take at most half the panel: the identifiers need room too. Each node
+    // with its state and counters when they all fit there, else in the compact form.
+    let head_budget = usize::from((inner.height / 2).max(2));
+    let node_rows = head_budget.saturating_sub(lines.len()).max(1);
+    let full: Vec<(String, Style)> = b.nodes.iter().map(node_cell).collect();
+    let rows_of = |cells: &[(String, Style)]| {
+        let cell_width = cells.iter().map(|(t, _)| t.chars().count()).max().unwrap_or(0) + 2;
+        let per_line = (width / cell_width.max(1)).max(1);
+        (cell_width, per_line, cells.len().div_ceil(per_line))
+    };
+    let cells = if rows_of(&full).2 <= node_rows {
+        full
+    } else {
+        b.nodes.iter().map(compact_cell).collect()
+    };
+    let (cell_width, per_line, _) = rows_of(&cells);
     for chunk in cells.chunks(per_line) {
         lines.push(Line::from(
             chunk
@@ -273,8 +305,7 @@ fn bus(frame: &mut Frame, area: Rect, b: &BusView) {
         ));
     }
     lines.extend(b.events.iter().map(|e| Line::from(words(e, width)).yellow()));
-    // Nodes and events take at most half the panel: the identifiers need room too.
-    let head = (lines.len() as u16).min((inner.height / 2).max(2));
+    let head = (lines.len() as u16).min(head_budget as u16);
     let [top, table] = Layout::vertical([Constraint::Length(head), Constraint::Fill(1)]).areas(inner);
     frame.render_widget(Paragraph::new(lines), top);
 
@@ -305,9 +336,12 @@ impl IdColumns {
             got
         };
         let message = take(MESSAGE_WIDTH);
+        // The decoded fields say most: their room is kept first, and what is left over at the
+        // end is theirs too.
+        let kept = take(DECODED_MIN);
         let route = take(ROUTE_WIDTH);
         let payload = take(PAYLOAD_WIDTH);
-        let decoded = take(usize::MAX);
+        let decoded = if kept > 0 { kept + rest } else { 0 };
         IdColumns {
             message,
             route,
@@ -341,6 +375,23 @@ impl IdColumns {
             .map(|(w, _)| Constraint::Length(u16::try_from(*w).unwrap_or(u16::MAX)))
             .collect()
     }
+}
+
+/// A node in few columns: its name alone while it is error active and well, else with a mark
+/// (`:P` passive, `:OFF` bus off, `:crash`, `:hung`), coloured as in the full form.
+fn compact_cell(n: &NodeView) -> (String, Style) {
+    let (mark, style) = if n.crashed {
+        (":crash", Style::new().fg(Color::Red).bold())
+    } else if n.hung {
+        (":hung", Style::new().fg(Color::Red).bold())
+    } else {
+        match n.state {
+            ErrorState::Active => ("", Style::new()),
+            ErrorState::Passive => (":P", Style::new().fg(Color::Yellow).bold()),
+            ErrorState::BusOff => (":OFF", Style::new().fg(Color::Red).bold()),
+        }
+    };
+    (format!("{}{mark}", n.name), style)
 }
 
 fn node_cell(n: &NodeView) -> (String, Style) {
@@ -383,13 +434,16 @@ fn id_row(v: &IdView, columns: &IdColumns) -> Row<'static> {
         }
     };
     let decoded = match &v.problem {
-        Some(p) => Line::from(words(p, columns.decoded)).red(),
-        None => Line::from(fit::parts(
+        Some(p) => Line::from(more(
+            &p.split(' ').map(str::to_owned).collect::<Vec<_>>(),
+            columns.decoded,
+        ))
+        .red(),
+        None => Line::from(more(
             &v.fields
                 .iter()
                 .map(|f| format!("{}={}", f.name, f.text))
                 .collect::<Vec<_>>(),
-            " ",
             columns.decoded,
         )),
     };

@@ -424,3 +424,62 @@ fn a_number_without_room_is_hashes_not_digits() {
         }
     }
 }
+
+/// The harvester's 21 controllers, as the live view names them.
+const HARVESTER: [&str; 21] = [
+    "F5", "E0", "A0", "B0", "B1", "B2", "B3", "B4", "B5", "B6", "B7", "C0", "C1", "C2", "C3", "D0", "D1",
+    "D2", "D3", "D4", "D5",
+];
+
+#[test]
+fn at_80_by_24_every_node_shows_and_the_decoded_column_is_filled_or_left_out() {
+    let (mut bus, tx) = bus_with_sender();
+    let status = by_name("speed.status").unwrap();
+    let frame = status
+        .encode(Address::SPEED_CONTROL, |f| match f {
+            "actual" => Some(7.25),
+            "setpoint" => Some(8.0),
+            "mode" => Some(1.0),
+            _ => Some(0.0),
+        })
+        .unwrap();
+    bus.submit(tx, frame, BusTime::from_millis(0)).unwrap();
+    bus.run_until(BusTime::from_millis(100));
+    let nodes: Vec<NodeSnapshot> = HARVESTER
+        .iter()
+        .map(|name| match *name {
+            "B3" => node(name, ErrorState::Passive, 136, 0),
+            "D1" => node(name, ErrorState::BusOff, 256, 0),
+            _ => node(name, ErrorState::Active, 0, 0),
+        })
+        .collect();
+    let snap = snapshot(&mut bus, BusTime::from_millis(100), nodes);
+    let view = view_of(&snap, None, &RateMeter::default());
+    let screen = render(&view, 80, 24);
+    let text = screen.join("\n");
+    let tokens: Vec<&str> = text
+        .split(|c: char| c.is_whitespace() || "│┌┐└┘─".contains(c))
+        .collect();
+    for name in HARVESTER {
+        let shown = match name {
+            "B3" => "B3:P".to_string(),
+            "D1" => "D1:OFF".to_string(),
+            _ => name.to_string(),
+        };
+        assert!(tokens.contains(&shown.as_str()), "{shown} on\n{text}");
+    }
+    // At 80 columns the bus panel has no room for decoded fields: the column is left out
+    // rather than shown empty. From 100 columns it is there, its first field whole and the
+    // rest marked as left out, never cut.
+    let header = line_with(&screen, "fr/s");
+    assert!(!header.contains("decoded"), "{header}");
+    for w in [100u16, 140] {
+        let wide = render(&view, w, 24);
+        assert!(line_with(&wide, "fr/s").contains("decoded"));
+        let row = line_with(&wide, "0200F5E0");
+        assert!(row.contains("actual=7.25 km/h …"), "{row}");
+    }
+    let wide = render(&view, 200, 24);
+    let row = line_with(&wide, "0200F5E0");
+    assert!(row.contains("actual=7.25 km/h setpoint=8.00 km/h"), "{row}");
+}
