@@ -36,7 +36,8 @@ const RUN_EXAMPLES: &str = "\
 Examples:
   harvemu run                                        the default harvester, real time (Ctrl-C stops)
   harvemu run --fast --for 10m --record harvest.log  10 minutes of virtual time, as fast as possible
-  harvemu run my-harvester.ron --seed 7 --for 120s   another config and seed, two minutes";
+  harvemu config export mine                         the built-in harvester, to edit
+  harvemu run mine/harvester.ron --seed 7 --for 120s your copy, another seed, two minutes";
 
 const REPLAY_EXAMPLES: &str = "\
 Examples:
@@ -46,7 +47,7 @@ const SCENARIO_EXAMPLES: &str = "\
 Examples:
   harvemu scenario bus_off                           a built-in scenario, by its name
   harvemu scenario conformance                       every scenario of a folder (here the built-in one)
-  harvemu scenario configs/scenarios/*.ron --junit report.xml
+  harvemu scenario 'configs/scenarios/*.ron' --junit report.xml   quoted: harvemu expands it
   harvemu scenario configs/scenarios/bus_off.ron --seed 7 --report bus_off.html";
 
 const CAMPAIGN_EXAMPLES: &str = "\
@@ -62,7 +63,7 @@ Examples:
 
 const VALIDATE_EXAMPLES: &str = "\
 Examples:
-  harvemu validate configs/harvester.ron configs/nodes/*.ron configs/scenarios/*.ron
+  harvemu validate configs/harvester.ron 'configs/nodes/*.ron' 'configs/scenarios/*.ron'
   harvemu validate configs/scenarios                 a folder: every .ron file directly in it";
 
 const INSPECT_EXAMPLES: &str = "\
