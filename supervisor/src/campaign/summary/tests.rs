@@ -133,3 +133,55 @@ fn a_summary_names_no_file_but_its_own_runs() {
     let e = merge(&named(vec![shard(1, 4), shard(2, 4), twice, shard(4, 4)])).unwrap_err();
     assert!(e.contains("in order"), "{e}");
 }
+
+#[test]
+fn a_campaign_of_10000_runs_that_all_failed_merges_within_the_summary_limit() {
+    // Each run failed with texts far longer than the shipped scenarios give (an expectation
+    // and an observation of 1,000 characters each); four shards of 2,500 runs.
+    let long = |what: &str, run: u64| format!("{what} of run {run}: {}", "x".repeat(1000));
+    let dir = tempfile::tempdir().unwrap();
+    let mut parts = Vec::new();
+    for k in 1..=4 {
+        let s = Shard::new(k, 4).unwrap();
+        let failed: Vec<Failed> = s
+            .runs(10_000)
+            .map(|run| Failed {
+                expectation: long("expectation", run),
+                observed: long("observed", run),
+                ..failed(run)
+            })
+            .collect();
+        let summary = Summary {
+            campaign: "harvest".into(),
+            scenario_id: "00ff".into(),
+            runs: 10_000,
+            seed: 7,
+            shard: s.to_string(),
+            done: failed.len() as u64,
+            passed: 0,
+            failed,
+            interrupted: false,
+        };
+        let path = dir.path().join(format!("summary-{k}.json"));
+        std::fs::write(&path, serde_json::to_string_pretty(&summary).unwrap()).unwrap();
+        let text = crate::campaign::merge::read_summary(&path).unwrap();
+        assert!(
+            (text.len() as u64) < crate::campaign::merge::MAX_SUMMARY / 8,
+            "{}",
+            text.len()
+        );
+        parts.push((
+            format!("shard-{k}"),
+            serde_json::from_str::<Summary>(&text).unwrap(),
+        ));
+    }
+    let whole = merge(&parts).unwrap();
+    assert_eq!(
+        (whole.done, whole.passed, whole.failed.len()),
+        (10_000, 0, 10_000)
+    );
+    // The whole campaign's summary, as one shard would have written it, is within the limit.
+    let path = dir.path().join("summary.json");
+    std::fs::write(&path, serde_json::to_string_pretty(&whole).unwrap()).unwrap();
+    assert!(crate::campaign::merge::read_summary(&path).is_ok());
+}
