@@ -702,3 +702,34 @@ fn a_reused_out_holds_one_campaign_and_nothing_stale() {
     assert_eq!(on_disk, listed);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn the_jobs_reported_are_the_ones_used_and_counts_read_as_english() {
+    let dir = scratch("cli_campaign", "jobs");
+    let file = campaign_file(&dir, 6.0);
+    let out = dir.join("out");
+    // No --jobs: as many as the machine has cores, but one run needs one job.
+    let o = harvemu(&[
+        "campaign",
+        file.to_str().unwrap(),
+        "--runs",
+        "1",
+        "--out",
+        dir.join("out2").to_str().unwrap(),
+    ]);
+    let t = text(&o);
+    assert!(t.contains("runs per hour on 1 job\n"), "{t}");
+    let o = harvemu(&[
+        "campaign",
+        file.to_str().unwrap(),
+        "--runs",
+        "2",
+        "--jobs",
+        "64",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let t = text(&o);
+    assert!(t.contains("runs per hour on 2 jobs\n"), "{t}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -111,3 +111,30 @@ fn a_bad_harvester_config_gives_exit_2_for_validate_and_run() {
         }
     }
 }
+
+#[test]
+fn one_problem_is_a_problem_and_two_are_problems() {
+    let dir = common::scratch("cli-validate", "plural");
+    let scenario = |name: &str, duration: &str| {
+        let file = dir.join(name);
+        std::fs::write(
+            &file,
+            format!("Scenario(name: \"x\", description: \"y\", duration_s: {duration}, expect: [])\n"),
+        )
+        .unwrap();
+        file
+    };
+    let one = scenario("one.ron", "-1.0");
+    let two = scenario("two.ron", "NaN");
+    let err = |files: &[&Path]| {
+        let mut args = vec!["validate"];
+        args.extend(files.iter().map(|f| f.to_str().unwrap()));
+        let out = harvemu(&args);
+        assert_eq!(out.status.code(), Some(2));
+        String::from_utf8(out.stderr).unwrap()
+    };
+    let text = err(&[&one]);
+    assert!(text.starts_with("harvemu: error: 1 problem:\n"), "{text}");
+    let text = err(&[&one, &two]);
+    assert!(text.starts_with("harvemu: error: 2 problems:\n"), "{text}");
+}
