@@ -62,10 +62,15 @@ fn runtime_closure(metadata: &Value, root: &str) -> HashSet<String> {
 /// The platform the tests run on, as rustc names it (`x86_64-unknown-linux-gnu`).
 fn host() -> String {
     let out = Command::new("rustc").arg("-vV").output().unwrap();
-    assert!(out.status.success(), "rustc -vV: {}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "rustc -vV: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let text = String::from_utf8(out.stdout).unwrap();
     let host = text.lines().find_map(|l| l.strip_prefix("host: "));
-    host.unwrap_or_else(|| panic!("no host line in rustc -vV:\n{text}")).to_string()
+    host.unwrap_or_else(|| panic!("no host line in rustc -vV:\n{text}"))
+        .to_string()
 }
 
 /// The dependency graph for this platform: offline, and only what this platform builds, so
@@ -73,7 +78,14 @@ fn host() -> String {
 fn metadata() -> Value {
     let host = host();
     let out = Command::new(env!("CARGO"))
-        .args(["metadata", "--format-version", "1", "--offline", "--filter-platform", &host])
+        .args([
+            "metadata",
+            "--format-version",
+            "1",
+            "--offline",
+            "--filter-platform",
+            &host,
+        ])
         .current_dir(env!("CARGO_MANIFEST_DIR"))
         .output()
         .unwrap();
