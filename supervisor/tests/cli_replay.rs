@@ -209,11 +209,12 @@ fn an_interrupted_asc_recording_is_complete() {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    // Once the run has started (its first line), give it a few seconds of bus time to record.
+    // Once the run has started (its startup lines), give it a few seconds of bus time to record.
     let mut err = BufReader::new(child.stderr.take().unwrap());
-    let mut first = String::new();
-    err.read_line(&mut first).unwrap();
-    assert!(first.contains("real time (Ctrl-C stops)"), "{first}");
+    let mut startup = String::new();
+    while !startup.contains("real time (Ctrl-C stops)") {
+        assert!(err.read_line(&mut startup).unwrap() > 0, "{startup}");
+    }
     std::thread::sleep(std::time::Duration::from_millis(2500));
     let kill = Command::new("kill")
         .args(["-INT", &child.id().to_string()])
