@@ -51,6 +51,77 @@ class BusTimeCyclicTask(ModifiableCyclicTaskABC, RestartableCyclicTaskABC):
             self._harvester.modify_periodic(self._task, _parts(self.messages))
 
 
+# The largest seed: harvemu draws from 64-bit seeds.
+_SEED_MAX = 2**64 - 1
+
+
+def _node_names(without):
+    """``without`` as python-can's configs give it: a list of node names, or one string of names
+    separated by commas (can.rc, ``--bus-kwargs``, ``CAN_CONFIG``)."""
+    accepted = "node names, as a list (['F5', 'D3']) or one string ('F5,D3')"
+    if isinstance(without, str):
+        return [n.strip() for n in without.split(",") if n.strip()]
+    try:
+        names = list(without)
+    except TypeError:
+        raise can.CanInitializationError(f"without={without!r}: give {accepted}") from None
+    for n in names:
+        if not isinstance(n, str):
+            raise can.CanInitializationError(
+                f"without={without!r}: {n!r} is not a node name; give {accepted}")
+    return names
+
+
+def _seed(seed):
+    """``seed`` checked: None, or a whole number harvemu can draw from."""
+    if seed is None:
+        return None
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= _SEED_MAX:
+        raise can.CanInitializationError(
+            f"seed={seed!r}: give a whole number from 0 to {_SEED_MAX}, or None for the "
+            f"config's seed")
+    return seed
+
+
+def _checked_id(msg):
+    """The message's identifier, if the frame it names can be sent (CAN 2.0B: 11 or 29 bits)."""
+    if msg.is_fd:
+        raise can.CanOperationError(
+            "is_fd=True: the harvester's bus is CAN 2.0B (classic frames of at most 8 bytes); "
+            "send the message with is_fd=False")
+    limit = 0x1FFFFFFF if msg.is_extended_id else 0x7FF
+    arbitration_id = msg.arbitration_id
+    if isinstance(arbitration_id, bool) or not isinstance(arbitration_id, int) \
+            or not 0 <= arbitration_id <= limit:
+        kind = "an extended identifier (29 bits)" if msg.is_extended_id \
+            else "a standard identifier (11 bits)"
+        raise can.CanOperationError(
+            f"arbitration_id={arbitration_id!r}: {kind} is from 0 to {limit:#x}")
+    return arbitration_id
+
+
+def _filter_specs(filters):
+    """python-can's filter dicts as harvemu takes them: (can_id, can_mask, extended or None)."""
+    specs = []
+    for f in filters or []:
+        try:
+            can_id, can_mask = f["can_id"], f["can_mask"]
+            extended = f.get("extended")
+        except (TypeError, KeyError, AttributeError):
+            raise can.CanOperationError(
+                f"filter {f!r}: a filter is a dict with 'can_id' and 'can_mask' (and "
+                f"'extended' if it matters)") from None
+        for key, value in (("can_id", can_id), ("can_mask", can_mask)):
+            if isinstance(value, bool) or not isinstance(value, int) \
+                    or not 0 <= value <= 0x1FFFFFFF:
+                raise can.CanOperationError(
+                    f"filter {f!r}: {key} is a whole number from 0 to 0x1fffffff")
+        if extended is not None and not isinstance(extended, bool):
+            raise can.CanOperationError(f"filter {f!r}: extended is True, False or None")
+        specs.append((can_id, can_mask, extended))
+    return specs
+
+
 class HarvemuBus(can.BusABC):
     """The emulated harvester as a python-can bus.
 
@@ -65,10 +136,16 @@ class HarvemuBus(can.BusABC):
 
     def __init__(self, channel="harv0", can_filters=None, config=None, without=("F5",),
                  seed=None, virtual_time=True, **kwargs):
+        if kwargs.get("fd"):
+            raise can.CanInitializationError(
+                "fd=True: the harvester's bus is CAN 2.0B (classic frames of at most 8 bytes), "
+                "not CAN FD")
+        without = _node_names(without)
+        seed = _seed(seed)
         try:
             self._harvester = Harvester(
                 config=None if config is None else str(config),
-                without=list(without),
+                without=without,
                 seed=seed,
                 name=str(channel),
                 virtual_time=bool(virtual_time),
@@ -80,7 +157,17 @@ class HarvemuBus(can.BusABC):
         self.channel_info = f"harvemu {channel}"
         # Bus time zero on the wall clock, added to timestamps when the bus keeps to it.
         self._epoch = 0.0 if virtual_time else self._harvester.epoch()
-        super().__init__(channel=channel, can_filters=can_filters, **kwargs)
+        try:
+            super().__init__(channel=channel, can_filters=can_filters, **kwargs)
+        except can.CanOperationError as e:
+            self._harvester.close()
+            raise can.CanInitializationError(f"can_filters: {e}") from e
+
+    @staticmethod
+    def _detect_available_configs():
+        """The one bus harvemu offers: the built-in harvester, the program in the monitor's
+        place."""
+        return [{"interface": "harvemu", "channel": "harv0"}]
 
     @property
     def harvester(self):
@@ -88,10 +175,11 @@ class HarvemuBus(can.BusABC):
         return self._harvester
 
     def _apply_filters(self, filters):
-        specs = []
-        for f in filters or []:
-            specs.append((int(f["can_id"]), int(f["can_mask"]), f.get("extended")))
-        self._harvester.set_filters(specs)
+        specs = _filter_specs(filters)
+        try:
+            self._harvester.set_filters(specs)
+        except (ValueError, RuntimeError) as e:
+            raise can.CanOperationError(str(e)) from e
 
     def recv(self, timeout=None):
         """The next frame that passes the filters, within ``timeout`` s of bus time (of the wall
@@ -117,9 +205,10 @@ class HarvemuBus(can.BusABC):
     def send(self, msg, timeout=None):
         """Hands ``msg`` to the program's controller; it goes out when the bus next runs (at once
         when the bus keeps to the wall clock)."""
+        arbitration_id = _checked_id(msg)
         try:
             self._harvester.send(
-                msg.arbitration_id,
+                arbitration_id,
                 bytes(msg.data),
                 msg.is_extended_id,
                 msg.is_remote_frame,
@@ -139,7 +228,10 @@ class HarvemuBus(can.BusABC):
     def run_for(self, seconds):
         """Runs the harvester for ``seconds`` of bus time (waits for it when the bus keeps to
         the wall clock); the bus time reached, s."""
-        return self._harvester.run_for(seconds)
+        try:
+            return self._harvester.run_for(seconds)
+        except (ValueError, RuntimeError) as e:
+            raise can.CanOperationError(str(e)) from e
 
     def shutdown(self):
         super().shutdown()
