@@ -164,35 +164,32 @@ fn a_single_snapshot_falls_back_to_the_mean_period() {
     );
 }
 
+/// E0's speed.status with `actual` km/h, set-point 8 km/h, cruise.
+fn speed_status(actual: f64) -> Frame {
+    by_name("speed.status")
+        .unwrap()
+        .encode(Address::SPEED_CONTROL, |f| match f {
+            "actual" => Some(actual),
+            "setpoint" => Some(8.0),
+            "mode" => Some(1.0),
+            _ => Some(0.0),
+        })
+        .unwrap()
+}
+
 #[test]
 fn an_identifier_row_shows_its_last_payload_decoded() {
     let (mut bus, tx) = bus_with_sender();
-    let status = by_name("speed.status").unwrap();
     let speeds = [3.5, 7.25];
     for (k, speed) in speeds.iter().enumerate() {
-        let frame = status
-            .encode(Address::SPEED_CONTROL, |f| match f {
-                "actual" => Some(*speed),
-                "setpoint" => Some(8.0),
-                "mode" => Some(1.0),
-                _ => Some(0.0),
-            })
-            .unwrap();
-        bus.submit(tx, frame, BusTime::from_millis(k as u64 * 50))
+        bus.submit(tx, speed_status(*speed), BusTime::from_millis(k as u64 * 50))
             .unwrap();
     }
     // A frame whose identifier and Data0 name a message but whose length breaks it.
     let broken = Frame::extended(0x0500F5B1, &[0x21]).unwrap();
     bus.submit(tx, broken, BusTime::from_millis(120)).unwrap();
     bus.run_until(BusTime::from_millis(200));
-    let last = status
-        .encode(Address::SPEED_CONTROL, |f| match f {
-            "actual" => Some(7.25),
-            "setpoint" => Some(8.0),
-            "mode" => Some(1.0),
-            _ => Some(0.0),
-        })
-        .unwrap();
+    let last = speed_status(7.25);
     let snap = snapshot(&mut bus, BusTime::from_millis(200), Vec::new());
     let view = view_of(&snap, None, &RateMeter::default());
     let screen = render(&view, 200, 30);
@@ -434,16 +431,8 @@ const HARVESTER: [&str; 21] = [
 #[test]
 fn at_80_by_24_every_node_shows_and_the_decoded_column_is_filled_or_left_out() {
     let (mut bus, tx) = bus_with_sender();
-    let status = by_name("speed.status").unwrap();
-    let frame = status
-        .encode(Address::SPEED_CONTROL, |f| match f {
-            "actual" => Some(7.25),
-            "setpoint" => Some(8.0),
-            "mode" => Some(1.0),
-            _ => Some(0.0),
-        })
+    bus.submit(tx, speed_status(7.25), BusTime::from_millis(0))
         .unwrap();
-    bus.submit(tx, frame, BusTime::from_millis(0)).unwrap();
     bus.run_until(BusTime::from_millis(100));
     let nodes: Vec<NodeSnapshot> = HARVESTER
         .iter()
