@@ -31,8 +31,9 @@ fn error(e: supervisor::Error) -> PyErr {
     }
 }
 
-/// A frame as `recv` hands it over: bus time (s), identifier, extended, remote, DLC, data.
-type Message<'py> = (f64, u32, bool, bool, u8, Bound<'py, PyBytes>);
+/// A frame as `recv` hands it over: bus time (s), identifier, extended, remote, DLC, data, and
+/// whether the program's own controller sent it.
+type Message<'py> = (f64, u32, bool, bool, u8, Bound<'py, PyBytes>, bool);
 
 /// A frame from its parts, as python-can's `Message` has them.
 fn frame(
@@ -103,9 +104,12 @@ impl Harvester {
 impl Harvester {
     /// Starts the harvester of `config` (the built-in default when None) without the nodes in
     /// `without`, with the program on its bus as `name`; in virtual time, or paced by the wall
-    /// clock when `virtual_time` is False.
+    /// clock when `virtual_time` is False. `start_time` (RFC 3339 or seconds since 1970, as
+    /// `--start-time`) is where bus time zero lies; `own_frames`: the program receives its own
+    /// frames.
     #[new]
-    #[pyo3(signature = (config=None, without=Vec::new(), seed=None, name=String::from("program"), virtual_time=true))]
+    #[pyo3(signature = (config=None, without=Vec::new(), seed=None, name=String::from("program"), virtual_time=true, start_time=None, own_frames=false))]
+    #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
         config: Option<std::path::PathBuf>,
@@ -113,13 +117,21 @@ impl Harvester {
         seed: Option<u64>,
         name: String,
         virtual_time: bool,
+        start_time: Option<String>,
+        own_frames: bool,
     ) -> PyResult<Harvester> {
+        let start_time = start_time
+            .map(|t| bus::time::Epoch::parse(&t))
+            .transpose()
+            .map_err(|e| PyValueError::new_err(format!("start_time: {e}")))?;
         let options = Options {
             config,
             without,
             seed,
             name,
             paced: !virtual_time,
+            start_time,
+            own_frames,
         };
         let session = py.allow_threads(|| Session::start(&options)).map_err(error)?;
         Ok(Harvester {
@@ -171,6 +183,7 @@ impl Harvester {
                     f.is_remote(),
                     f.dlc(),
                     data,
+                    r.own,
                 )));
             }
             left -= step;
@@ -181,8 +194,11 @@ impl Harvester {
         }
     }
 
-    /// Hands a frame to the program's controller.
-    #[pyo3(signature = (arbitration_id, data, extended=true, remote=false, dlc=None))]
+    /// Hands a frame to the program's controller; in virtual time, while its transmit queue is
+    /// full, runs the bus until there is room or `timeout` s of bus time have passed (None: no
+    /// limit). False when the frame was not queued.
+    #[pyo3(signature = (arbitration_id, data, extended=true, remote=false, dlc=None, timeout=None))]
+    #[allow(clippy::too_many_arguments)]
     fn send(
         &self,
         py: Python<'_>,
@@ -191,9 +207,53 @@ impl Harvester {
         extended: bool,
         remote: bool,
         dlc: Option<usize>,
-    ) -> PyResult<()> {
+        timeout: Option<f64>,
+    ) -> PyResult<bool> {
         let frame = frame(arbitration_id, &data, extended, remote, dlc)?;
-        self.with(py, move |s| s.send(frame))
+        let mut left = timeout.unwrap_or(FOREVER_S);
+        if !(left.is_finite() && left >= 0.0) {
+            return Err(PyValueError::new_err(format!("timeout {left} s is not a time")));
+        }
+        // As recv: a second of bus time at a time, Python's signals looked at in between.
+        loop {
+            let step = left.min(STEP_S);
+            if self.with(py, move |s| s.send(frame, step))? {
+                return Ok(true);
+            }
+            left -= step;
+            if left <= 0.0 || self.paced {
+                return Ok(false);
+            }
+            py.check_signals()?;
+        }
+    }
+
+    /// The bus's bit rate, bit/s.
+    fn bitrate(&self, py: Python<'_>) -> PyResult<u32> {
+        self.with(py, |s| Ok(s.bitrate()))
+    }
+
+    /// Bus time by which every node on the bus has booted, s (before it, nodes may not yet
+    /// acknowledge frames; in virtual time the first frame sent waits for it).
+    fn ready_time(&self, py: Python<'_>) -> PyResult<f64> {
+        self.with(py, |s| Ok(s.ready_s()))
+    }
+
+    /// Runs the harvester (paced: waits) until every node has booted; the bus time then, s.
+    fn wait_ready(&self, py: Python<'_>) -> PyResult<f64> {
+        self.with(py, |s| s.wait_ready())
+    }
+
+    /// Puts the program's controller in listen-only mode (True) or takes it out (False).
+    fn set_listen_only(&self, py: Python<'_>, on: bool) -> PyResult<()> {
+        self.with(py, move |s| s.set_listen_only(on))
+    }
+
+    /// The program's controller: (name, state, TEC, REC, listen-only), the state as in
+    /// `states`.
+    fn own(&self, py: Python<'_>) -> PyResult<(String, String, u16, u16, bool)> {
+        let o = self.with(py, |s| s.own())?;
+        Ok((o.state.name, o.state.state, o.state.tec, o.state.rec, o.listen_only))
     }
 
     /// Sends `frames` (identifier, data, extended, remote, DLC each) in turn, the first now, then

@@ -7,12 +7,14 @@
 //! as it runs, so that a call from another thread is not held up behind one.
 
 use super::program::{Inbox, Program};
-use super::{Command, NodeState, Received};
+use super::{Command, NodeState, Own, Received};
 use crate::harvester::{self, Harvester, Running};
 use crate::scenario::{self, Action, Actions, Step, Todo};
 use crate::{Error, Result};
 use actix::prelude::*;
+use bus::Frame;
 use bus::engine::{ControllerConfig, NodeId};
+use bus::node::ControllerCommand;
 use bus::time::{BusDuration, BusTime};
 use bus_runtime::hub::{Attach, Control, GetSnapshot, Submit, runtime};
 use bus_runtime::node::NodeActor;
@@ -59,16 +61,38 @@ struct Driver {
     acted: usize,
     /// Faults to end, and when.
     ends: Vec<(BusTime, End)>,
+    paced: bool,
+    /// When every node has booted, until the first frame is sent in virtual time (which waits
+    /// for it); `None` after.
+    boot: Option<BusTime>,
+    /// The longest frame's time on this bus: 160 bit times (29-bit identifier, 8 data bytes,
+    /// every stuff bit, intermission). The bus runs this long at a time for a `send` that waits
+    /// for room, and at most this long for a `recv(0)` in virtual time.
+    longest_frame: BusDuration,
+    /// The controller is in listen-only mode.
+    listen_only: bool,
+}
+
+/// How the program stands on the bus.
+pub(super) struct Setup {
+    /// Its node's name.
+    pub name: String,
+    /// Bus time paced by the wall clock.
+    pub paced: bool,
+    /// It receives its own frames.
+    pub own_frames: bool,
+    /// When every node has booted: in virtual time the first frame sent waits for it.
+    pub ready: BusTime,
 }
 
 /// Runs the harvester's thread (see the module doc).
 pub(super) fn drive(
     h: Harvester,
-    name: String,
-    paced: bool,
+    setup: Setup,
     mut commands: mpsc::UnboundedReceiver<Command>,
     ready: oneshot::Sender<Result<()>>,
 ) {
+    let paced = setup.paced;
     let system = match runtime(!paced) {
         Ok(rt) => System::with_tokio_rt(move || rt),
         Err(e) => {
@@ -77,7 +101,7 @@ pub(super) fn drive(
         }
     };
     system.block_on(async move {
-        let mut d = match Driver::start(&h, name, paced).await {
+        let mut d = match Driver::start(&h, setup).await {
             Ok(d) => {
                 let _ = ready.send(Ok(()));
                 d
@@ -122,8 +146,15 @@ pub(super) fn drive(
 }
 
 impl Driver {
-    async fn start(h: &Harvester, name: String, paced: bool) -> Result<Driver> {
+    async fn start(h: &Harvester, setup: Setup) -> Result<Driver> {
+        let Setup {
+            name,
+            paced,
+            own_frames,
+            ready,
+        } = setup;
         let inbox = Rc::new(RefCell::new(Inbox::default()));
+        inbox.borrow_mut().own_frames = own_frames;
         let running = harvester::begin(h, paced, Vec::new()).await?;
         let actor = NodeActor::new(name.clone(), Box::new(Program::new(inbox.clone()))).start();
         let id = running
@@ -141,7 +172,34 @@ impl Driver {
             actions: Actions::new("the session".into()),
             acted: 0,
             ends: Vec::new(),
+            paced,
+            boot: (!paced).then_some(ready),
+            longest_frame: BusDuration::from_nanos(160_000_000_000 / u64::from(h.config.network.bitrate.max(1))),
+            listen_only: false,
         })
+    }
+
+    /// Hands `frame` to the controller; in virtual time, first waits for the nodes' boot (the
+    /// first time), then, while the transmit queue is full, runs the bus a frame's time at a
+    /// time until there is room or `timeout` s have passed. Answers whether it was queued.
+    async fn send(&mut self, frame: Frame, timeout: f64) -> Result<bool> {
+        if self.listen_only {
+            return Err(Error::BadInput(
+                "the program's controller is in listen-only mode: it sends nothing".into(),
+            ));
+        }
+        if let Some(ready) = self.boot.take() {
+            self.advance(ready, || false).await?;
+        }
+        let end = self.running.now() + BusDuration::from_secs_f64(timeout);
+        loop {
+            let queued = self.running.hub.send(Submit { node: self.id, frame }).await??;
+            if queued || self.paced || self.running.now() >= end {
+                return Ok(queued);
+            }
+            let next = (self.running.now() + self.longest_frame).min(end);
+            self.advance(next, || false).await?;
+        }
     }
 
     async fn carry_out(&mut self, c: Command) {
@@ -153,16 +211,37 @@ impl Driver {
             Command::Recv(timeout, tx) => {
                 let _ = tx.send(self.recv(timeout).await);
             }
-            Command::Send(frame, tx) => {
-                let sent = self.running.hub.send(Submit { node: self.id, frame }).await;
-                let _ = tx.send(match sent {
-                    Ok(Ok(true)) => Ok(()),
-                    Ok(Ok(false)) => Err(Error::BadInput(
-                        "the program's transmit queue is full: the frame was not sent".into(),
-                    )),
-                    Ok(Err(e)) => Err(e.into()),
-                    Err(e) => Err(e.into()),
-                });
+            Command::Send(frame, timeout, tx) => {
+                let _ = tx.send(self.send(frame, timeout).await);
+            }
+            Command::ListenOnly(on, tx) => {
+                self.listen_only = on;
+                let online = ControllerCommand::Online {
+                    listen_only: on,
+                    self_test: false,
+                };
+                self.inbox.borrow_mut().commands.push_back(online);
+                let _ = tx.send(self.poke().await);
+            }
+            Command::Own(tx) => {
+                let snap = self.running.hub.send(GetSnapshot).await;
+                let id = self.id.index();
+                let listen_only = self.listen_only;
+                let _ = tx.send(snap.map_err(Error::from).and_then(|s| {
+                    let n = s
+                        .nodes
+                        .get(id)
+                        .ok_or_else(|| Error::Internal("the program's node is not on the bus".into()))?;
+                    Ok(Own {
+                        state: NodeState {
+                            name: n.name.clone(),
+                            state: n.state.to_string(),
+                            tec: n.tec,
+                            rec: n.rec,
+                        },
+                        listen_only,
+                    })
+                }));
             }
             Command::Periodic(frames, period, duration, tx) => {
                 let now = self.running.now();
@@ -311,8 +390,15 @@ impl Driver {
         Ok(())
     }
 
+    /// The next frame within `timeout` s; a `recv(0)` with nothing waiting runs the bus up to
+    /// the longest frame's time, so that a loop of them moves bus time as a real bus moves.
     async fn recv(&mut self, timeout: f64) -> Result<Option<Received>> {
-        let end = self.running.now() + BusDuration::from_secs_f64(timeout);
+        let timeout = if timeout == 0.0 {
+            self.longest_frame
+        } else {
+            BusDuration::from_secs_f64(timeout)
+        };
+        let end = self.running.now() + timeout;
         loop {
             if let Some(r) = self.inbox.borrow_mut().pop() {
                 return Ok(Some(r));

@@ -21,7 +21,7 @@ mod program;
 use crate::harvester::Harvester;
 use crate::{Error, Result};
 use bus::Frame;
-use bus::time::Epoch;
+use bus::time::{BusDuration, BusTime, Epoch};
 use bus_runtime::hub::default_epoch;
 pub use program::{Filter, Inbox, QUEUE};
 use std::path::PathBuf;
@@ -60,6 +60,13 @@ pub struct Options {
     /// Bus time paced by the wall clock, the bus running between calls too; virtual time when
     /// false.
     pub paced: bool,
+    /// Where bus time zero lies on the wall clock; `None` for harvemu's default (as
+    /// `--start-time`: 2024-01-01T00:00:00Z in virtual time, the wall clock at the start when
+    /// paced).
+    pub start_time: Option<Epoch>,
+    /// The program receives the frames its own controller sent, at their end of frame (as
+    /// SocketCAN's `CAN_RAW_RECV_OWN_MSGS`).
+    pub own_frames: bool,
 }
 
 /// A frame the program received, with its end-of-frame time.
@@ -69,12 +76,25 @@ pub struct Received {
     pub at_s: f64,
     /// The frame.
     pub frame: Frame,
+    /// Sent by the program's own controller ([`Options::own_frames`]).
+    pub own: bool,
+}
+
+/// The program's controller, as it stands.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Own {
+    /// Its part on the bus, with its counters.
+    pub state: NodeState,
+    /// In listen-only mode ([`Session::set_listen_only`]).
+    pub listen_only: bool,
 }
 
 pub(crate) enum Command {
     Filters(Vec<Filter>, oneshot::Sender<Result<()>>),
     Recv(f64, oneshot::Sender<Result<Option<Received>>>),
-    Send(Frame, oneshot::Sender<Result<()>>),
+    Send(Frame, f64, oneshot::Sender<Result<bool>>),
+    ListenOnly(bool, oneshot::Sender<Result<()>>),
+    Own(oneshot::Sender<Result<Own>>),
     RunFor(f64, oneshot::Sender<Result<f64>>),
     Periodic(Vec<Frame>, f64, Option<f64>, oneshot::Sender<Result<u64>>),
     StopPeriodic(u64, oneshot::Sender<Result<bool>>),
@@ -104,6 +124,16 @@ pub struct Session {
     commands: Option<mpsc::UnboundedSender<Command>>,
     thread: Option<JoinHandle<()>>,
     epoch: Epoch,
+    bitrate: u32,
+    ready: BusTime,
+}
+
+/// When every node on the bus has booted: the time relay that powers the field nodes, plus the
+/// longest start-up of those present (zero when there are none).
+fn ready_at(h: &Harvester) -> BusTime {
+    let present = |n: &str| h.scripts.iter().any(|s| s.name == n) || h.firmware.iter().any(|f| f.name == n);
+    let longest = h.expected.iter().filter(|(n, _, _)| present(n)).map(|(_, _, ms)| *ms).max();
+    longest.map_or(BusTime::ZERO, |ms| h.relay() + BusDuration::from_millis(ms))
 }
 
 impl Session {
@@ -113,7 +143,10 @@ impl Session {
         let path = o.config.clone().unwrap_or_else(|| "configs/harvester.ron".into());
         let mut h = Harvester::load(&path)?;
         h.without(&o.without)?;
-        let epoch = *h.epoch.get_or_insert_with(|| default_epoch(o.paced));
+        let epoch = o.start_time.or(h.epoch).unwrap_or_else(|| default_epoch(o.paced));
+        h.epoch = Some(epoch);
+        let bitrate = h.config.network.bitrate;
+        let ready = ready_at(&h);
         if let Some(seed) = o.seed {
             h.config.network.seed = seed;
         }
@@ -123,18 +156,25 @@ impl Session {
             o.name.clone()
         };
         let (tx, rx) = mpsc::unbounded_channel();
-        let (ready_tx, ready) = oneshot::channel();
-        let paced = o.paced;
+        let (started_tx, started) = oneshot::channel();
+        let setup = driver::Setup {
+            name,
+            paced: o.paced,
+            own_frames: o.own_frames,
+            ready,
+        };
         let thread = std::thread::Builder::new()
             .name("harvemu-session".into())
-            .spawn(move || driver::drive(h, name, paced, rx, ready_tx))
+            .spawn(move || driver::drive(h, setup, rx, started_tx))
             .map_err(|e| Error::Internal(format!("cannot start the harvester's thread: {e}")))?;
         let session = Session {
             commands: Some(tx),
             thread: Some(thread),
             epoch,
+            bitrate,
+            ready,
         };
-        ready
+        started
             .blocking_recv()
             .map_err(|_| Error::Internal("the harvester's thread ended at start".into()))??;
         Ok(session)
@@ -187,9 +227,48 @@ impl Session {
         self.ask(|tx| Command::Recv(t.min(FOREVER_S), tx))
     }
 
-    /// Hands a frame to the program's controller, which sends it when the bus next runs.
-    pub fn send(&self, frame: Frame) -> Result<()> {
-        self.ask(|tx| Command::Send(frame, tx))
+    /// Hands a frame to the program's controller, which sends it when the bus next runs. In
+    /// virtual time the first frame waits until every node has booted ([`Session::ready_s`]),
+    /// and when the controller's transmit queue is full the bus runs until there is room, for at
+    /// most `timeout_s` of bus time; false when there was none by then. Paced, the queue is
+    /// looked at once.
+    pub fn send(&self, frame: Frame, timeout_s: f64) -> Result<bool> {
+        if !(timeout_s.is_finite() && timeout_s >= 0.0) {
+            return Err(Error::BadInput(format!("timeout {timeout_s} s is not a time")));
+        }
+        self.ask(|tx| Command::Send(frame, timeout_s.min(FOREVER_S), tx))
+    }
+
+    /// The bus's bit rate, bit/s.
+    pub fn bitrate(&self) -> u32 {
+        self.bitrate
+    }
+
+    /// Bus time by which every node on the bus has booted, s: the time relay that powers the
+    /// field nodes plus the longest of their start-up times. Before it, nodes may not yet
+    /// acknowledge frames.
+    pub fn ready_s(&self) -> f64 {
+        self.ready.as_secs_f64()
+    }
+
+    /// Runs the harvester (paced: waits) until every node has booted ([`Session::ready_s`]);
+    /// answers with the bus time then, s.
+    pub fn wait_ready(&self) -> Result<f64> {
+        let now = self.now()?;
+        let left = self.ready.as_secs_f64() - now;
+        if left > 0.0 { self.run_for(left) } else { Ok(now) }
+    }
+
+    /// Puts the program's controller in listen-only mode, or takes it out (it joins the bus
+    /// again as a controller does, after 11 recessive bits). In listen-only mode it acknowledges
+    /// nothing, sends nothing (its frames wait), and its error counters stay as they are.
+    pub fn set_listen_only(&self, on: bool) -> Result<()> {
+        self.ask(|tx| Command::ListenOnly(on, tx))
+    }
+
+    /// The program's controller as it stands.
+    pub fn own(&self) -> Result<Own> {
+        self.ask(Command::Own)
     }
 
     /// Runs the harvester (paced: waits for it) for `seconds` of bus time; answers with the bus

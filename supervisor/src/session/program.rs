@@ -1,9 +1,11 @@
-//! The program's node on the bus: frames that pass its filters go to a queue the session reads,
-//! and the bus stops at each while the session waits for one.
+//! The program's node on the bus: frames that pass its filters go to a queue the session reads
+//! (its own frames too, when it asks for them, at their end of frame), and the bus stops at each
+//! while the session waits for one. Commands for its controller (listen-only mode) go out at
+//! its next wake.
 
 use super::Received;
 use bus::Frame;
-use bus::node::NodeLogic;
+use bus::node::{ControllerCommand, ControllerEvent, NodeLogic};
 use bus::time::BusDuration;
 use bus::time::BusTime;
 use std::cell::RefCell;
@@ -50,6 +52,10 @@ pub struct Inbox {
     next_task: u64,
     /// Frames due from the tasks, for the controller.
     outbox: VecDeque<Frame>,
+    /// Commands for the controller, for its next wake.
+    pub commands: VecDeque<ControllerCommand>,
+    /// The frames the controller sent go to the queue too.
+    pub own_frames: bool,
 }
 
 /// Frames sent over and over: `frames` in turn, one every `period`, until `end`.
@@ -141,7 +147,7 @@ impl Inbox {
         self.queue.is_empty()
     }
 
-    fn take(&mut self, at: BusTime, frame: &Frame) {
+    fn take(&mut self, at: BusTime, frame: &Frame, own: bool) {
         if !self.filters.is_empty() && !self.filters.iter().any(|f| f.passes(frame)) {
             return;
         }
@@ -152,6 +158,7 @@ impl Inbox {
         self.queue.push_back(Received {
             at_s: at.as_secs_f64(),
             frame: *frame,
+            own,
         });
         self.stop |= self.waiting;
     }
@@ -172,7 +179,22 @@ impl Program {
 
 impl NodeLogic for Program {
     fn handle_frame(&mut self, now: BusTime, frame: &Frame) {
-        self.inbox.borrow_mut().take(now, frame);
+        self.inbox.borrow_mut().take(now, frame, false);
+    }
+    fn handle_event(&mut self, now: BusTime, event: ControllerEvent) {
+        let mut inbox = self.inbox.borrow_mut();
+        if let ControllerEvent::Sent(frame) = event
+            && inbox.own_frames
+        {
+            inbox.take(now, &frame, true);
+        }
+    }
+    /// Its own frames wake it at their end of frame, so that a `recv` waiting gets them then.
+    fn wants_every_event(&self) -> bool {
+        self.inbox.borrow().own_frames
+    }
+    fn poll_command(&mut self) -> Option<(usize, ControllerCommand)> {
+        self.inbox.borrow_mut().commands.pop_front().map(|c| (0, c))
     }
     fn handle_timeout(&mut self, now: BusTime) {
         self.inbox.borrow_mut().tick(now);

@@ -93,7 +93,7 @@ fn what_the_program_sends_reaches_the_nodes() {
     assert!(before.into_iter().all(|r| r.frame.data() != REFERENCE_MARKER));
     // flow.calibrate (Data0 0x10): "start calibration" (1), target 10000 (0x2710, low byte
     // first), 5 samples.
-    s.send(parse_frame("0601D0F5#1001102705").unwrap()).unwrap();
+    assert!(s.send(parse_frame("0601D0F5#1001102705").unwrap(), 0.0).unwrap());
     let answered = (0..8)
         .filter_map(|_| s.recv(Some(0.5)).unwrap())
         .any(|r| r.frame.data() == REFERENCE_MARKER);
@@ -243,7 +243,7 @@ fn paced_a_recv_waiting_in_one_thread_does_not_hold_up_another() {
         });
         // Sent and acknowledged (by every field node) while the other thread waits.
         let frame = parse_frame("18FF00F5#0102").unwrap();
-        s.send(frame).unwrap();
+        assert!(s.send(frame, 0.0).unwrap());
         let mut sent = 0;
         for _ in 0..3000 {
             sent = s.sent().unwrap();
@@ -259,4 +259,128 @@ fn paced_a_recv_waiting_in_one_thread_does_not_hold_up_another() {
         let got = waiting.join().unwrap().unwrap().expect("a frame from D0");
         assert_eq!(got.frame.raw_id(), 0x0601_F5D0);
     });
+}
+
+fn with(options: Options) -> Session {
+    Session::start(&Options {
+        without: vec!["F5".into()],
+        name: "F5".into(),
+        seed: Some(1),
+        ..options
+    })
+    .unwrap_or_else(|e| panic!("{e}"))
+}
+
+#[test]
+fn the_first_frame_waits_for_the_boot_and_a_full_queue_runs_the_bus() {
+    let s = without_monitor(1);
+    // The default harvester: the time relay closes at 500 ms and D5 boots longest, 155 ms.
+    assert_eq!(s.ready_s(), 0.655);
+    let frame = parse_frame("18FF00F5#0102030405060708").unwrap();
+    assert!(s.send(frame, 0.0).unwrap());
+    assert_eq!(s.now().unwrap(), 0.655);
+    // 1,000 frames sent without a recv: the 16-frame queue fills, and each send then runs the
+    // bus until a frame has gone out.
+    for _ in 1..1000 {
+        assert!(s.send(frame, 1.0).unwrap());
+    }
+    s.run_for(1.0).unwrap();
+    assert_eq!(s.sent().unwrap(), 1000);
+    // No room within no time: not queued, and the bus stood still.
+    for _ in 0..16 {
+        s.send(frame, 0.0).unwrap();
+    }
+    let now = s.now().unwrap();
+    assert!(!s.send(frame, 0.0).unwrap());
+    assert_eq!(s.now().unwrap(), now);
+    assert!(s.send(frame, f64::NAN).is_err());
+    // A controller that never gets its frames out (nobody acknowledges): the whole timeout.
+    for n in s.states().unwrap().iter().filter(|n| n.name != "F5") {
+        s.act(&format!("Disconnect({:?})", n.name)).unwrap();
+    }
+    s.run_for(0.1).unwrap();
+    let now = s.now().unwrap();
+    assert!(!s.send(frame, 0.25).unwrap());
+    assert!((s.now().unwrap() - now - 0.25).abs() < 1e-9);
+}
+
+#[test]
+fn recv_zero_runs_the_bus_up_to_one_frame_time() {
+    let s = without_monitor(1);
+    s.run_for(2.0).unwrap();
+    // Only D0's frames from now on, every 250 ms (the frames waiting are dropped).
+    s.set_filters(&[Filter { mask: 0x1FFF_FFFF, id: 0, extended: None }]).unwrap();
+    s.set_filters(&[from_d0()]).unwrap();
+    let mut polls = 0u32;
+    let got = loop {
+        polls += 1;
+        let before = s.now().unwrap();
+        if let Some(r) = s.recv(Some(0.0)).unwrap() {
+            break r;
+        }
+        // 160 bit times at 250 kbit/s.
+        assert!((s.now().unwrap() - before - 0.00064).abs() < 1e-9);
+    };
+    // The poll stopped where D0's frame ended, within the 250 ms D0 takes.
+    assert_eq!(s.now().unwrap(), got.at_s);
+    assert!(got.at_s > 2.0 && got.at_s < 2.26 && polls > 1, "{polls} polls to {}", got.at_s);
+}
+
+#[test]
+fn own_frames_come_back_marked_at_their_end_of_frame() {
+    let s = with(Options {
+        own_frames: true,
+        ..Options::default()
+    });
+    let own = Filter {
+        id: 0x18FF_00F5,
+        mask: 0x1FFF_FFFF,
+        extended: Some(true),
+    };
+    s.set_filters(&[own]).unwrap();
+    let frame = parse_frame("18FF00F5#01").unwrap();
+    assert!(s.send(frame, 0.0).unwrap());
+    let r = s.recv(Some(1.0)).unwrap().expect("its own frame");
+    assert!(r.own && r.frame == frame, "{r:?}");
+    // Handed over at 0.655 s: it ends at least its length later (an extended frame with one
+    // data byte is 75 bits before stuffing, ISO 11898-1: 300 µs at 250 kbit/s), and the recv
+    // stopped there.
+    assert!(r.at_s > 0.655 + 0.000_3 && r.at_s < 0.66, "{r:?}");
+    assert_eq!(s.now().unwrap(), r.at_s);
+    // Without asking: never.
+    let s = without_monitor(1);
+    s.set_filters(&[own]).unwrap();
+    assert!(s.send(frame, 0.0).unwrap());
+    assert_eq!(s.recv(Some(1.0)).unwrap(), None);
+    assert_eq!(s.sent().unwrap(), 1);
+}
+
+#[test]
+fn listen_only_sends_nothing_acknowledges_nothing_and_still_receives() {
+    let s = without_monitor(1);
+    s.set_filters(&[from_d0()]).unwrap();
+    s.run_for(1.0).unwrap();
+    s.set_listen_only(true).unwrap();
+    assert!(s.own().unwrap().listen_only);
+    let e = s.send(parse_frame("18FF00F5#01").unwrap(), 0.0).unwrap_err().to_string();
+    assert!(e.contains("listen-only"), "{e}");
+    assert!(s.recv(Some(1.0)).unwrap().is_some());
+    let tx_before = s.own().unwrap().state.tec;
+    s.set_listen_only(false).unwrap();
+    assert!(!s.own().unwrap().listen_only);
+    assert!(s.send(parse_frame("18FF00F5#01").unwrap(), 0.0).unwrap());
+    s.run_for(0.1).unwrap();
+    assert_eq!(s.sent().unwrap(), 1);
+    assert_eq!((tx_before, s.own().unwrap().state.state.as_str()), (0, "error active"));
+}
+
+#[test]
+fn a_start_time_stamps_bus_time_zero() {
+    let s = with(Options {
+        start_time: Some(Epoch::parse("2025-06-01T12:00:00Z").unwrap()),
+        ..Options::default()
+    });
+    assert_eq!(s.epoch_s(), 1_748_779_200.0);
+    assert_eq!(without_monitor(1).epoch_s(), 1_704_067_200.0);
+    assert_eq!(s.bitrate(), 250_000);
 }

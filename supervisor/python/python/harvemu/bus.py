@@ -1,11 +1,17 @@
 """The python-can interface ``harvemu``: the program stands on the emulated harvester's bus.
 
-In virtual time (the default) bus time is harvemu's: it moves only inside ``recv`` and
-``run_for``, so the same seed and the same calls give the same frames at the same times. With
-``virtual_time=False`` the bus keeps to the wall clock and runs between calls, as a real one does.
+In virtual time (the default) bus time is harvemu's: it moves only inside the bus's calls
+(``recv``, ``run_for``, ``harvester.wait_ready``, and a ``send`` that waits for the nodes' boot or
+for room in the transmit queue), so the same seed and the same calls give the same frames at the
+same times. With ``virtual_time=False`` the bus keeps to the wall clock and runs between calls, as
+a real one does. Message timestamps are seconds since 1970 (bus time plus the start time);
+``run_for`` and ``harvester.now()`` give bus time, seconds from 0.
 Filters are applied inside harvemu, where the frames arrive, as a kernel applies a socket's
 filters.
 """
+
+import datetime
+import math
 
 import can
 from can.broadcastmanager import ModifiableCyclicTaskABC, RestartableCyclicTaskABC
@@ -122,41 +128,86 @@ def _filter_specs(filters):
     return specs
 
 
+def _start_time(start_time):
+    """``start_time`` as harvemu reads ``--start-time``: None, an RFC 3339 string, seconds since
+    1970 (a number), or an aware ``datetime``."""
+    if start_time is None:
+        return None
+    if isinstance(start_time, datetime.datetime):
+        if start_time.tzinfo is None:
+            raise can.CanInitializationError(
+                f"start_time={start_time!r}: give a datetime with its time zone "
+                f"(datetime.timezone.utc), so that the time is not a guess")
+        return start_time.isoformat()
+    if isinstance(start_time, str):
+        return start_time
+    if isinstance(start_time, (int, float)) and not isinstance(start_time, bool) \
+            and math.isfinite(start_time) and start_time >= 0:
+        t = datetime.datetime.fromtimestamp(start_time, datetime.timezone.utc)
+        return t.isoformat()
+    raise can.CanInitializationError(
+        f"start_time={start_time!r}: give an RFC 3339 time ('2024-01-01T00:00:00Z'), seconds "
+        f"since 1970, or a datetime with its time zone")
+
+
 class HarvemuBus(can.BusABC):
     """The emulated harvester as a python-can bus.
 
-    :param channel: the program's name on the bus (in traces and reports).
+    :param channel: the bus's name (``"harv0"``): every received message's ``channel``.
     :param config: a harvester config file; the built-in default when None.
     :param without: the nodes the program stands in for ("F5": the monitor).
+    :param node: the program's node name on the bus (in traces, reports and
+        ``harvester.states()``).
     :param seed: the run's seed; the config's when None.
-    :param virtual_time: True: bus time moves only inside ``recv`` and ``run_for``, and message
-        timestamps are bus time in seconds from the start. False: the bus keeps to the wall
-        clock, and timestamps are seconds since 1970, as ``time.time()`` gives them.
+    :param virtual_time: True: bus time moves only inside the bus's calls (see docs/PYTHON.md),
+        the same seed and calls give the same frames at the same times. False: the bus keeps to
+        the wall clock.
+    :param start_time: where bus time zero lies, as ``harvemu run --start-time``: an RFC 3339
+        time, seconds since 1970 or an aware datetime. By default 2024-01-01T00:00:00Z in
+        virtual time (as harvemu's traces), the wall clock at the start otherwise. Message
+        timestamps are seconds since 1970 from it.
+    :param receive_own_messages: the program also receives the frames it sent, at their end of
+        frame, with ``is_rx=False``.
+    :param bitrate: checked against the harvester's (250 kbit/s); None takes it as it is.
     """
 
     def __init__(self, channel="harv0", can_filters=None, config=None, without=("F5",),
-                 seed=None, virtual_time=True, **kwargs):
+                 seed=None, virtual_time=True, node="program", start_time=None,
+                 receive_own_messages=False, bitrate=None, **kwargs):
         if kwargs.get("fd"):
             raise can.CanInitializationError(
                 "fd=True: the harvester's bus is CAN 2.0B (classic frames of at most 8 bytes), "
                 "not CAN FD")
+        channel = "harv0" if channel is None else str(channel)
+        if not isinstance(node, str) or not node:
+            raise can.CanInitializationError(
+                f"node={node!r}: give the program's node name, a string such as 'program'")
         without = _node_names(without)
         seed = _seed(seed)
+        start = _start_time(start_time)
         try:
             self._harvester = Harvester(
                 config=None if config is None else str(config),
                 without=without,
                 seed=seed,
-                name=str(channel),
+                name=node,
                 virtual_time=bool(virtual_time),
+                start_time=start,
+                own_frames=bool(receive_own_messages),
             )
-        except ValueError as e:
+        except (ValueError, RuntimeError) as e:
             raise can.CanInitializationError(str(e)) from e
-        except RuntimeError as e:
-            raise can.CanInitializationError(str(e)) from e
+        if bitrate is not None and bitrate != self._harvester.bitrate():
+            ours = self._harvester.bitrate()
+            self._harvester.close()
+            raise can.CanInitializationError(
+                f"bitrate={bitrate!r}: the harvester's bus runs at {ours} bit/s; give "
+                f"bitrate={ours} or leave it out")
+        self.channel = channel
         self.channel_info = f"harvemu {channel}"
-        # Bus time zero on the wall clock, added to timestamps when the bus keeps to it.
-        self._epoch = 0.0 if virtual_time else self._harvester.epoch()
+        self._listen_only = False
+        # Bus time zero, in seconds since 1970: message timestamps are counted from it.
+        self._epoch = self._harvester.epoch()
         try:
             super().__init__(channel=channel, can_filters=can_filters, **kwargs)
         except can.CanOperationError as e:
@@ -190,7 +241,7 @@ class HarvemuBus(can.BusABC):
             raise can.CanOperationError(str(e)) from e
         if got is None:
             return None
-        t, arbitration_id, extended, remote, dlc, data = got
+        t, arbitration_id, extended, remote, dlc, data, own = got
         return can.Message(
             timestamp=self._epoch + t,
             arbitration_id=arbitration_id,
@@ -198,22 +249,57 @@ class HarvemuBus(can.BusABC):
             is_remote_frame=remote,
             dlc=dlc,
             data=None if remote else data,
-            channel=self.channel_info,
-            is_rx=True,
+            channel=self.channel,
+            is_rx=not own,
         )
 
     def send(self, msg, timeout=None):
         """Hands ``msg`` to the program's controller; it goes out when the bus next runs (at once
-        when the bus keeps to the wall clock)."""
+        when the bus keeps to the wall clock). In virtual time the first message waits until
+        every node has booted, and while the transmit queue is full the bus runs until there is
+        room, for at most ``timeout`` s of bus time (None: as long as it takes); then
+        CanOperationError."""
         arbitration_id = _checked_id(msg)
+        if timeout is not None and not (isinstance(timeout, (int, float))
+                                        and math.isfinite(timeout) and timeout >= 0):
+            raise can.CanOperationError(f"timeout={timeout!r}: give seconds (0 or more) or None")
         try:
-            self._harvester.send(
+            queued = self._harvester.send(
                 arbitration_id,
                 bytes(msg.data),
                 msg.is_extended_id,
                 msg.is_remote_frame,
                 msg.dlc,
+                timeout,
             )
+        except (ValueError, RuntimeError) as e:
+            raise can.CanOperationError(str(e)) from e
+        if not queued:
+            raise can.CanOperationError(
+                f"the transmit queue of the program's controller stayed full for "
+                f"timeout={timeout!r} s of bus time: the message was not sent")
+
+    @property
+    def state(self):
+        """ACTIVE, PASSIVE while the program's controller is in listen-only mode, ERROR while it
+        is bus off."""
+        try:
+            _, state, _, _, listen_only = self._harvester.own()
+        except (ValueError, RuntimeError) as e:
+            raise can.CanOperationError(str(e)) from e
+        if state == "bus off":
+            return can.BusState.ERROR
+        return can.BusState.PASSIVE if listen_only else can.BusState.ACTIVE
+
+    @state.setter
+    def state(self, new_state):
+        """PASSIVE puts the program's controller in listen-only mode (it acknowledges and sends
+        nothing, and still receives); ACTIVE takes it out."""
+        if new_state not in (can.BusState.ACTIVE, can.BusState.PASSIVE):
+            raise can.CanOperationError(
+                f"state={new_state!r}: set can.BusState.ACTIVE or can.BusState.PASSIVE")
+        try:
+            self._harvester.set_listen_only(new_state == can.BusState.PASSIVE)
         except (ValueError, RuntimeError) as e:
             raise can.CanOperationError(str(e)) from e
 
@@ -227,7 +313,8 @@ class HarvemuBus(can.BusABC):
 
     def run_for(self, seconds):
         """Runs the harvester for ``seconds`` of bus time (waits for it when the bus keeps to
-        the wall clock); the bus time reached, s."""
+        the wall clock); the bus time reached, s from 0 (a message's timestamp is that plus the
+        start time, ``harvester.epoch()``)."""
         try:
             return self._harvester.run_for(seconds)
         except (ValueError, RuntimeError) as e:

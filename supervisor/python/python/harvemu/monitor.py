@@ -41,12 +41,14 @@ def run(seconds, seed=2011):
     digest = hashlib.sha256()
     frames = 0
     started = time.perf_counter()
-    with can.Bus(interface="harvemu", channel="F5", without=["F5"], seed=seed) as bus:
+    with can.Bus(interface="harvemu", without=["F5"], node="F5", seed=seed) as bus:
+        # Timestamps are seconds since 1970; bus time is counted from the start time.
+        start = bus.harvester.epoch()
         # Flow sensors to F5: priority 6, type 1, destination F5, sources D0 to D7.
         bus.set_filters([{"can_id": 0x0601F5D0, "can_mask": 0x1FFFFFF8, "extended": True}])
         while True:
             msg = bus.recv(timeout=1.0)
-            if msg is None or msg.timestamp > seconds:
+            if msg is None or msg.timestamp - start > seconds:
                 break
             frames += 1
             d = bytes(msg.data)
