@@ -16,7 +16,10 @@ fn main() {
     let (Some(manifest), Some(out)) = (manifest, out) else {
         fail("CARGO_MANIFEST_DIR and OUT_DIR are set by Cargo: run this through cargo");
     };
-    let root = manifest.join("..").join("configs");
+    // `supervisor/configs` is a link to the repository's `configs/`, inside the crate: packaged
+    // (the Python package's source distribution, built away from the repository), the crate
+    // then carries the files themselves.
+    let root = manifest.join("configs");
     println!("cargo:rerun-if-changed={}", root.display());
     let mut files = Vec::new();
     walk(&root, "configs", &mut files);

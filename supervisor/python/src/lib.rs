@@ -253,7 +253,13 @@ impl Harvester {
     /// `states`.
     fn own(&self, py: Python<'_>) -> PyResult<(String, String, u16, u16, bool)> {
         let o = self.with(py, |s| s.own())?;
-        Ok((o.state.name, o.state.state, o.state.tec, o.state.rec, o.listen_only))
+        Ok((
+            o.state.name,
+            o.state.state,
+            o.state.tec,
+            o.state.rec,
+            o.listen_only,
+        ))
     }
 
     /// Sends `frames` (identifier, data, extended, remote, DLC each) in turn, the first now, then

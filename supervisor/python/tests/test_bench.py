@@ -1,12 +1,10 @@
 """`harvemu bench --only python-monitor`: the Python monitor's speed as a bench row.
 
 The row runs ``python -m harvemu.monitor`` in a process of its own; what it reports must be that
-monitor's own run, frame for frame. HARVEMU_BIN names the harvemu binary (scripts/test sets it);
-without it, the workspace's debug build is used.
+monitor's own run, frame for frame. The harvemu binary is found as conftest.py says.
 """
 
 import json
-import os
 import pathlib
 import subprocess
 import sys
@@ -16,15 +14,9 @@ from harvemu import monitor
 ROOT = pathlib.Path(__file__).parents[3]
 
 
-def harvemu():
-    binary = pathlib.Path(os.environ.get("HARVEMU_BIN", ROOT / "target" / "debug" / "harvemu"))
-    assert binary.is_file(), f"no harvemu binary at {binary}: build it or set HARVEMU_BIN"
-    return str(binary)
-
-
-def test_the_bench_row_is_the_monitors_own_run():
+def test_the_bench_row_is_the_monitors_own_run(harvemu_bin):
     out = subprocess.run(
-        [harvemu(), "bench", "--only", "python-monitor", "--python", sys.executable,
+        [harvemu_bin, "bench", "--only", "python-monitor", "--python", sys.executable,
          "--python-seconds", "20", "--json"],
         cwd=ROOT, capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stderr
@@ -41,9 +33,9 @@ def test_the_bench_row_is_the_monitors_own_run():
     assert row["us_per_frame"] > 0 and row["speedup"] > 0
 
 
-def test_a_python_without_the_package_is_a_clear_error():
+def test_a_python_without_the_package_is_a_clear_error(harvemu_bin):
     out = subprocess.run(
-        [harvemu(), "bench", "--only", "python-monitor", "--python", "/nonexistent/python3"],
+        [harvemu_bin, "bench", "--only", "python-monitor", "--python", "/nonexistent/python3"],
         cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert out.returncode == 2, out
     assert "/nonexistent/python3 -m harvemu.monitor" in out.stderr, out.stderr

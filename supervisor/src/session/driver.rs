@@ -174,7 +174,9 @@ impl Driver {
             ends: Vec::new(),
             paced,
             boot: (!paced).then_some(ready),
-            longest_frame: BusDuration::from_nanos(160_000_000_000 / u64::from(h.config.network.bitrate.max(1))),
+            longest_frame: BusDuration::from_nanos(
+                160_000_000_000 / u64::from(h.config.network.bitrate.max(1)),
+            ),
             listen_only: false,
         })
     }

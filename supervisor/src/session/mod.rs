@@ -132,7 +132,12 @@ pub struct Session {
 /// longest start-up of those present (zero when there are none).
 fn ready_at(h: &Harvester) -> BusTime {
     let present = |n: &str| h.scripts.iter().any(|s| s.name == n) || h.firmware.iter().any(|f| f.name == n);
-    let longest = h.expected.iter().filter(|(n, _, _)| present(n)).map(|(_, _, ms)| *ms).max();
+    let longest = h
+        .expected
+        .iter()
+        .filter(|(n, _, _)| present(n))
+        .map(|(_, _, ms)| *ms)
+        .max();
     longest.map_or(BusTime::ZERO, |ms| h.relay() + BusDuration::from_millis(ms))
 }
 

@@ -309,7 +309,12 @@ fn recv_zero_runs_the_bus_up_to_one_frame_time() {
     let s = without_monitor(1);
     s.run_for(2.0).unwrap();
     // Only D0's frames from now on, every 250 ms (the frames waiting are dropped).
-    s.set_filters(&[Filter { mask: 0x1FFF_FFFF, id: 0, extended: None }]).unwrap();
+    s.set_filters(&[Filter {
+        mask: 0x1FFF_FFFF,
+        id: 0,
+        extended: None,
+    }])
+    .unwrap();
     s.set_filters(&[from_d0()]).unwrap();
     let mut polls = 0u32;
     let got = loop {
@@ -323,7 +328,11 @@ fn recv_zero_runs_the_bus_up_to_one_frame_time() {
     };
     // The poll stopped where D0's frame ended, within the 250 ms D0 takes.
     assert_eq!(s.now().unwrap(), got.at_s);
-    assert!(got.at_s > 2.0 && got.at_s < 2.26 && polls > 1, "{polls} polls to {}", got.at_s);
+    assert!(
+        got.at_s > 2.0 && got.at_s < 2.26 && polls > 1,
+        "{polls} polls to {}",
+        got.at_s
+    );
 }
 
 #[test]
@@ -362,7 +371,10 @@ fn listen_only_sends_nothing_acknowledges_nothing_and_still_receives() {
     s.run_for(1.0).unwrap();
     s.set_listen_only(true).unwrap();
     assert!(s.own().unwrap().listen_only);
-    let e = s.send(parse_frame("18FF00F5#01").unwrap(), 0.0).unwrap_err().to_string();
+    let e = s
+        .send(parse_frame("18FF00F5#01").unwrap(), 0.0)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("listen-only"), "{e}");
     assert!(s.recv(Some(1.0)).unwrap().is_some());
     let tx_before = s.own().unwrap().state.tec;
@@ -371,7 +383,10 @@ fn listen_only_sends_nothing_acknowledges_nothing_and_still_receives() {
     assert!(s.send(parse_frame("18FF00F5#01").unwrap(), 0.0).unwrap());
     s.run_for(0.1).unwrap();
     assert_eq!(s.sent().unwrap(), 1);
-    assert_eq!((tx_before, s.own().unwrap().state.state.as_str()), (0, "error active"));
+    assert_eq!(
+        (tx_before, s.own().unwrap().state.state.as_str()),
+        (0, "error active")
+    );
 }
 
 #[test]
