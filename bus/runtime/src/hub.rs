@@ -528,6 +528,19 @@ impl Handler<Subscribe> for Hub {
     }
 }
 
+/// Registers an observer of every controller's error frames, told as the engine commits them
+/// (possibly ahead of the bus time a run has reached: see [`bus::schedule::ObservedError`]).
+#[derive(Message)]
+#[rtype(result = "()")]
+pub struct ObserveErrors(pub Box<dyn FnMut(&bus::schedule::ObservedError) -> bool + Send>);
+
+impl Handler<ObserveErrors> for Hub {
+    type Result = ();
+    fn handle(&mut self, ObserveErrors(mut observer): ObserveErrors, _: &mut Context<Self>) {
+        self.sched.observe_errors(Box::new(move |seen| observer(seen)));
+    }
+}
+
 /// Asks for the hub's [`Epoch`]: what a bus time is written as ([`Epoch::stamp`]).
 #[derive(Message)]
 #[rtype(result = "Epoch")]

@@ -1,11 +1,11 @@
 //! The engine's events on their way out: to the trace (in time order), to observers, and to the
 //! nodes' pending inputs; and the wakes those inputs make.
 
-use super::{Inputs, Notice, Observed, Scheduler, Wake, kept};
+use super::{Inputs, Notice, Observed, ObservedError, Scheduler, Wake, kept};
 use crate::engine::{Event, NodeId};
 use crate::node::ControllerEvent;
 use crate::time::BusTime;
-use crate::trace::{Record, Source};
+use crate::trace::{Kind, Record, Source};
 
 impl Scheduler {
     /// Routes the engine's events to traces, observers and the nodes' pending inputs. Returns
@@ -23,6 +23,9 @@ impl Scheduler {
             {
                 let seen = Observed { at: end, node, frame };
                 self.observers.retain_mut(|o| o(&seen));
+            }
+            if !self.error_observers.is_empty() {
+                self.tell_error(&event);
             }
             if self.register_level > 0
                 && let Some(d) = self.counters_of(&event)
@@ -83,6 +86,32 @@ impl Scheduler {
         self.scratch = scratch;
         self.hand_over(false);
         due
+    }
+
+    /// Tells the error observers of an event's error frame, if it raises one.
+    #[inline(never)]
+    fn tell_error(&mut self, event: &Event) {
+        let Some(Record {
+            at,
+            source: Source::Controller { node, .. },
+            kind: Kind::Error(frame),
+            ..
+        }) = Record::of_event(&self.iface, |_| "", event)
+        else {
+            return;
+        };
+        let name = self
+            .bus
+            .controllers()
+            .get(node.index())
+            .map_or_else(|| "?".to_string(), |c| c.config().name.clone());
+        let seen = ObservedError {
+            at,
+            node,
+            name,
+            frame,
+        };
+        self.error_observers.retain_mut(|o| o(&seen));
     }
 
     /// Puts an event's record into the reorder window; names are looked up as records go out

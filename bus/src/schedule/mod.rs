@@ -95,6 +95,25 @@ pub struct Observed {
 /// An observer of every frame: false when it is gone and wants no more.
 pub type Observer = Box<dyn FnMut(&Observed) -> bool>;
 
+/// A controller's error frame as an observer sees it, when the engine commits it (possibly
+/// ahead of the bus time a run has reached: [`crate::engine`] commits whole events at their
+/// start).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ObservedError {
+    /// Its time: the first bit of the error or overload flag, or the moment of the state change
+    /// or overrun ([`crate::trace::Record::at`]).
+    pub at: BusTime,
+    /// The controller that reports it.
+    pub node: NodeId,
+    /// That controller's name.
+    pub name: String,
+    /// It, in SocketCAN's encoding, as the trace writes it.
+    pub frame: crate::trace::ErrorFrame,
+}
+
+/// An observer of every controller's error frames: false when it is gone and wants no more.
+pub type ErrorObserver = Box<dyn FnMut(&ObservedError) -> bool>;
+
 /// A node to wake: its inputs since its last wake, all at or before `now`.
 #[derive(Debug)]
 pub struct Wake {
@@ -197,6 +216,7 @@ pub struct Scheduler {
     scratch: Vec<Event>,
     wakes: u64,
     observers: Vec<Observer>,
+    error_observers: Vec<ErrorObserver>,
     /// How many slots hear of every event (register-level nodes): none, usually, and then
     /// nothing is spent on them.
     register_level: usize,
@@ -253,6 +273,7 @@ impl Scheduler {
             scratch: Vec::with_capacity(64),
             wakes: 0,
             observers: Vec::new(),
+            error_observers: Vec::new(),
             register_level: 0,
             woken: VecDeque::new(),
             notices: VecDeque::new(),
@@ -773,6 +794,12 @@ impl Scheduler {
     /// Registers an observer of every frame on the bus, told at the frame's end.
     pub fn observe(&mut self, observer: Observer) {
         self.observers.push(observer);
+    }
+
+    /// Registers an observer of every controller's error frames, told as the engine commits
+    /// them, in the order it does.
+    pub fn observe_errors(&mut self, observer: ErrorObserver) {
+        self.error_observers.push(observer);
     }
 
     /// The nodes that crashed, and why.
