@@ -532,7 +532,7 @@ impl Handler<Subscribe> for Hub {
 /// (possibly ahead of the bus time a run has reached: see [`bus::schedule::ObservedError`]).
 #[derive(Message)]
 #[rtype(result = "()")]
-pub struct ObserveErrors(pub Box<dyn FnMut(&bus::schedule::ObservedError) -> bool + Send>);
+pub struct ObserveErrors(pub Box<dyn FnMut(&bus::schedule::ObservedError) -> bus::schedule::Heard + Send>);
 
 impl Handler<ObserveErrors> for Hub {
     type Result = ();

@@ -1,7 +1,7 @@
 //! The engine's events on their way out: to the trace (in time order), to observers, and to the
 //! nodes' pending inputs; and the wakes those inputs make.
 
-use super::{Inputs, Notice, Observed, ObservedError, Scheduler, Wake, kept};
+use super::{Heard, Inputs, Notice, Observed, ObservedError, Scheduler, Wake, kept};
 use crate::engine::{Event, NodeId};
 use crate::node::ControllerEvent;
 use crate::time::BusTime;
@@ -111,7 +111,19 @@ impl Scheduler {
             name,
             frame,
         };
-        self.error_observers.retain_mut(|o| o(&seen));
+        let mut stop = false;
+        self.error_observers.retain_mut(|o| match o(&seen) {
+            Heard::Gone => false,
+            Heard::Noted => true,
+            Heard::StopThere => {
+                stop = true;
+                true
+            }
+        });
+        // Only a run in progress stops; never before the present.
+        if stop && let Some(s) = self.stop_at {
+            self.stop_at = Some(s.min(at.max(self.now)));
+        }
     }
 
     /// Puts an event's record into the reorder window; names are looked up as records go out

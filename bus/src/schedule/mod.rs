@@ -111,8 +111,20 @@ pub struct ObservedError {
     pub frame: crate::trace::ErrorFrame,
 }
 
-/// An observer of every controller's error frames: false when it is gone and wants no more.
-pub type ErrorObserver = Box<dyn FnMut(&ObservedError) -> bool>;
+/// What an observer of error frames says to each.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Heard {
+    /// It is gone and wants no more.
+    Gone,
+    /// Noted; the run goes on.
+    Noted,
+    /// The run in progress is to stop at the error frame's time (a program outside the bus
+    /// waits for one), as it stops for a node that asks ([`crate::node::NodeLogic::stop_here`]).
+    StopThere,
+}
+
+/// An observer of every controller's error frames.
+pub type ErrorObserver = Box<dyn FnMut(&ObservedError) -> Heard>;
 
 /// A node to wake: its inputs since its last wake, all at or before `now`.
 #[derive(Debug)]
@@ -797,7 +809,8 @@ impl Scheduler {
     }
 
     /// Registers an observer of every controller's error frames, told as the engine commits
-    /// them, in the order it does.
+    /// them, in the order it does; one that answers [`Heard::StopThere`] stops the run in
+    /// progress at that error frame's time (told as [`Notice::Stopped`]).
     pub fn observe_errors(&mut self, observer: ErrorObserver) {
         self.error_observers.push(observer);
     }

@@ -547,3 +547,57 @@ fn a_controller_its_logic_starts_stays_off_the_bus_while_its_cable_is_out() {
         heard.borrow()
     );
 }
+
+#[test]
+fn error_observers_see_each_error_frame_and_may_stop_the_run_there() {
+    use crate::trace::err;
+    let seen: Rc<RefCell<Vec<ObservedError>>> = Rc::default();
+    let mut d = Driver::new();
+    // Alone on the bus: nobody acknowledges its frame (ISO 11898-1, 10.9.2 and 12.1.4).
+    d.sender(1, 1000, "123#11");
+    let log = seen.clone();
+    d.sched.observe_errors(Box::new(move |e| {
+        log.borrow_mut().push(e.clone());
+        if log.borrow().len() == 1 {
+            super::Heard::StopThere
+        } else {
+            super::Heard::Noted
+        }
+    }));
+    let stopped = d.run_until(ms(100));
+    let first = seen.borrow()[0].clone();
+    // The run stopped at the first error frame: an acknowledgement error while transmitting,
+    // TEC 8 (rule 3), in SocketCAN's encoding (linux/can/error.h).
+    assert_eq!(stopped, first.at);
+    assert!(first.at > ms(1) && first.at < ms(2), "{first:?}");
+    assert_eq!(first.name, "tx");
+    assert_eq!(
+        first.frame.can_id,
+        crate::filter::CAN_ERR_FLAG | err::PROT | err::ACK | err::BUSERROR | err::CNT
+    );
+    assert_eq!(
+        (first.frame.data[2], first.frame.data[3], first.frame.data[6]),
+        (err::PROT_TX, err::PROT_LOC_ACK, 8)
+    );
+    // Run on: each retransmission errs the same way, TEC 8 more each, until error passive at
+    // 128 (the 16th); from then on an error passive transmitter's acknowledgement errors add
+    // nothing (rule 3, exception 1).
+    d.run_until(ms(100));
+    let tecs: Vec<u8> = seen
+        .borrow()
+        .iter()
+        .filter(|e| e.frame.can_id & err::ACK != 0)
+        .map(|e| e.frame.data[6])
+        .take(18)
+        .collect();
+    let expected: Vec<u8> = (1..=16).map(|n| n * 8).chain([128, 128]).collect();
+    assert_eq!(tecs, expected);
+    // The state changes are error frames too: warning (96) and passive (128).
+    let crtl: Vec<u8> = seen
+        .borrow()
+        .iter()
+        .filter(|e| e.frame.can_id & err::CRTL != 0)
+        .map(|e| e.frame.data[1])
+        .collect();
+    assert_eq!(crtl, [err::CRTL_TX_WARNING, err::CRTL_TX_PASSIVE]);
+}

@@ -12,9 +12,9 @@
 use bus::{Frame, Id, extended_id, standard_id};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::PyBytes;
+use pyo3::types::{PyBytes, PyDict};
 use std::sync::RwLock;
-use supervisor::session::{FOREVER_S, Filter, Options, Session};
+use supervisor::session::{Delivered, ErrorFrames, FOREVER_S, Filter, Options, Session};
 
 /// Bus time a `recv` runs between looks at Python's signals, s: in virtual time, and paced by
 /// the wall clock (where it is also how long a `close` may wait for a `recv` in another thread).
@@ -31,9 +31,19 @@ fn error(e: supervisor::Error) -> PyErr {
     }
 }
 
-/// A frame as `recv` hands it over: bus time (s), identifier, extended, remote, DLC, data, and
-/// whether the program's own controller sent it.
-type Message<'py> = (f64, u32, bool, bool, u8, Bound<'py, PyBytes>, bool);
+/// A frame as `recv` hands it over: bus time (s), identifier, extended, remote, DLC, data,
+/// whether the program's own controller sent it, and for an error frame the controller that
+/// reports it (the identifier is then SocketCAN's `can_id`, `CAN_ERR_FLAG` and classes).
+type Message<'py> = (
+    f64,
+    u32,
+    bool,
+    bool,
+    u8,
+    Bound<'py, PyBytes>,
+    bool,
+    Option<String>,
+);
 
 /// A frame from its parts, as python-can's `Message` has them.
 fn frame(
@@ -108,7 +118,7 @@ impl Harvester {
     /// `--start-time`) is where bus time zero lies; `own_frames`: the program receives its own
     /// frames.
     #[new]
-    #[pyo3(signature = (config=None, without=Vec::new(), seed=None, name=String::from("program"), virtual_time=true, start_time=None, own_frames=false))]
+    #[pyo3(signature = (config=None, without=Vec::new(), seed=None, name=String::from("program"), virtual_time=true, start_time=None, own_frames=false, error_frames="own"))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -119,7 +129,18 @@ impl Harvester {
         virtual_time: bool,
         start_time: Option<String>,
         own_frames: bool,
+        error_frames: &str,
     ) -> PyResult<Harvester> {
+        let error_frames = match error_frames {
+            "own" => ErrorFrames::Own,
+            "all" => ErrorFrames::All,
+            "none" => ErrorFrames::None,
+            other => {
+                return Err(PyValueError::new_err(format!(
+                    "error_frames={other:?}: give \"own\" (the program's controller's), \"all\" or \"none\""
+                )));
+            }
+        };
         let start_time = start_time
             .map(|t| bus::time::Epoch::parse(&t))
             .transpose()
@@ -132,6 +153,7 @@ impl Harvester {
             paced: !virtual_time,
             start_time,
             own_frames,
+            error_frames,
         };
         let session = py.allow_threads(|| Session::start(&options)).map_err(error)?;
         Ok(Harvester {
@@ -161,7 +183,8 @@ impl Harvester {
         self.with(py, move |s| s.set_filters(&filters))
     }
 
-    /// The next frame for the program within `timeout` s of bus time (None: no limit).
+    /// The next frame or error frame for the program within `timeout` s of bus time (None: no
+    /// limit).
     #[pyo3(signature = (timeout=None))]
     fn recv<'py>(&self, py: Python<'py>, timeout: Option<f64>) -> PyResult<Option<Message<'py>>> {
         let mut left = timeout.unwrap_or(FOREVER_S);
@@ -173,18 +196,27 @@ impl Harvester {
         let chunk = if self.paced { PACED_STEP_S } else { STEP_S };
         loop {
             let step = left.min(chunk);
-            if let Some(r) = self.with(py, move |s| s.recv(Some(step)))? {
-                let f = r.frame;
-                let data = PyBytes::new(py, f.data());
-                return Ok(Some((
-                    r.at_s,
-                    f.raw_id(),
-                    f.is_extended(),
-                    f.is_remote(),
-                    f.dlc(),
-                    data,
-                    r.own,
-                )));
+            match self.with(py, move |s| s.recv(Some(step)))? {
+                Some(Delivered::Frame(r)) => {
+                    let f = r.frame;
+                    let data = PyBytes::new(py, f.data());
+                    let (id, ext, rtr, dlc) = (f.raw_id(), f.is_extended(), f.is_remote(), f.dlc());
+                    return Ok(Some((r.at_s, id, ext, rtr, dlc, data, r.own, None)));
+                }
+                Some(Delivered::Error(e)) => {
+                    let data = PyBytes::new(py, &e.data);
+                    return Ok(Some((
+                        e.at_s,
+                        e.can_id,
+                        false,
+                        false,
+                        8,
+                        data,
+                        false,
+                        Some(e.controller),
+                    )));
+                }
+                None => {}
             }
             left -= step;
             if left <= 0.0 {
@@ -311,6 +343,24 @@ impl Harvester {
     /// `BitErrors(target: Node("D2"), hits: Always, until_s: Some(12.5))`, `Crash("B1")`, ...
     fn act(&self, py: Python<'_>, action: String) -> PyResult<()> {
         self.with(py, move |s| s.act(&action))
+    }
+
+    /// Checks expectations written as in a scenario's `expect` (one, or a list in brackets)
+    /// against the run so far: a dict for each, with "expectation", "passed", "at_s" (when it
+    /// was decided, or None) and "observed", as a scenario's report gives them.
+    fn check<'py>(&self, py: Python<'py>, expectations: String) -> PyResult<Vec<Bound<'py, PyDict>>> {
+        let verdicts = self.with(py, move |s| s.check(&expectations))?;
+        verdicts
+            .into_iter()
+            .map(|v| {
+                let d = PyDict::new(py);
+                d.set_item("expectation", v.expectation)?;
+                d.set_item("passed", v.passed)?;
+                d.set_item("at_s", v.at.map(|t| t.as_secs_f64()))?;
+                d.set_item("observed", v.observed)?;
+                Ok(d)
+            })
+            .collect()
     }
 
     /// Frames the program's controller has sent so far.

@@ -343,17 +343,22 @@ impl Running {
     /// at every restart that falls due and at the time relay, where the field nodes are attached
     /// (as in the source: the monitor first, then the time relay starts every node).
     pub async fn run_until(&mut self, until: BusTime) -> crate::Result<()> {
-        self.run_until_or(until, || false).await
+        self.run_until_or(until, |_| false).await
     }
 
-    /// [`Running::run_until`], but back early, where the hub stopped for a node that asked
-    /// ([`bus::node::NodeLogic::stop_here`]), once `done` says so.
-    pub async fn run_until_or(&mut self, until: BusTime, done: impl Fn() -> bool) -> crate::Result<()> {
+    /// [`Running::run_until`], but back early, where the hub stopped for a node or an observer
+    /// that asked ([`bus::node::NodeLogic::stop_here`], [`bus::schedule::Heard::StopThere`]),
+    /// once `done` says so at the bus time reached.
+    pub async fn run_until_or(
+        &mut self,
+        until: BusTime,
+        done: impl Fn(BusTime) -> bool,
+    ) -> crate::Result<()> {
         loop {
             if self.field_nodes_at.is_some_and(|t| t <= self.now) {
                 self.attach_field_nodes().await?;
             }
-            if self.now >= until || done() {
+            if self.now >= until || done(self.now) {
                 return Ok(());
             }
             // The hub stops early by itself when a node crashes or asks to (`done` then says

@@ -32,10 +32,14 @@ mod validate;
 
 pub(crate) use actions::Actions;
 pub use check::Verdict;
+pub use check::all as check_all;
 pub use load::{Loaded, from_text, load, load_with};
 pub use model::*;
-pub use plan::{Act, Plan, Todo};
+pub use plan::{Act, Check, Plan, Todo};
 pub use random::{Fault, Hit, RandomFault, RandomFaults};
 pub use run::{Outcome, run};
 pub use series::Series;
-pub use validate::{MAX_DURATION_S, MAX_OVERLOAD_FRAMES, action as resolve_action, resolve, validate};
+pub use validate::{
+    MAX_DURATION_S, MAX_OVERLOAD_FRAMES, action as resolve_action, expectations as resolve_expectations,
+    resolve, validate,
+};

@@ -13,7 +13,7 @@
 mod expect;
 mod timeline;
 
-use super::model::{Scenario, Step};
+use super::model::{Expect, Scenario, Step};
 use super::plan::{Check, Plan, Resolved};
 use super::{junit, random};
 use crate::harvester::Harvester;
@@ -127,6 +127,53 @@ pub fn action(
     match resolved {
         Some(r) if c.found.is_empty() => Ok(Plan::new(vec![r], Vec::new())),
         _ => Err(c.found),
+    }
+}
+
+/// Resolves expectations against a harvester already running (`h`, whose nodes are `nodes`,
+/// names and ids on its bus), as a scenario's are; `file` names where they came from. Those that
+/// need the trace counted from the start (`ErrorKinds`, `TraceComplete`) are refused: a running
+/// harvester did not count it.
+pub fn expectations(
+    file: &str,
+    h: &Harvester,
+    nodes: Vec<(String, NodeId)>,
+    expect: &[Expect],
+) -> Result<Vec<Check>, Vec<Problem>> {
+    let mut c = Checks {
+        file,
+        nodes,
+        duration_s: f64::INFINITY,
+        signals: Plant::signal_names(),
+        found: Vec::new(),
+        sent: Vec::new(),
+    };
+    let checks: Vec<Check> = expect
+        .iter()
+        .enumerate()
+        .map(|(i, e)| {
+            let at = format!("expect[{i}]");
+            if matches!(e, Expect::ErrorKinds { .. } | Expect::TraceComplete) {
+                c.push(
+                    &at,
+                    "counts the trace from the start of the run, which a running harvester did not \
+                     count: check it in a scenario (ErrorFrames and the state expectations tell \
+                     errors apart here)",
+                );
+            }
+            Check {
+                expect: e.clone(),
+                node: expect::expectation(&mut c, &at, e, h),
+            }
+        })
+        .collect();
+    if expect.is_empty() {
+        c.push("expect", "no expectation to check");
+    }
+    if c.found.is_empty() {
+        Ok(checks)
+    } else {
+        Err(c.found)
     }
 }
 

@@ -6,17 +6,19 @@
 //! slices with the commands carried out between them; a `recv` or a `run_for` waits for the bus
 //! as it runs, so that a call from another thread is not held up behind one.
 
-use super::program::{Inbox, Program};
-use super::{Command, NodeState, Own, Received};
+use super::program::{self, Inbox, Program};
+use super::{Command, Delivered, ErrorFrames, ErrorReceived, NodeState, Own};
 use crate::harvester::{self, Harvester, Running};
-use crate::scenario::{self, Action, Actions, Step, Todo};
+use crate::scenario::books::Books;
+use crate::scenario::{self, Action, Actions, Expect, Step, Todo, Verdict};
 use crate::{Error, Result};
 use actix::prelude::*;
 use bus::Frame;
 use bus::engine::{ControllerConfig, NodeId};
 use bus::node::ControllerCommand;
+use bus::schedule::{Heard, ObservedError};
 use bus::time::{BusDuration, BusTime};
-use bus_runtime::hub::{Attach, Control, GetSnapshot, Submit, runtime};
+use bus_runtime::hub::{Attach, Control, GetSnapshot, ObserveErrors, Submit, runtime};
 use bus_runtime::node::NodeActor;
 use std::cell::RefCell;
 use std::collections::VecDeque;
@@ -30,7 +32,7 @@ const SLICE: BusDuration = BusDuration::from_micros(2000);
 /// A `recv` or a `run_for` waiting for a paced bus.
 enum Wait {
     /// A frame, or none by the time given.
-    Recv(BusTime, oneshot::Sender<Result<Option<Received>>>),
+    Recv(BusTime, oneshot::Sender<Result<Option<Delivered>>>),
     /// The time given.
     Until(BusTime, oneshot::Sender<Result<f64>>),
 }
@@ -81,6 +83,8 @@ pub(super) struct Setup {
     pub paced: bool,
     /// It receives its own frames.
     pub own_frames: bool,
+    /// Whose error frames it receives.
+    pub error_frames: ErrorFrames,
     /// When every node has booted: in virtual time the first frame sent waits for it.
     pub ready: BusTime,
 }
@@ -151,6 +155,7 @@ impl Driver {
             name,
             paced,
             own_frames,
+            error_frames,
             ready,
         } = setup;
         let inbox = Rc::new(RefCell::new(Inbox::default()));
@@ -165,6 +170,26 @@ impl Driver {
                 reaction: std::time::Duration::ZERO,
             })
             .await?;
+        if error_frames != ErrorFrames::None {
+            let errors = inbox.borrow().errors.clone();
+            let observe = move |seen: &ObservedError| {
+                if error_frames == ErrorFrames::Own && seen.node != id {
+                    return Heard::Noted;
+                }
+                let e = ErrorReceived {
+                    at_s: seen.at.as_secs_f64(),
+                    controller: seen.name.clone(),
+                    can_id: seen.frame.can_id,
+                    data: seen.frame.data,
+                };
+                if program::lock(&errors).take(seen.at, e) {
+                    Heard::StopThere
+                } else {
+                    Heard::Noted
+                }
+            };
+            running.hub.send(ObserveErrors(Box::new(observe))).await?;
+        }
         Ok(Driver {
             running,
             id,
@@ -191,7 +216,7 @@ impl Driver {
             ));
         }
         if let Some(ready) = self.boot.take() {
-            self.advance(ready, || false).await?;
+            self.advance(ready, |_| false).await?;
         }
         let end = self.running.now() + BusDuration::from_secs_f64(timeout);
         loop {
@@ -200,7 +225,7 @@ impl Driver {
                 return Ok(queued);
             }
             let next = (self.running.now() + self.longest_frame).min(end);
-            self.advance(next, || false).await?;
+            self.advance(next, |_| false).await?;
         }
     }
 
@@ -299,9 +324,12 @@ impl Driver {
             Command::Act(text, tx) => {
                 let _ = tx.send(self.act(&text).await);
             }
+            Command::Check(text, tx) => {
+                let _ = tx.send(self.check(&text).await);
+            }
             Command::RunFor(seconds, tx) => {
                 let end = self.running.now() + BusDuration::from_secs_f64(seconds);
-                let ran = self.advance(end, || false).await;
+                let ran = self.advance(end, |_| false).await;
                 let _ = tx.send(ran.map(|()| self.running.now().as_secs_f64()));
             }
         }
@@ -350,12 +378,12 @@ impl Driver {
             let now = self.running.now();
             let end = waits.iter().map(Wait::deadline).fold(now + SLICE, BusTime::min);
             let receiving = waits.iter().any(|w| matches!(w, Wait::Recv(..)));
-            self.inbox.borrow_mut().waiting = receiving;
+            self.inbox.borrow_mut().set_waiting(receiving);
             let inbox = self.inbox.clone();
             let ran = self
-                .advance(end, move || receiving && !inbox.borrow().is_empty())
+                .advance(end, move |now| receiving && inbox.borrow().ready(now))
                 .await;
-            self.inbox.borrow_mut().waiting = false;
+            self.inbox.borrow_mut().set_waiting(false);
             if let Err(e) = ran {
                 broken = Some(e.report().to_string());
             }
@@ -369,7 +397,7 @@ impl Driver {
         let mut left = VecDeque::with_capacity(waits.len());
         for w in waits.drain(..) {
             match w {
-                Wait::Recv(t, tx) => match self.inbox.borrow_mut().pop() {
+                Wait::Recv(t, tx) => match self.inbox.borrow_mut().pop(now) {
                     Some(r) => {
                         let _ = tx.send(Ok(Some(r)));
                     }
@@ -394,7 +422,7 @@ impl Driver {
 
     /// The next frame within `timeout` s; a `recv(0)` with nothing waiting runs the bus up to
     /// the longest frame's time, so that a loop of them moves bus time as a real bus moves.
-    async fn recv(&mut self, timeout: f64) -> Result<Option<Received>> {
+    async fn recv(&mut self, timeout: f64) -> Result<Option<Delivered>> {
         let timeout = if timeout == 0.0 {
             self.longest_frame
         } else {
@@ -402,22 +430,22 @@ impl Driver {
         };
         let end = self.running.now() + timeout;
         loop {
-            if let Some(r) = self.inbox.borrow_mut().pop() {
+            if let Some(r) = self.inbox.borrow_mut().pop(self.running.now()) {
                 return Ok(Some(r));
             }
             if self.running.now() >= end {
                 return Ok(None);
             }
-            self.inbox.borrow_mut().waiting = true;
+            self.inbox.borrow_mut().set_waiting(true);
             let inbox = self.inbox.clone();
-            let waited = self.advance(end, move || !inbox.borrow().is_empty()).await;
-            self.inbox.borrow_mut().waiting = false;
+            let waited = self.advance(end, move |now| inbox.borrow().ready(now)).await;
+            self.inbox.borrow_mut().set_waiting(false);
             waited?;
         }
     }
 
     /// Runs to `end`, or until `done`, ending the actions' faults when they fall due.
-    async fn advance(&mut self, end: BusTime, done: impl Fn() -> bool) -> Result<()> {
+    async fn advance(&mut self, end: BusTime, done: impl Fn(BusTime) -> bool) -> Result<()> {
         loop {
             let due = self.ends.iter().map(|(t, _)| *t).min();
             let stop = due.map_or(end, |t| t.min(end)).max(self.running.now());
@@ -428,10 +456,30 @@ impl Driver {
                     End::Babble => self.actions.end_babble(&self.running).await?,
                 }
             }
-            if self.running.now() >= end || done() {
+            if self.running.now() >= end || done(self.running.now()) {
                 return Ok(());
             }
         }
+    }
+
+    /// Verdicts on expectations written as in a scenario, against the run so far.
+    async fn check(&mut self, text: &str) -> Result<Vec<Verdict>> {
+        const FILE: &str = "the expectations";
+        let expect: Vec<Expect> = if text.trim_start().starts_with('[') {
+            nodes::parse_ron(FILE, text)?
+        } else {
+            vec![nodes::parse_ron(FILE, text)?]
+        };
+        let h = self.running.harvester().clone();
+        let checks = scenario::resolve_expectations(FILE, &h, self.running.node_ids(), &expect)
+            .map_err(|problems| Error::Config(nodes::Error::Invalid(problems)))?;
+        let snap = self.running.hub.send(GetSnapshot).await?;
+        let monitor = self
+            .running
+            .node("F5")
+            .zip(self.running.display.as_ref().map(|d| d.borrow().tally));
+        let books = Books::gather(&snap, monitor, None);
+        Ok(scenario::check_all(&checks, &self.running, &snap, &books, &[]))
     }
 
     async fn act(&mut self, text: &str) -> Result<()> {

@@ -5,13 +5,18 @@
 //! leaves out the nodes named, and puts a program in their place: a node of its own on the bus,
 //! with a controller like any other (it arbitrates, is acknowledged, retransmits). The harvester
 //! runs on a thread of its own, behind a channel, so a session can be used from any thread.
-//! In virtual time (the default) bus time moves only inside [`Session::recv`] and
-//! [`Session::run_for`]: the same seed and the same calls give the same frames at the same times,
-//! run after run. Paced ([`Options::paced`]), the bus keeps to the wall clock and runs between
-//! calls too, and a call from one thread is not held up by another's `recv` or `run_for`. Frames that reach the
-//! program pass its filters when they arrive (the others are dropped, as a kernel filter drops
-//! them) and wait in a queue of at most [`QUEUE`] frames, the oldest dropped beyond it, as in a
-//! socket's buffer: also while the program does not wait for one ([`Session::run_for`]).
+//!
+//! In virtual time (the default) bus time moves only inside the session's calls:
+//! [`Session::recv`], [`Session::run_for`], [`Session::wait_ready`], and a [`Session::send`]
+//! that waits for the nodes' boot (the first) or for room in the transmit queue. The same seed and
+//! the same calls give the same frames at the same times, run after run. Paced
+//! ([`Options::paced`]), the bus keeps to the wall clock and runs between calls too, and a call
+//! from one thread is not held up by another's `recv` or `run_for`.
+//!
+//! Frames that reach the program pass its filters when they arrive (the others are dropped, as a
+//! kernel filter drops them); with the error frames asked for ([`Options::error_frames`]), they
+//! wait in time order in a queue of at most [`QUEUE`] of each, the oldest dropped beyond it, as
+//! in a socket's buffer: also while the program does not wait for one ([`Session::run_for`]).
 //! Periodic tasks are sent by the program's node in bus time; actions are a scenario timeline's,
 //! carried out at the present bus time, their faults ended at their `until_s` as the bus runs.
 
@@ -67,6 +72,21 @@ pub struct Options {
     /// The program receives the frames its own controller sent, at their end of frame (as
     /// SocketCAN's `CAN_RAW_RECV_OWN_MSGS`).
     pub own_frames: bool,
+    /// Whose error frames reach the program.
+    pub error_frames: ErrorFrames,
+}
+
+/// Whose error frames reach the program, as a SocketCAN socket's error mask would let them.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ErrorFrames {
+    /// None.
+    None,
+    /// Its own controller's, as a SocketCAN interface delivers its controller's (python-can's
+    /// socketcan interface asks for them all).
+    #[default]
+    Own,
+    /// Every controller's on the bus.
+    All,
 }
 
 /// A frame the program received, with its end-of-frame time.
@@ -80,6 +100,47 @@ pub struct Received {
     pub own: bool,
 }
 
+/// A controller's error frame as it reaches the program.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ErrorReceived {
+    /// Bus time, s: the first bit of the error or overload flag, or the moment of the state
+    /// change or overrun.
+    pub at_s: f64,
+    /// The controller that reports it.
+    pub controller: String,
+    /// SocketCAN's `can_id`: `CAN_ERR_FLAG` with the error classes.
+    pub can_id: u32,
+    /// The details, as linux/can/error.h lays them out.
+    pub data: [u8; 8],
+}
+
+/// What reaches the program: a frame or an error frame.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Delivered {
+    /// A data or remote frame.
+    Frame(Received),
+    /// A controller's error frame.
+    Error(ErrorReceived),
+}
+
+impl Delivered {
+    /// Bus time, s.
+    pub fn at_s(&self) -> f64 {
+        match self {
+            Delivered::Frame(r) => r.at_s,
+            Delivered::Error(e) => e.at_s,
+        }
+    }
+
+    /// The frame, when it is one.
+    pub fn frame(self) -> Option<Received> {
+        match self {
+            Delivered::Frame(r) => Some(r),
+            Delivered::Error(_) => None,
+        }
+    }
+}
+
 /// The program's controller, as it stands.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Own {
@@ -91,7 +152,7 @@ pub struct Own {
 
 pub(crate) enum Command {
     Filters(Vec<Filter>, oneshot::Sender<Result<()>>),
-    Recv(f64, oneshot::Sender<Result<Option<Received>>>),
+    Recv(f64, oneshot::Sender<Result<Option<Delivered>>>),
     Send(Frame, f64, oneshot::Sender<Result<bool>>),
     ListenOnly(bool, oneshot::Sender<Result<()>>),
     Own(oneshot::Sender<Result<Own>>),
@@ -103,6 +164,7 @@ pub(crate) enum Command {
     Display(oneshot::Sender<Result<Option<String>>>),
     Input(String, f64, oneshot::Sender<Result<()>>),
     Act(String, oneshot::Sender<Result<()>>),
+    Check(String, oneshot::Sender<Result<Vec<crate::scenario::Verdict>>>),
     ModifyPeriodic(u64, Vec<Frame>, oneshot::Sender<Result<bool>>),
 }
 
@@ -166,6 +228,7 @@ impl Session {
             name,
             paced: o.paced,
             own_frames: o.own_frames,
+            error_frames: o.error_frames,
             ready,
         };
         let thread = std::thread::Builder::new()
@@ -222,9 +285,12 @@ impl Session {
         self.ask(|tx| Command::Filters(filters.to_vec(), tx))
     }
 
-    /// The oldest frame waiting for the program; when none is, runs the harvester (paced: waits
-    /// for it) until one comes or `timeout_s` of bus time have passed (`None`: [`FOREVER_S`]).
-    pub fn recv(&self, timeout_s: Option<f64>) -> Result<Option<Received>> {
+    /// The oldest frame or error frame waiting for the program; when none is, runs the harvester
+    /// (paced: waits for it) until one comes or `timeout_s` of bus time have passed (`None`:
+    /// [`FOREVER_S`]). In virtual time a timeout of zero runs the bus for up to the longest
+    /// frame's time, so that a loop of them moves bus time. Frames and error frames come in
+    /// time order, and the bus stops at each while the session waits.
+    pub fn recv(&self, timeout_s: Option<f64>) -> Result<Option<Delivered>> {
         let t = timeout_s.unwrap_or(FOREVER_S);
         if !(t.is_finite() && t >= 0.0) {
             return Err(Error::BadInput(format!("timeout {t} s is not a time")));
@@ -337,6 +403,17 @@ impl Session {
     pub fn act(&self, action: &str) -> Result<()> {
         let action = action.to_string();
         self.ask(move |tx| Command::Act(action, tx))
+    }
+
+    /// Checks expectations written as in a scenario's `expect` (docs/SCENARIOS.md), one or a
+    /// list of them, against the run so far: `[AlarmRaised(node: "C0", alarm: "bus_off",
+    /// after_s: 1.0, within_ms: 3000), NodeState(node: "D2", state: BusOff, after_s: 1.0)]`.
+    /// Answers with a verdict for each, as a scenario's report gives them. Bad text, a node that
+    /// is not on the bus, or an expectation that needs the trace counted from the start
+    /// (`ErrorKinds`, `TraceComplete`) is an error naming it.
+    pub fn check(&self, expectations: &str) -> Result<Vec<crate::scenario::Verdict>> {
+        let text = expectations.to_string();
+        self.ask(move |tx| Command::Check(text, tx))
     }
 
     /// Stops a periodic task; false when it had stopped already.

@@ -3,7 +3,7 @@
 //! while the session waits for one. Commands for its controller (listen-only mode) go out at
 //! its next wake.
 
-use super::Received;
+use super::{Delivered, ErrorReceived, Received};
 use bus::Frame;
 use bus::node::{ControllerCommand, ControllerEvent, NodeLogic};
 use bus::time::BusDuration;
@@ -11,6 +11,7 @@ use bus::time::BusTime;
 use std::cell::RefCell;
 use std::collections::VecDeque;
 use std::rc::Rc;
+use std::sync::{Arc, Mutex};
 
 /// Most frames waiting for the program; the oldest go beyond it.
 pub const QUEUE: usize = 65_536;
@@ -35,9 +36,43 @@ impl Filter {
     }
 }
 
+/// Error frames for the program, filled by the hub's error observer as the engine commits them
+/// (so possibly ahead of the bus time reached: they are handed over once it has come).
+#[derive(Debug, Default)]
+pub struct Errors {
+    /// Oldest first, with their bus time.
+    queue: VecDeque<(BusTime, ErrorReceived)>,
+    /// Dropped because the queue was full.
+    pub dropped: u64,
+    /// Set while the session waits: the run then stops at the next one.
+    pub waiting: bool,
+}
+
+impl Errors {
+    /// Takes an error frame that ends at `at`; answers whether the run is to stop there.
+    pub fn take(&mut self, at: BusTime, e: ErrorReceived) -> bool {
+        if self.queue.len() >= QUEUE {
+            self.queue.pop_front();
+            self.dropped += 1;
+        }
+        self.queue.push_back((at, e));
+        self.waiting
+    }
+}
+
+/// The error frames, shared with the hub's observer (which must be `Send`).
+pub type SharedErrors = Arc<Mutex<Errors>>;
+
+/// Locks the error frames; a panic elsewhere while they were held leaves them usable.
+pub fn lock(errors: &SharedErrors) -> std::sync::MutexGuard<'_, Errors> {
+    errors.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
 /// Frames for the program, and what it waits for.
 #[derive(Debug, Default)]
 pub struct Inbox {
+    /// Error frames, when the program asked for some.
+    pub errors: SharedErrors,
     queue: VecDeque<Received>,
     /// Frames dropped because the queue was full.
     pub dropped: u64,
@@ -70,9 +105,26 @@ struct Task {
 }
 
 impl Inbox {
-    /// The oldest frame waiting.
-    pub fn pop(&mut self) -> Option<Received> {
-        self.queue.pop_front()
+    /// The oldest frame or error frame waiting whose time has come by `now`.
+    pub fn pop(&mut self, now: BusTime) -> Option<Delivered> {
+        let mut errors = lock(&self.errors);
+        let error = errors.queue.front().map(|(at, _)| *at).filter(|&at| at <= now);
+        match (error, self.queue.front()) {
+            (Some(e), Some(f)) if e.as_secs_f64() > f.at_s => self.queue.pop_front().map(Delivered::Frame),
+            (Some(_), _) => errors.queue.pop_front().map(|(_, e)| Delivered::Error(e)),
+            (None, _) => self.queue.pop_front().map(Delivered::Frame),
+        }
+    }
+
+    /// Whether something waits whose time has come by `now`.
+    pub fn ready(&self, now: BusTime) -> bool {
+        !self.queue.is_empty() || lock(&self.errors).queue.front().is_some_and(|(at, _)| *at <= now)
+    }
+
+    /// Sets whether the session waits: the run then stops at the next frame or error frame.
+    pub fn set_waiting(&mut self, on: bool) {
+        self.waiting = on;
+        lock(&self.errors).waiting = on;
     }
 
     /// New filters; the frames waiting that they do not pass are dropped.
@@ -140,11 +192,6 @@ impl Inbox {
             }
         }
         self.tasks.retain(|t| t.end.is_none_or(|e| t.next < e));
-    }
-
-    /// No frame waiting.
-    pub fn is_empty(&self) -> bool {
-        self.queue.is_empty()
     }
 
     fn take(&mut self, at: BusTime, frame: &Frame, own: bool) {

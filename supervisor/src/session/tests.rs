@@ -23,6 +23,20 @@ fn start_without_monitor(seed: u64, paced: bool) -> Session {
     .unwrap_or_else(|e| panic!("{e}"))
 }
 
+/// The next frame within `timeout_s`, error frames skipped (none come on a bus without faults;
+/// the tests of faults look at them).
+fn next(s: &Session, timeout_s: f64) -> Option<Received> {
+    let end = s.now().unwrap() + timeout_s;
+    loop {
+        let left = (end - s.now().unwrap()).max(0.0);
+        match s.recv(Some(left)).unwrap() {
+            Some(Delivered::Frame(r)) => return Some(r),
+            Some(Delivered::Error(_)) if left > 0.0 => continue,
+            _ => return None,
+        }
+    }
+}
+
 /// Frames from D0 to F5: priority 6, type 1, destination F5, source D0.
 fn from_d0() -> Filter {
     Filter {
@@ -39,7 +53,7 @@ fn the_same_seed_and_calls_give_the_same_frames_at_the_same_times() {
     let record = |seed| {
         let s = without_monitor(seed);
         (0..300)
-            .map(|_| s.recv(Some(1.0)).unwrap().unwrap())
+            .map(|_| next(&s, 1.0).unwrap())
             .map(|r| format!("{:.9} {}", r.at_s, bus::candump::format_frame(&r.frame)))
             .collect::<Vec<_>>()
     };
@@ -67,12 +81,12 @@ fn recv_waits_in_bus_time_for_a_frame_that_passes_the_filters() {
     assert_eq!(s.now().unwrap(), 2.5);
     // D0 is waiting for its calibration and says so every 250 ms (flow.status, Data0 = 0x30).
     s.set_filters(&[from_d0()]).unwrap();
-    let r = s.recv(Some(1.0)).unwrap().unwrap();
+    let r = next(&s, 1.0).unwrap();
     assert_eq!(r.frame.raw_id(), 0x0601_F5D0);
     assert_eq!(r.frame.data()[0], 0x30, "{:?}", r.frame);
     // The run stopped where the frame ended.
     assert_eq!(s.now().unwrap(), r.at_s);
-    let next = s.recv(Some(1.0)).unwrap().unwrap();
+    let next = next(&s, 1.0).unwrap();
     assert!(
         (next.at_s - r.at_s - 0.25).abs() < 0.001,
         "{} then {}",
@@ -89,13 +103,13 @@ fn what_the_program_sends_reaches_the_nodes() {
     s.set_filters(&[from_d0()]).unwrap();
     s.run_for(3.0).unwrap();
     // Before: D0 awaits calibration and sends no reference group.
-    let before = (0..8).filter_map(|_| s.recv(Some(1.0)).unwrap());
+    let before = (0..8).filter_map(|_| next(&s, 1.0));
     assert!(before.into_iter().all(|r| r.frame.data() != REFERENCE_MARKER));
     // flow.calibrate (Data0 0x10): "start calibration" (1), target 10000 (0x2710, low byte
     // first), 5 samples.
     assert!(s.send(parse_frame("0601D0F5#1001102705").unwrap(), 0.0).unwrap());
     let answered = (0..8)
-        .filter_map(|_| s.recv(Some(0.5)).unwrap())
+        .filter_map(|_| next(&s, 0.5))
         .any(|r| r.frame.data() == REFERENCE_MARKER);
     assert!(
         answered,
@@ -174,12 +188,32 @@ fn scenario_actions_reach_the_bus_and_their_faults_end_in_time() {
         "BitErrors(target: Node(\"D0\"), hits: Always, until_s: Some({until:.1}))"
     ))
     .unwrap();
-    let during = s.recv(Some(until - s.now().unwrap() - 0.001)).unwrap();
-    assert_eq!(during, None);
-    let after = s
-        .recv(Some(1.0))
-        .unwrap()
-        .expect("D0 is heard again once the fault ended");
+    // The program's controller detects each error too and reports it (SocketCAN's encoding,
+    // linux/can/error.h): error frames only, its own, as a receiver's.
+    let mut errors = Vec::new();
+    while let Some(d) = s.recv(Some((until - s.now().unwrap() - 0.001).max(0.0))).unwrap() {
+        match d {
+            Delivered::Error(e) => errors.push(e),
+            Delivered::Frame(r) => panic!("{r:?} got through the fault"),
+        }
+        if s.now().unwrap() >= until - 0.001 {
+            break;
+        }
+    }
+    // Bus errors (CAN_ERR_PROT | CAN_ERR_BUSERROR), and the state changes their count makes
+    // (CAN_ERR_CRTL: REC past 96, the warning level).
+    let bus_errors = errors
+        .iter()
+        .filter(|e| e.can_id == bus::filter::CAN_ERR_FLAG | 0x288);
+    assert!(bus_errors.count() >= 3, "{errors:?}");
+    for e in &errors {
+        assert_eq!(e.controller, "F5");
+        assert!(e.can_id & 0x8C != 0, "a bus error or a state change: {e:?}");
+        assert_eq!(e.data[2] & 0x80, 0, "not transmitting: {e:?}");
+    }
+    // In time order, and each handed over where the bus stopped for it.
+    assert!(errors.windows(2).all(|w| w[0].at_s <= w[1].at_s));
+    let after = next(&s, 1.0).expect("D0 is heard again once the fault ended");
     assert!(after.at_s > until, "{after:?}");
     // Bad text is named with its position; an unknown node is refused.
     let e = s.act("Disconnect(").unwrap_err().to_string();
@@ -199,7 +233,7 @@ fn paced_bus_time_keeps_behind_the_wall_clock_and_runs_between_calls() {
     assert!((s.epoch_s() - since_1970).abs() < 60.0, "{}", s.epoch_s());
     // D0 asks for its calibration every 250 ms once the field nodes are up.
     s.set_filters(&[from_d0()]).unwrap();
-    let first = s.recv(Some(30.0)).unwrap().expect("D0 speaks within 30 s");
+    let first = next(&s, 30.0).expect("D0 speaks within 30 s");
     assert_eq!(first.frame.data()[0], 0x30, "{first:?}");
     // The hub may let a frame out a little before its time on the wall clock, never more.
     let wall = started.elapsed().as_secs_f64();
@@ -228,6 +262,9 @@ fn paced_bus_time_keeps_behind_the_wall_clock_and_runs_between_calls() {
 #[test]
 fn paced_a_recv_waiting_in_one_thread_does_not_hold_up_another() {
     let s = paced_without_monitor(4);
+    // Sent before the field nodes are up, the frame would go unacknowledged, and its error
+    // frames would end the wait.
+    s.wait_ready().unwrap();
     let nothing = Filter {
         id: 0x1FFF_FFFF,
         mask: 0x1FFF_FFFF,
@@ -256,8 +293,8 @@ fn paced_a_recv_waiting_in_one_thread_does_not_hold_up_another() {
         assert!(!done.load(std::sync::atomic::Ordering::SeqCst));
         // Letting D0's frames through ends the wait.
         s.set_filters(&[from_d0()]).unwrap();
-        let got = waiting.join().unwrap().unwrap().expect("a frame from D0");
-        assert_eq!(got.frame.raw_id(), 0x0601_F5D0);
+        let got = waiting.join().unwrap().unwrap().and_then(Delivered::frame);
+        assert_eq!(got.expect("a frame from D0").frame.raw_id(), 0x0601_F5D0);
     });
 }
 
@@ -320,7 +357,7 @@ fn recv_zero_runs_the_bus_up_to_one_frame_time() {
     let got = loop {
         polls += 1;
         let before = s.now().unwrap();
-        if let Some(r) = s.recv(Some(0.0)).unwrap() {
+        if let Some(r) = s.recv(Some(0.0)).unwrap().and_then(Delivered::frame) {
             break r;
         }
         // 160 bit times at 250 kbit/s.
@@ -349,7 +386,7 @@ fn own_frames_come_back_marked_at_their_end_of_frame() {
     s.set_filters(&[own]).unwrap();
     let frame = parse_frame("18FF00F5#01").unwrap();
     assert!(s.send(frame, 0.0).unwrap());
-    let r = s.recv(Some(1.0)).unwrap().expect("its own frame");
+    let r = next(&s, 1.0).expect("its own frame");
     assert!(r.own && r.frame == frame, "{r:?}");
     // Handed over at 0.655 s: it ends at least its length later (an extended frame with one
     // data byte is 75 bits before stuffing, ISO 11898-1: 300 µs at 250 kbit/s), and the recv
@@ -376,7 +413,7 @@ fn listen_only_sends_nothing_acknowledges_nothing_and_still_receives() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("listen-only"), "{e}");
-    assert!(s.recv(Some(1.0)).unwrap().is_some());
+    assert!(next(&s, 1.0).is_some());
     let tx_before = s.own().unwrap().state.tec;
     s.set_listen_only(false).unwrap();
     assert!(!s.own().unwrap().listen_only);
@@ -398,4 +435,81 @@ fn a_start_time_stamps_bus_time_zero() {
     assert_eq!(s.epoch_s(), 1_748_779_200.0);
     assert_eq!(without_monitor(1).epoch_s(), 1_704_067_200.0);
     assert_eq!(s.bitrate(), 250_000);
+}
+
+#[test]
+fn error_frames_are_the_programs_own_every_controllers_or_none_as_asked() {
+    let errors_of = |error_frames| {
+        let s = with(Options {
+            error_frames,
+            ..Options::default()
+        });
+        s.set_filters(&[from_d0()]).unwrap();
+        s.run_for(2.0).unwrap();
+        s.act(r#"BitErrors(target: Node("D0"), hits: Always, until_s: Some(2.5))"#)
+            .unwrap();
+        let mut seen = Vec::new();
+        while let Some(d) = s.recv(Some((2.5 - s.now().unwrap()).max(0.0))).unwrap() {
+            if let Delivered::Error(e) = d {
+                seen.push(e.controller);
+            }
+            if s.now().unwrap() >= 2.5 {
+                break;
+            }
+        }
+        seen
+    };
+    let own = errors_of(ErrorFrames::Own);
+    assert!(!own.is_empty() && own.iter().all(|c| c == "F5"), "{own:?}");
+    let all = errors_of(ErrorFrames::All);
+    // D0 itself (transmitting), and every receiver, each of its own.
+    for c in ["D0", "D1", "E0", "F5"] {
+        assert!(all.iter().any(|x| x == c), "no error frame of {c}: {all:?}");
+    }
+    assert!(errors_of(ErrorFrames::None).is_empty());
+}
+
+#[test]
+fn expectations_are_checked_as_a_scenario_checks_them() {
+    // The whole harvester, the monitor too, with the program beside it.
+    let s = Session::start(&Options {
+        seed: Some(1),
+        name: "tester".into(),
+        ..Options::default()
+    })
+    .unwrap();
+    s.run_for(10.0).unwrap();
+    // The timeline of configs/scenarios/bus_off.ron, from Python's side.
+    s.act(r#"BitErrors(target: Node("D2"), hits: Always, until_s: Some(10.15))"#)
+        .unwrap();
+    s.run_for(5.0).unwrap();
+    let verdicts = s
+        .check(
+            r#"[
+                NodeState(node: "D2", state: BusOff, after_s: 10.0, within_ms: 120),
+                BusOffCount(node: "D2", min: 1, max: 6),
+                NodeStateHolds(node: "D2", state: Active, from_s: 12.5, to_s: 15.0),
+            ]"#,
+        )
+        .unwrap();
+    assert_eq!(verdicts.len(), 3);
+    assert!(verdicts.iter().all(|v| v.passed), "{verdicts:?}");
+    // One alone, and one that does not hold: D0 was never bus off.
+    let v = s
+        .check(r#"NodeState(node: "D0", state: BusOff, after_s: 10.0, within_ms: 120)"#)
+        .unwrap();
+    assert!(!v[0].passed, "{v:?}");
+    // Refused, naming what and where.
+    let e = s
+        .check("[NoCrashes, ErrorKinds(node: \"D2\", kind: Bit, min: 1, max: 9)]")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("expect[1]") && e.contains("trace"), "{e}");
+    let e = s
+        .check(r#"NodeState(node: "Q9", state: BusOff, after_s: 1.0, within_ms: 10)"#)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("Q9"), "{e}");
+    let e = s.check("NodeState(").unwrap_err().to_string();
+    assert!(e.contains("the expectations:1:"), "{e}");
 }

@@ -169,11 +169,16 @@ class HarvemuBus(can.BusABC):
     :param receive_own_messages: the program also receives the frames it sent, at their end of
         frame, with ``is_rx=False``.
     :param bitrate: checked against the harvester's (250 kbit/s); None takes it as it is.
+    :param error_frames: whose error frames ``recv`` returns, as ``Message(is_error_frame=True)``
+        in SocketCAN's encoding: ``"own"`` (the program's controller's, as a SocketCAN interface
+        delivers its controller's), ``"all"`` (every controller's) or ``"none"``.
+        ``ignore_rx_error_frames=True``, python-can's socketcan argument, is ``"none"``.
     """
 
     def __init__(self, channel="harv0", can_filters=None, config=None, without=("F5",),
                  seed=None, virtual_time=True, node="program", start_time=None,
-                 receive_own_messages=False, bitrate=None, **kwargs):
+                 receive_own_messages=False, bitrate=None, error_frames="own",
+                 ignore_rx_error_frames=False, **kwargs):
         if kwargs.get("fd"):
             raise can.CanInitializationError(
                 "fd=True: the harvester's bus is CAN 2.0B (classic frames of at most 8 bytes), "
@@ -185,6 +190,12 @@ class HarvemuBus(can.BusABC):
         without = _node_names(without)
         seed = _seed(seed)
         start = _start_time(start_time)
+        if ignore_rx_error_frames:
+            error_frames = "none"
+        if error_frames not in ("own", "all", "none"):
+            raise can.CanInitializationError(
+                f"error_frames={error_frames!r}: give 'own' (the program's controller's), 'all' "
+                f"(every controller's) or 'none'")
         try:
             self._harvester = Harvester(
                 config=None if config is None else str(config),
@@ -194,6 +205,7 @@ class HarvemuBus(can.BusABC):
                 virtual_time=bool(virtual_time),
                 start_time=start,
                 own_frames=bool(receive_own_messages),
+                error_frames=error_frames,
             )
         except (ValueError, RuntimeError) as e:
             raise can.CanInitializationError(str(e)) from e
@@ -233,15 +245,30 @@ class HarvemuBus(can.BusABC):
             raise can.CanOperationError(str(e)) from e
 
     def recv(self, timeout=None):
-        """The next frame that passes the filters, within ``timeout`` s of bus time (of the wall
-        clock when the bus keeps to it)."""
+        """The next frame that passes the filters, or error frame, within ``timeout`` s of bus
+        time (of the wall clock when the bus keeps to it); frames and error frames in time
+        order. Filters do not apply to error frames, as in SocketCAN."""
         try:
             got = self._harvester.recv(timeout)
         except (ValueError, RuntimeError) as e:
             raise can.CanOperationError(str(e)) from e
         if got is None:
             return None
-        t, arbitration_id, extended, remote, dlc, data, own = got
+        t, arbitration_id, extended, remote, dlc, data, own, controller = got
+        if controller is not None:
+            # As python-can's socketcan interface gives an error frame: the flags off the
+            # identifier, the classes left; on the controller's own interface, as in harvemu's
+            # traces.
+            return can.Message(
+                timestamp=self._epoch + t,
+                arbitration_id=arbitration_id & 0x7FF,
+                is_extended_id=False,
+                is_error_frame=True,
+                dlc=dlc,
+                data=data,
+                channel=f"{self.channel}.{controller}",
+                is_rx=True,
+            )
         return can.Message(
             timestamp=self._epoch + t,
             arbitration_id=arbitration_id,
