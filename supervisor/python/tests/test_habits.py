@@ -6,6 +6,7 @@ Expectations come from python-can's own readers and from harvemu's own trace of 
 not from the interface under test.
 """
 
+import pathlib
 import signal
 import subprocess
 import sys
@@ -227,3 +228,80 @@ def test_bitrate_start_time_and_node_are_python_cans_arguments():
         bus.run_for(1.0)
         names = [n for n, *_ in bus.harvester.states()]
         assert names.count("F5") == 1 and "program" not in names
+
+
+NOTHING = [{"can_id": 0x1FFFFFFF, "can_mask": 0x1FFFFFFF}]
+
+
+def test_own_error_frames_arrive_in_socketcans_encoding():
+    # A filter nothing passes: error frames only (filters leave them alone, as in SocketCAN).
+    with can.Bus(interface="harvemu", without=["F5"], seed=1, can_filters=NOTHING) as bus:
+        bus.harvester.wait_ready()
+        for n in FIELD_NODES:
+            bus.harvester.act(f'Disconnect("{n}")')
+        bus.send(can.Message(arbitration_id=0x18FF00F5, data=b"\x01"))
+        first = bus.recv(timeout=1.0)
+        # Nobody acknowledges: an ACK error while transmitting, TEC 8 (ISO 11898-1, 12.1.4
+        # rule 3), as linux/can/error.h encodes it: CAN_ERR_PROT | CAN_ERR_ACK |
+        # CAN_ERR_BUSERROR | CAN_ERR_CNT; data[2] CAN_ERR_PROT_TX, data[3] CAN_ERR_PROT_LOC_ACK,
+        # data[6] TEC, data[7] REC.
+        assert first.is_error_frame and not first.is_extended_id and first.dlc == 8
+        assert first.arbitration_id == 0x08 | 0x20 | 0x80 | 0x200
+        assert bytes(first.data) == bytes([0, 0, 0x80, 0x19, 0, 0, 8, 0])
+        assert first.channel == "harv0.program"
+        # The bus stopped there, at the first bit of the error flag.
+        assert bus.run_for(0) == pytest.approx(first.timestamp - bus.harvester.epoch(), abs=1e-6)
+    with can.Bus(interface="harvemu", without=["F5"], seed=1, error_frames="none",
+                 can_filters=NOTHING) as bus:
+        bus.harvester.wait_ready()
+        for n in FIELD_NODES:
+            bus.harvester.act(f'Disconnect("{n}")')
+        bus.send(can.Message(arbitration_id=0x18FF00F5, data=b"\x01"))
+        assert bus.recv(timeout=1.0) is None
+    with pytest.raises(can.CanInitializationError, match="error_frames"):
+        can.Bus(interface="harvemu", error_frames="some")
+
+
+def test_every_controllers_error_frames_are_the_traces_error_frames(tmp_path, harvemu_bin):
+    # configs/scenarios/bus_off.ron: every D2 frame corrupted from 10 s to 10.15 s.
+    trace = tmp_path / "bus_off.log"
+    out = subprocess.run([harvemu_bin, "scenario", "configs/scenarios/bus_off.ron", "--seed", "3",
+                          "--record", str(trace)], capture_output=True, text=True, timeout=300,
+                         cwd=pathlib.Path(__file__).parents[3])
+    assert out.returncode == 0, out.stderr
+    expected = []
+    for line in trace.read_text().splitlines():
+        stamp, channel, frame = line.split()
+        can_id, data = frame.split("#")
+        if int(can_id, 16) & 0x20000000 and float(stamp[1:-1]) < 1704067210.5:
+            expected.append((stamp[1:-1], channel, int(can_id, 16) & 0x7FF, data))
+    assert len(expected) > 32
+    got = []
+    with can.Bus(interface="harvemu", without=[], node="tester", error_frames="all", seed=3,
+                 can_filters=NOTHING) as bus:
+        bus.run_for(10.0)
+        bus.harvester.act('BitErrors(target: Node("D2"), hits: Always, until_s: Some(10.15))')
+        while bus.run_for(0) < 10.5:
+            msg = bus.recv(timeout=0.1)
+            if msg is not None and msg.channel != "harv0.tester":
+                assert msg.is_error_frame
+                got.append((f"{msg.timestamp:.6f}", msg.channel, msg.arbitration_id,
+                            bytes(msg.data).hex().upper()))
+    assert got == expected
+
+
+def test_a_notifier_receives_while_the_main_thread_sends():
+    own = [{"can_id": 0x18FF00F5, "can_mask": 0x1FFFFFFF}]
+    with can.Bus(interface="harvemu", without=["F5"], seed=1, receive_own_messages=True,
+                 can_filters=own) as bus:
+        reader = can.BufferedReader()
+        notifier = can.Notifier(bus, [reader], timeout=0.1)
+        try:
+            for i in range(100):
+                bus.send(can.Message(arbitration_id=0x18FF00F5, data=bytes([i])))
+            got = [reader.get_message(timeout=30.0) for _ in range(100)]
+        finally:
+            notifier.stop()
+        # Every frame out, in the order sent, each back through the notifier's thread.
+        assert [bytes(m.data)[0] for m in got if m is not None] == list(range(100))
+        assert all(not m.is_rx for m in got)
