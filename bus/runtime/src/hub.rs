@@ -98,6 +98,8 @@ pub struct Hub {
     /// The id of the deadline the wall timer is armed for; others are stale.
     armed: u64,
     on_stop: Vec<oneshot::Sender<Result<BusTime, bus::Error>>>,
+    /// Crashes told of so far.
+    crashes: std::sync::Arc<std::sync::atomic::AtomicU64>,
 }
 
 impl Hub {
@@ -120,7 +122,15 @@ impl Hub {
             wall: None,
             armed: 0,
             on_stop: Vec::new(),
+            crashes: Default::default(),
         })
+    }
+
+    /// How many node crashes the hub has told of, counted before the stop they end a run at
+    /// is answered: a supervisor that finds the count unchanged after a run need not ask which
+    /// nodes crashed ([`GetCrashed`]).
+    pub fn crashes(&self) -> std::sync::Arc<std::sync::atomic::AtomicU64> {
+        self.crashes.clone()
     }
 
     /// Nanoseconds since the hub started: on the wall clock when it has its wall timer (so a
@@ -177,6 +187,9 @@ impl Hub {
 
     /// Carries out or logs one notice of the scheduler.
     fn tell(&mut self, notice: Notice) {
+        if matches!(notice, Notice::Crashed { .. }) {
+            self.crashes.fetch_add(1, std::sync::atomic::Ordering::Release);
+        }
         match notice {
             Notice::Stopped(result) => {
                 for tx in self.on_stop.drain(..) {

@@ -45,6 +45,30 @@ type Message<'py> = (
     Option<String>,
 );
 
+/// What reached the program, as `recv` hands it over.
+fn message(py: Python<'_>, d: Delivered) -> Message<'_> {
+    match d {
+        Delivered::Frame(r) => {
+            let f = r.frame;
+            let data = PyBytes::new(py, f.data());
+            (
+                r.at_s,
+                f.raw_id(),
+                f.is_extended(),
+                f.is_remote(),
+                f.dlc(),
+                data,
+                r.own,
+                None,
+            )
+        }
+        Delivered::Error(e) => {
+            let data = PyBytes::new(py, &e.data);
+            (e.at_s, e.can_id, false, false, 8, data, false, Some(e.controller))
+        }
+    }
+}
+
 /// A frame from its parts, as python-can's `Message` has them.
 fn frame(
     arbitration_id: u32,
@@ -224,6 +248,15 @@ impl Harvester {
             }
             py.check_signals()?;
         }
+    }
+
+    /// In virtual time, the next slice of the bus (0.1 s): its end (bus time, s) and every frame
+    /// and error frame for the program up to it, as `recv` gives each. The harvester computes the
+    /// next slice while the caller works through this one; any other call is carried out at the
+    /// end of the slice being computed.
+    fn slice<'py>(&self, py: Python<'py>) -> PyResult<(f64, Vec<Message<'py>>)> {
+        let (end, items) = self.with(py, |s| s.slice())?;
+        Ok((end, items.into_iter().map(|d| message(py, d)).collect()))
     }
 
     /// Hands a frame to the program's controller; in virtual time, while its transmit queue is

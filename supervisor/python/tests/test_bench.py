@@ -1,13 +1,17 @@
-"""`harvemu bench --only python-monitor`: the Python monitor's speed as a bench row.
+"""`harvemu bench`'s Python rows: python-monitor and the recv loop's python-recv rows.
 
-The row runs ``python -m harvemu.monitor`` in a process of its own; what it reports must be that
-monitor's own run, frame for frame. The harvemu binary is found as conftest.py says.
+Each row runs the Python package in a process of its own; what python-monitor reports must be
+that monitor's own run, frame for frame, and the recv rows must be measured side by side in one
+run. Speeds themselves are the bench's to report, not a test's to assert. The harvemu binary is
+found as conftest.py says.
 """
 
 import json
 import pathlib
 import subprocess
 import sys
+
+import pytest
 
 from harvemu import monitor
 
@@ -40,3 +44,21 @@ def test_a_python_without_the_package_is_a_clear_error(harvemu_bin):
     assert out.returncode == 2, out
     assert "/nonexistent/python3 -m harvemu.monitor" in out.stderr, out.stderr
     assert "pip install supervisor/python" in out.stderr, out.stderr
+
+
+def test_the_recv_rows_measure_both_buses_in_one_run(harvemu_bin):
+    out = subprocess.run(
+        [harvemu_bin, "bench", "--only", "python-recv", "--python", sys.executable,
+         "--python-frames", "5000", "--json"],
+        cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr
+    rows = {r["scenario"]: r for r in map(json.loads, out.stdout.splitlines())}
+    assert set(rows) == {"python-virtual", "python-recv", "python-recv-passive"}
+    virtual = rows["python-virtual"]
+    assert virtual["ratio"] is None
+    for row in rows.values():
+        assert row["frames"] == 5000 and row["python"] == sys.executable
+        assert row["frames_per_second"] == pytest.approx(5000 / row["wall_seconds"])
+    for name in ("python-recv", "python-recv-passive"):
+        assert rows[name]["ratio"] == pytest.approx(
+            rows[name]["frames_per_second"] / virtual["frames_per_second"])

@@ -305,3 +305,33 @@ def test_a_notifier_receives_while_the_main_thread_sends():
         # Every frame out, in the order sent, each back through the notifier's thread.
         assert [bytes(m.data)[0] for m in got if m is not None] == list(range(100))
         assert all(not m.is_rx for m in got)
+
+
+def test_listen_only_recv_takes_the_bus_in_slices_and_gives_the_same_frames():
+    def frames(passive, n=3000):
+        with can.Bus(interface="harvemu", without=[], seed=4) as bus:
+            if passive:
+                bus.state = can.BusState.PASSIVE
+            got = [bus.recv(timeout=1.0) for _ in range(n)]
+            # The harvester stands at most one slice (0.1 s) ahead of what recv handed over.
+            ahead = bus.run_for(0) - (got[-1].timestamp - bus.harvester.epoch())
+            return [(m.timestamp, m.arbitration_id, bytes(m.data)) for m in got], ahead
+    # Listen-only changes nothing on a bus without faults: the same frames at the same times.
+    active, _ = frames(False)
+    passive, ahead = frames(True)
+    assert passive == active
+    assert 0 <= ahead <= 0.2 + 1e-9, ahead
+    with can.Bus(interface="harvemu", without=["F5"], seed=1,
+                 can_filters=[{"can_id": D0_TO_F5, "can_mask": 0x1FFFFFFF}]) as bus:
+        bus.state = can.BusState.PASSIVE
+        first = bus.recv(timeout=2.0)
+        # D0 awaits calibration and says so every 250 ms: nothing within 0.2 s of its frame,
+        # then the next one 250 ms after it.
+        assert bus.recv(timeout=0.2) is None
+        second = bus.recv(timeout=1.0)
+        assert second.timestamp - first.timestamp == pytest.approx(0.25, abs=1e-3)
+        # Back to active: what the slices held comes first, in order.
+        third = bus.recv(timeout=1.0)
+        bus.state = can.BusState.ACTIVE
+        fourth = bus.recv(timeout=1.0)
+        assert first.timestamp < second.timestamp < third.timestamp < fourth.timestamp

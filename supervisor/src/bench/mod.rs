@@ -72,13 +72,19 @@ pub struct Args {
     #[arg(long, value_name = "N", default_value_t = 40, value_parser = clap::value_parser!(u64).range(1..))]
     campaign_runs: u64,
     /// Run only these scenarios (saturated, saturated-multi, harvester, realtime, firmware-cpu,
-    /// firmware-lab, firmware-c0, campaign, python-monitor). python-monitor runs only when named
-    /// here: it needs the Python package (pip install supervisor/python).
+    /// firmware-lab, firmware-c0, campaign, python-monitor, python-recv). The Python rows run
+    /// only when named here or when --python is given: they need the Python package (pip
+    /// install supervisor/python).
     #[arg(long, value_name = "SCENARIO,...", value_delimiter = ',')]
     only: Vec<String>,
-    /// The Python with the harvemu package, for python-monitor: a file, or a command on PATH.
-    #[arg(long, value_name = "COMMAND", default_value = "python3")]
-    python: String,
+    /// The Python with the harvemu package, for the Python rows: a file, or a command on PATH
+    /// (python3 when not given). Given without --only, the Python rows run beside the others.
+    #[arg(long, value_name = "COMMAND")]
+    python: Option<String>,
+    /// Frames of the python-recv rows: received by a Python recv loop from harvemu's bus (the
+    /// program's controller active, then listen-only) and from python-can's virtual bus.
+    #[arg(long, value_name = "N", default_value_t = 200_000, value_parser = clap::value_parser!(u64).range(1..))]
+    python_frames: u64,
     /// Bus seconds of the python-monitor scenario.
     #[arg(long, value_name = "SECONDS", default_value_t = 600.0)]
     python_seconds: f64,
@@ -242,7 +248,7 @@ pub fn measure(
     })
 }
 
-const SCENARIOS: [&str; 9] = [
+const SCENARIOS: [&str; 10] = [
     "saturated",
     "saturated-multi",
     "harvester",
@@ -252,6 +258,7 @@ const SCENARIOS: [&str; 9] = [
     "firmware-c0",
     "campaign",
     "python-monitor",
+    "python-recv",
 ];
 
 /// Runs `harvemu bench`.
@@ -445,13 +452,15 @@ pub fn run(args: &Args) -> crate::Result<()> {
             ))?;
         }
     }
-    if args.only.iter().any(|o| o == "python-monitor") {
+    let python = args.python.as_deref().unwrap_or("python3");
+    let python_row =
+        |n: &str| args.only.iter().any(|o| o == n) || (args.only.is_empty() && args.python.is_some());
+    if python_row("python-monitor") {
         crate::say!(
-            "bench: python-monitor, {} s of bus time with {} -m harvemu.monitor ...",
+            "bench: python-monitor, {} s of bus time with {python} -m harvemu.monitor ...",
             args.python_seconds,
-            args.python
         );
-        let m = python::measure(&args.python, args.python_seconds)?;
+        let m = python::measure(python, args.python_seconds)?;
         if args.json {
             crate::output::stdout(&format!("{}\n", serde_json::to_string(&m)?))?;
         } else {
@@ -460,6 +469,20 @@ pub fn run(args: &Args) -> crate::Result<()> {
                  time ({} frames in {:.0} s of bus time, {:.2} s; digest {})\n",
                 m.us_per_frame, m.speedup, m.frames, m.virtual_seconds, m.wall_seconds, m.digest
             ))?;
+        }
+    }
+    if python_row("python-recv") {
+        crate::say!(
+            "bench: python-recv, {} frames into a Python recv loop with {python} -m harvemu.throughput \
+             (python-can's virtual bus, then harvemu's) ...",
+            args.python_frames,
+        );
+        for row in python::throughput(python, args.python_frames)? {
+            if args.json {
+                crate::output::stdout(&format!("{}\n", serde_json::to_string(&row)?))?;
+            } else {
+                crate::output::stdout(&format!("{}\n", row.line()))?;
+            }
         }
     }
     if let (Some(seconds), Some(h)) = (realtime, &harvester) {

@@ -121,6 +121,10 @@ pub struct Running {
     /// Code coverage of the firmware nodes, when [`Harvester::coverage`] asks for it
     /// ([`crate::coverage`]); [`Running::end_coverage`] gives it.
     pub coverage: Option<crate::coverage::SharedCollector>,
+    /// Crashes the hub has told of ([`Hub::crashes`]), and how many supervision has looked at:
+    /// a stop with none new and no restart due needs no look at the hub.
+    pub(super) crashes: std::sync::Arc<std::sync::atomic::AtomicU64>,
+    pub(super) crashes_seen: u64,
 }
 
 pub(super) fn build(
@@ -197,7 +201,9 @@ pub async fn begin(h: &Harvester, paced: bool, sinks: Vec<Box<dyn Sink>>) -> cra
     if let Some(epoch) = h.epoch {
         hub_config.epoch = epoch;
     }
-    let hub = Hub::new(hub_config, sinks)?.start();
+    let hub = Hub::new(hub_config, sinks)?;
+    let crashes = hub.crashes();
+    let hub = hub.start();
     let plant: PlantHandle = Rc::new(RefCell::new(Plant::new(c.plant.clone(), c.network.seed)));
     let display: Option<DisplayHandle> = c.monitor.enabled.then(DisplayHandle::default);
     let mut running = Running {
@@ -212,6 +218,8 @@ pub async fn begin(h: &Harvester, paced: bool, sinks: Vec<Box<dyn Sink>>) -> cra
         field_nodes_at: Some(h.relay()),
         cpu_trace: None,
         coverage: h.coverage.then(Default::default),
+        crashes,
+        crashes_seen: 0,
     };
     if c.monitor.enabled {
         running

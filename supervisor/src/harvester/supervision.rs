@@ -89,6 +89,15 @@ impl Running {
     /// Notes crashes and restarts what is due, by the restart policy.
     pub(super) async fn supervise(&mut self) -> crate::Result<()> {
         let now = self.now;
+        let told = self.crashes.load(std::sync::atomic::Ordering::Acquire);
+        let due = self
+            .members
+            .iter()
+            .any(|m| m.restart_at.is_some_and(|t| t <= now));
+        if told == self.crashes_seen && !due {
+            return Ok(());
+        }
+        self.crashes_seen = told;
         let crashed = self.hub.send(GetCrashed).await?;
         let policy = self.harvester.config.network.restart.clone();
         for m in &mut self.members {

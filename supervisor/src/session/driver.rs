@@ -73,6 +73,9 @@ struct Driver {
     longest_frame: BusDuration,
     /// The controller is in listen-only mode.
     listen_only: bool,
+    /// A slice computed ahead ([`super::Session::slice`]), and how running it went: handed over
+    /// with the next slice asked for (a failure then). `None` when the last call was another.
+    ahead: Option<Result<()>>,
 }
 
 /// How the program stands on the bus.
@@ -203,6 +206,7 @@ impl Driver {
                 160_000_000_000 / u64::from(h.config.network.bitrate.max(1)),
             ),
             listen_only: false,
+            ahead: None,
         })
     }
 
@@ -230,6 +234,10 @@ impl Driver {
     }
 
     async fn carry_out(&mut self, c: Command) {
+        // Any other call ends the slices: it is carried out where the bus stands.
+        if !matches!(c, Command::Slice(_)) {
+            self.ahead = None;
+        }
         match c {
             Command::Filters(filters, tx) => {
                 self.inbox.borrow_mut().set_filters(filters);
@@ -326,6 +334,34 @@ impl Driver {
             }
             Command::Check(text, tx) => {
                 let _ = tx.send(self.check(&text).await);
+            }
+            Command::Slice(tx) => {
+                if self.paced {
+                    let e = Error::BadInput("slices of the bus are for virtual time".into());
+                    let _ = tx.send(Err(e));
+                    return;
+                }
+                // The first slice is computed now; each later one was computed ahead.
+                let ran = match self.ahead.take() {
+                    Some(ran) => ran,
+                    None => {
+                        let end = self.running.now() + BusDuration::from_secs_f64(super::SLICE_S);
+                        self.advance(end, |_| false).await
+                    }
+                };
+                if let Err(e) = ran {
+                    let _ = tx.send(Err(e));
+                    return;
+                }
+                let now = self.running.now();
+                let mut items = Vec::new();
+                while let Some(d) = self.inbox.borrow_mut().pop(now) {
+                    items.push(d);
+                }
+                let _ = tx.send(Ok((now.as_secs_f64(), items)));
+                // The next slice, while the caller works through this one.
+                let end = now + BusDuration::from_secs_f64(super::SLICE_S);
+                self.ahead = Some(self.advance(end, |_| false).await);
             }
             Command::RunFor(seconds, tx) => {
                 let end = self.running.now() + BusDuration::from_secs_f64(seconds);

@@ -38,15 +38,28 @@ use tokio::sync::{mpsc, oneshot};
 /// a sleep costs a wake-up through the kernel each way.
 const LOOK: std::time::Duration = std::time::Duration::from_micros(200);
 
-/// Whether to look once more, since `started`. The thread yields in between rather than spinning:
-/// on a busy machine, or on one core, the thread it waits for may need this core to answer.
+/// How long of that it spins on the core before it yields it between looks: an answer within a
+/// few microseconds (a frame handed over in virtual time) is then seen at once, without a
+/// system call; after it, the thread it waits for may need this core to answer.
+const SPIN: std::time::Duration = std::time::Duration::from_micros(20);
+
+/// Whether to look once more, since `started`: spinning at first, then yielding the core between
+/// looks, for at most [`LOOK`].
 pub(crate) fn look_again(started: std::time::Instant) -> bool {
-    if started.elapsed() >= LOOK {
+    let waited = started.elapsed();
+    if waited >= LOOK {
         return false;
     }
-    std::thread::yield_now();
+    if waited < SPIN {
+        std::hint::spin_loop();
+    } else {
+        std::thread::yield_now();
+    }
     true
 }
+
+/// Bus time a [`Session::slice`] covers, s.
+pub const SLICE_S: f64 = 0.1;
 
 /// Longest a `recv` without a timeout waits, in bus time: the longest run a scenario may have.
 pub const FOREVER_S: f64 = crate::scenario::MAX_DURATION_S;
@@ -153,6 +166,7 @@ pub struct Own {
 pub(crate) enum Command {
     Filters(Vec<Filter>, oneshot::Sender<Result<()>>),
     Recv(f64, oneshot::Sender<Result<Option<Delivered>>>),
+    Slice(oneshot::Sender<Result<(f64, Vec<Delivered>)>>),
     Send(Frame, f64, oneshot::Sender<Result<bool>>),
     ListenOnly(bool, oneshot::Sender<Result<()>>),
     Own(oneshot::Sender<Result<Own>>),
@@ -296,6 +310,17 @@ impl Session {
             return Err(Error::BadInput(format!("timeout {t} s is not a time")));
         }
         self.ask(|tx| Command::Recv(t.min(FOREVER_S), tx))
+    }
+
+    /// In virtual time, the next slice of the bus: every frame and error frame for the program
+    /// up to the end of the next [`SLICE_S`] of bus time, with that end, s. The harvester
+    /// computes each slice ahead, while the caller works through the last, so the bus stands one
+    /// slice ahead of what has been handed over: any other call is carried out at the end of
+    /// the slice being computed. Which slices there are depends on the calls alone, so this too
+    /// is deterministic. Meant for a program that changes nothing on the bus (listen-only): one
+    /// that answers what it receives wants [`Session::recv`], which stops the bus at each frame.
+    pub fn slice(&self) -> Result<(f64, Vec<Delivered>)> {
+        self.ask(Command::Slice)
     }
 
     /// Hands a frame to the program's controller, which sends it when the bus next runs. In

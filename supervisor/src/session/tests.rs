@@ -513,3 +513,37 @@ fn expectations_are_checked_as_a_scenario_checks_them() {
     let e = s.check("NodeState(").unwrap_err().to_string();
     assert!(e.contains("the expectations:1:"), "{e}");
 }
+
+#[test]
+fn slices_hand_over_the_same_frames_as_recv_one_slice_ahead() {
+    let by_recv = {
+        let s = with(Options::default());
+        let mut got = Vec::new();
+        while let Some(d) = s.recv(Some((3.0 - s.now().unwrap()).max(0.0))).unwrap() {
+            got.push(d);
+            if s.now().unwrap() >= 3.0 {
+                break;
+            }
+        }
+        got
+    };
+    let s = with(Options::default());
+    let mut got = Vec::new();
+    let mut ends = Vec::new();
+    while ends.last().is_none_or(|&e| e < 3.0 - 1e-9) {
+        let (end, items) = s.slice().unwrap();
+        ends.push(end);
+        got.extend(items);
+    }
+    // Slices of 0.1 s, one after another.
+    for (i, end) in ends.iter().enumerate() {
+        assert!((end - 0.1 * (i + 1) as f64).abs() < 1e-9, "{ends:?}");
+    }
+    assert!(!got.is_empty());
+    assert_eq!(got, by_recv);
+    // The next slice was computed ahead: another call finds the bus at its end.
+    assert!((s.now().unwrap() - 3.1).abs() < 1e-9);
+    // After it, slices start again from where the bus stands.
+    let (end, _) = s.slice().unwrap();
+    assert!((end - 3.2).abs() < 1e-9, "{end}");
+}

@@ -10,6 +10,7 @@ Filters are applied inside harvemu, where the frames arrive, as a kernel applies
 filters.
 """
 
+import collections
 import datetime
 import math
 
@@ -218,6 +219,14 @@ class HarvemuBus(can.BusABC):
         self.channel = channel
         self.channel_info = f"harvemu {channel}"
         self._listen_only = False
+        self._virtual = bool(virtual_time)
+        # Listen-only in virtual time, recv hands over the bus a slice at a time: the slices'
+        # messages not handed over yet, the end of the last slice, and the bus time the program
+        # has reached (the last message handed over, or the end of a recv's timeout).
+        self._slices = collections.deque()
+        self._slice_end = 0.0
+        self._seen = 0.0
+        self._longest_frame = 160 / self._harvester.bitrate()
         # Bus time zero, in seconds since 1970: message timestamps are counted from it.
         self._epoch = self._harvester.epoch()
         try:
@@ -248,12 +257,45 @@ class HarvemuBus(can.BusABC):
         """The next frame that passes the filters, or error frame, within ``timeout`` s of bus
         time (of the wall clock when the bus keeps to it); frames and error frames in time
         order. Filters do not apply to error frames, as in SocketCAN."""
-        try:
-            got = self._harvester.recv(timeout)
-        except (ValueError, RuntimeError) as e:
-            raise can.CanOperationError(str(e)) from e
-        if got is None:
-            return None
+        if self._slices or (self._listen_only and self._virtual):
+            got = self._sliced(timeout)
+        else:
+            try:
+                got = self._harvester.recv(timeout)
+            except (ValueError, RuntimeError) as e:
+                raise can.CanOperationError(str(e)) from e
+        return None if got is None else self._message(got)
+
+    def _sliced(self, timeout):
+        """recv listen-only in virtual time: the program changes nothing on the bus, so the
+        harvester hands it over a slice of bus time at a time, computing the next while the
+        program works through this one (docs/PYTHON.md, "State")."""
+        if not (self._listen_only and self._virtual):
+            return self._slices.popleft()       # left from listen-only: they came first
+        if timeout is not None and not (isinstance(timeout, (int, float))
+                                        and math.isfinite(timeout) and timeout >= 0):
+            raise can.CanOperationError(f"timeout={timeout!r}: give seconds (0 or more) or None")
+        if timeout == 0:
+            timeout = self._longest_frame       # as recv(0) runs the bus otherwise
+        deadline = None if timeout is None else self._seen + timeout
+        while True:
+            if self._slices:
+                t = self._slices[0][0]
+                if deadline is not None and t > deadline:
+                    self._seen = deadline
+                    return None
+                self._seen = t
+                return self._slices.popleft()
+            if deadline is not None and self._slice_end >= deadline:
+                self._seen = deadline
+                return None
+            try:
+                self._slice_end, items = self._harvester.slice()
+            except (ValueError, RuntimeError) as e:
+                raise can.CanOperationError(str(e)) from e
+            self._slices.extend(items)
+
+    def _message(self, got):
         t, arbitration_id, extended, remote, dlc, data, own, controller = got
         if controller is not None:
             # As python-can's socketcan interface gives an error frame: the flags off the
@@ -321,14 +363,19 @@ class HarvemuBus(can.BusABC):
     @state.setter
     def state(self, new_state):
         """PASSIVE puts the program's controller in listen-only mode (it acknowledges and sends
-        nothing, and still receives); ACTIVE takes it out."""
+        nothing, and still receives); ACTIVE takes it out. Listen-only in virtual time, recv
+        takes the bus a slice of 0.1 s at a time, the harvester one slice ahead."""
         if new_state not in (can.BusState.ACTIVE, can.BusState.PASSIVE):
             raise can.CanOperationError(
                 f"state={new_state!r}: set can.BusState.ACTIVE or can.BusState.PASSIVE")
+        passive = new_state == can.BusState.PASSIVE
         try:
-            self._harvester.set_listen_only(new_state == can.BusState.PASSIVE)
+            self._harvester.set_listen_only(passive)
+            if passive and not self._listen_only:
+                self._seen = self._slice_end = self._harvester.now()
         except (ValueError, RuntimeError) as e:
             raise can.CanOperationError(str(e)) from e
+        self._listen_only = passive
 
     def _send_periodic_internal(self, msgs, period, duration=None, autostart=True,
                                 modifier_callback=None):
