@@ -16,10 +16,11 @@ fn main() {
     let (Some(manifest), Some(out)) = (manifest, out) else {
         fail("CARGO_MANIFEST_DIR and OUT_DIR are set by Cargo: run this through cargo");
     };
-    // `supervisor/configs` is a link to the repository's `configs/`, inside the crate: packaged
+    // `supervisor/shipped` is a link to the repository's `configs/`, inside the crate: packaged
     // (the Python package's source distribution, built away from the repository), the crate
-    // then carries the files themselves.
-    let root = manifest.join("configs");
+    // then carries the files themselves. (Not named `configs`: run from `supervisor/`, harvemu
+    // would take it for a config folder on disk.)
+    let root = manifest.join("shipped");
     println!("cargo:rerun-if-changed={}", root.display());
     let mut files = Vec::new();
     walk(&root, "configs", &mut files);

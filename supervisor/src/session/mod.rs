@@ -38,23 +38,13 @@ use tokio::sync::{mpsc, oneshot};
 /// a sleep costs a wake-up through the kernel each way.
 const LOOK: std::time::Duration = std::time::Duration::from_micros(200);
 
-/// How long of that it spins on the core before it yields it between looks: an answer within a
-/// few microseconds (a frame handed over in virtual time) is then seen at once, without a
-/// system call; after it, the thread it waits for may need this core to answer.
-const SPIN: std::time::Duration = std::time::Duration::from_micros(20);
-
-/// Whether to look once more, since `started`: spinning at first, then yielding the core between
-/// looks, for at most [`LOOK`].
+/// Whether to look once more, since `started`. The thread yields in between rather than spinning:
+/// on a busy machine, or on one core, the thread it waits for may need this core to answer.
 pub(crate) fn look_again(started: std::time::Instant) -> bool {
-    let waited = started.elapsed();
-    if waited >= LOOK {
+    if started.elapsed() >= LOOK {
         return false;
     }
-    if waited < SPIN {
-        std::hint::spin_loop();
-    } else {
-        std::thread::yield_now();
-    }
+    std::thread::yield_now();
     true
 }
 
