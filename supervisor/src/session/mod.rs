@@ -17,8 +17,12 @@
 //! kernel filter drops them); with the error frames asked for ([`Options::error_frames`]), they
 //! wait in time order in a queue of at most [`QUEUE`] of each, the oldest dropped beyond it, as
 //! in a socket's buffer: also while the program does not wait for one ([`Session::run_for`]).
+//! A program that changes nothing on the bus may take it a slice at a time instead
+//! ([`Session::slice`]): the harvester computes each slice while the program works through the
+//! last, and other calls are carried out at the end of the slice being computed.
 //! Periodic tasks are sent by the program's node in bus time; actions are a scenario timeline's,
-//! carried out at the present bus time, their faults ended at their `until_s` as the bus runs.
+//! carried out at the present bus time, their faults ended at their `until_s` as the bus runs;
+//! expectations are checked as a scenario's ([`Session::check`]).
 
 mod driver;
 mod program;
