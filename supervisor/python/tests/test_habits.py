@@ -336,3 +336,18 @@ def test_listen_only_recv_takes_the_bus_in_slices_and_gives_the_same_frames():
         bus.state = can.BusState.ACTIVE
         fourth = bus.recv(timeout=1.0)
         assert first.timestamp < second.timestamp < third.timestamp < fourth.timestamp
+
+
+def test_state_reads_error_while_the_programs_controller_is_bus_off():
+    with can.Bus(interface="harvemu", without=["F5"], seed=1, can_filters=NOTHING) as bus:
+        bus.harvester.wait_ready()
+        assert bus.state == can.BusState.ACTIVE
+        # Every frame with the program's identifier corrupted: 32 transmit errors in a row take
+        # its TEC from 0 to 256, bus off (ISO 11898-1, 12.1.4 rules 3 and 10).
+        bus.harvester.act('BitErrors(target: Id("18FF00F5"), hits: Always, until_s: None)')
+        bus.send(can.Message(arbitration_id=0x18FF00F5, data=b"\x01"))
+        while (m := bus.recv(timeout=1.0)) is not None and not m.arbitration_id & 0x40:
+            pass
+        assert m is not None and m.channel == "harv0.program", m     # CAN_ERR_BUSOFF
+        assert bus.state == can.BusState.ERROR
+        assert [s for n, s, *_ in bus.harvester.states() if n == "program"] == ["bus off"]
