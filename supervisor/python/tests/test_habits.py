@@ -213,8 +213,11 @@ def test_own_messages_come_back_with_is_rx_false():
 
 
 def test_bitrate_start_time_and_node_are_python_cans_arguments():
-    with pytest.raises(can.CanInitializationError, match="500000.*250000"):
-        can.Bus(interface="harvemu", bitrate=500000)
+    for bad in (500000, "500000", 250000.5, True):
+        with pytest.raises(can.CanInitializationError, match="bitrate=.*250000"):
+            can.Bus(interface="harvemu", bitrate=bad)
+    with can.Bus(interface="harvemu", bitrate="250000") as bus:
+        assert bus.harvester.bitrate() == 250000
     with can.Bus(interface="harvemu", bitrate=250000, seed=1,
                  start_time="2025-06-01T12:00:00Z") as bus:
         assert bus.recv(timeout=1.0).timestamp > 1748779200.0

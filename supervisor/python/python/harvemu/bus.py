@@ -129,6 +129,17 @@ def _filter_specs(filters):
     return specs
 
 
+def _whole(value):
+    """A whole number given as one or as its digits (as can.rc gives it), else None."""
+    if isinstance(value, bool):
+        return None
+    if isinstance(value, int):
+        return value
+    if isinstance(value, str) and value.strip().isdigit():
+        return int(value)
+    return None
+
+
 def _start_time(start_time):
     """``start_time`` as harvemu reads ``--start-time``: None, an RFC 3339 string, seconds since
     1970 (a number), or an aware ``datetime``."""
@@ -210,8 +221,8 @@ class HarvemuBus(can.BusABC):
             )
         except (ValueError, RuntimeError) as e:
             raise can.CanInitializationError(str(e)) from e
-        if bitrate is not None and bitrate != self._harvester.bitrate():
-            ours = self._harvester.bitrate()
+        ours = self._harvester.bitrate()
+        if bitrate is not None and _whole(bitrate) != ours:
             self._harvester.close()
             raise can.CanInitializationError(
                 f"bitrate={bitrate!r}: the harvester's bus runs at {ours} bit/s; give "
