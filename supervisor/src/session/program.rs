@@ -49,7 +49,7 @@ pub struct Errors {
 }
 
 impl Errors {
-    /// Takes an error frame that ends at `at`; answers whether the run is to stop there.
+    /// Takes an error frame of bus time `at`; answers whether the run is to stop there.
     pub fn take(&mut self, at: BusTime, e: ErrorReceived) -> bool {
         if self.queue.len() >= QUEUE {
             self.queue.pop_front();
