@@ -1,7 +1,8 @@
 //! `--record FILE`: where the hub's trace goes.
 //!
-//! Contract: a file whose name ends in `.asc` (any case) gets Vector ASC, any other file a
-//! candump log, both written from the hub's trace records ([`bus::trace`]). [`create`] gives the
+//! Contract: a file whose name ends in `.asc` (any case) gets Vector ASC, one ending in
+//! `.pcapng` a pcapng capture (LINKTYPE_CAN_SOCKETCAN, an interface per controller), any other
+//! file a candump log, all written from the hub's trace records ([`bus::trace`]). [`create`] gives the
 //! hub its sink ([`Feed`]) and the caller the
 //! [`Trace`], which [`Trace::finish`] ends once the run is over: for ASC a comment line when the
 //! run was interrupted, then the `End TriggerBlock` footer; then the file is put in place whole
@@ -17,7 +18,7 @@ use crate::output::{Output, failed};
 use crate::stop::Signal;
 use bus::time::Epoch;
 use bus::trace::{CandumpWriter, Record, Sink};
-use bus::tracefile::AscWriter;
+use bus::tracefile::{AscWriter, PcapngWriter};
 use std::cell::RefCell;
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
@@ -26,6 +27,11 @@ use std::rc::Rc;
 /// True when `path` names an ASC file.
 pub fn is_asc(path: &Path) -> bool {
     path.extension().is_some_and(|e| e.eq_ignore_ascii_case("asc"))
+}
+
+/// True when `path` names a pcapng file.
+pub fn is_pcapng(path: &Path) -> bool {
+    path.extension().is_some_and(|e| e.eq_ignore_ascii_case("pcapng"))
 }
 
 /// The output, shared by the format's writer and the end of the trace.
@@ -44,6 +50,7 @@ impl Write for Shared {
 enum Format {
     Log(CandumpWriter<Shared>),
     Asc(AscWriter<Shared>),
+    Pcapng(PcapngWriter<Shared>),
 }
 
 struct State {
@@ -80,6 +87,7 @@ impl Sink for Feed {
         self.guard(|s| match s.format.as_mut() {
             Some(Format::Log(c)) => c.record(r),
             Some(Format::Asc(a)) => a.record(r),
+            Some(Format::Pcapng(p)) => p.record(r),
             None => Err(io::Error::other("the trace has ended")),
         })
     }
@@ -87,6 +95,7 @@ impl Sink for Feed {
         self.guard(|s| match s.format.as_mut() {
             Some(Format::Log(c)) => c.flush(),
             Some(Format::Asc(a)) => a.flush(),
+            Some(Format::Pcapng(p)) => Sink::flush(p),
             None => Ok(()),
         })
     }
@@ -117,6 +126,9 @@ pub fn create(path: &Path, epoch: Epoch) -> crate::Result<(Box<dyn Sink>, Trace)
     let format = if is_asc(path) {
         let asc = AscWriter::new(out.clone(), epoch).map_err(|e| failed("write", path, e))?;
         Format::Asc(asc)
+    } else if is_pcapng(path) {
+        let pcapng = PcapngWriter::new(out.clone(), epoch).map_err(|e| failed("write", path, e))?;
+        Format::Pcapng(pcapng)
     } else {
         Format::Log(CandumpWriter::new(out.clone(), epoch))
     };
@@ -164,6 +176,8 @@ impl Trace {
         // The format's writer holds the output too: it is done with before the output is.
         if let Some(Format::Log(mut log)) = format {
             log.flush().map_err(|e| failed("write", &self.path, e))?;
+        } else if let Some(Format::Pcapng(mut pcapng)) = format {
+            pcapng.flush().map_err(|e| failed("write", &self.path, e))?;
         } else if let Some(Format::Asc(mut asc)) = format {
             let mut end = || -> io::Result<()> {
                 asc.flush()?;

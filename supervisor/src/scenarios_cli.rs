@@ -32,7 +32,7 @@ pub struct ScenarioArgs {
     #[arg(long, value_name = "FILE")]
     junit: Option<PathBuf>,
     /// Write the trace here (with several files, the last one's): Vector ASC when the name ends
-    /// in .asc, else a candump log.
+    /// in .asc, pcapng (Wireshark) when it ends in .pcapng, else a candump log.
     #[arg(long, value_name = "FILE")]
     record: Option<PathBuf>,
     /// Write an HTML report here: one page, a section per scenario, plots inline (written also

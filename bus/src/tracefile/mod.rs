@@ -30,11 +30,13 @@ mod convert;
 #[cfg(test)]
 mod limit_tests;
 mod lines;
+pub mod pcapng;
 #[cfg(test)]
 mod tests;
 
 pub use convert::AscWriter;
 pub use lines::{LineError, Lines, MAX_LINE};
+pub use pcapng::PcapngWriter;
 
 use crate::text::quote;
 use crate::time::Stamp;

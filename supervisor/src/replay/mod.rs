@@ -63,7 +63,8 @@ pub struct Args {
     /// Stop this long after the replay starts (e.g. 30s, 10m).
     #[arg(long = "for", value_name = "DURATION", value_parser = parse_duration)]
     duration: Option<Duration>,
-    /// Record the resulting bus: Vector ASC when the name ends in .asc, else a candump log.
+    /// Record the resulting bus: Vector ASC when the name ends in .asc, pcapng (Wireshark) when
+    /// it ends in .pcapng, else a candump log.
     #[arg(long, value_name = "FILE")]
     record: Option<PathBuf>,
     /// Where bus time zero lies in the recorded trace's timestamps: RFC 3339

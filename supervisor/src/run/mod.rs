@@ -31,8 +31,8 @@ pub struct Args {
     /// Stop after this much emulated time (e.g. 120s, 10m, 1h, 500ms).
     #[arg(long = "for", value_name = "DURATION", value_parser = parse_duration)]
     duration: Option<Duration>,
-    /// Write every frame on the bus to this file: Vector ASC when it ends in .asc, else a candump
-    /// log.
+    /// Write every frame on the bus to this file: Vector ASC when it ends in .asc, pcapng
+    /// (Wireshark) when it ends in .pcapng, else a candump log.
     #[arg(long, value_name = "FILE")]
     record: Option<PathBuf>,
     /// Serve the bus to socketcand clients (python-can's `socketcand` interface, ...) on this

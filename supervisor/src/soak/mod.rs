@@ -32,7 +32,8 @@ pub struct Args {
     /// Seed of the run and of its faults (default: the scenario's, else its config's).
     #[arg(long, value_name = "N")]
     seed: Option<u64>,
-    /// Write the trace here: Vector ASC when the name ends in .asc, else a candump log.
+    /// Write the trace here: Vector ASC when the name ends in .asc, pcapng (Wireshark) when it
+    /// ends in .pcapng, else a candump log.
     #[arg(long, value_name = "FILE")]
     record: Option<PathBuf>,
     /// Where bus time zero lies in the trace's timestamps: RFC 3339 (2024-01-01T00:00:00Z) or
