@@ -198,7 +198,10 @@ mod tests {
         // Two Enhanced Packet Blocks on interface 0, 32 + 16 bytes each.
         let epb = idb + idb_len;
         assert_eq!(b.len(), epb + 2 * 48);
-        assert_eq!((u32_at(&b, epb), u32_at(&b, epb + 4), u32_at(&b, epb + 8)), (6, 48, 0));
+        assert_eq!(
+            (u32_at(&b, epb), u32_at(&b, epb + 4), u32_at(&b, epb + 8)),
+            (6, 48, 0)
+        );
         let ns = (u64::from(u32_at(&b, epb + 12)) << 32) | u64::from(u32_at(&b, epb + 16));
         assert_eq!(ns, 1_704_067_200_551_520_000);
         // struct can_frame: CAN_EFF_FLAG | id, big-endian; length 7; the data, zero-padded.
