@@ -177,7 +177,7 @@ impl Trace {
         if let Some(Format::Log(mut log)) = format {
             log.flush().map_err(|e| failed("write", &self.path, e))?;
         } else if let Some(Format::Pcapng(mut pcapng)) = format {
-            pcapng.flush().map_err(|e| failed("write", &self.path, e))?;
+            Sink::flush(&mut pcapng).map_err(|e| failed("write", &self.path, e))?;
         } else if let Some(Format::Asc(mut asc)) = format {
             let mut end = || -> io::Result<()> {
                 asc.flush()?;

@@ -80,11 +80,6 @@ impl<W: Write> PcapngWriter<W> {
         self.interfaces.push(name.to_string());
         Ok((self.interfaces.len() - 1) as u32)
     }
-
-    /// Flushes what was written.
-    pub fn flush(&mut self) -> io::Result<()> {
-        self.inner.flush()
-    }
 }
 
 /// The 16 bytes of `struct can_frame` as LINKTYPE_CAN_SOCKETCAN stores them.

@@ -18,13 +18,17 @@ from harvemu import monitor
 ROOT = pathlib.Path(__file__).parents[3]
 
 
-def test_the_bench_row_is_the_monitors_own_run(harvemu_bin):
+def bench(harvemu_bin, *args):
+    """`harvemu bench ARGS --json` with this Python: its rows."""
     out = subprocess.run(
-        [harvemu_bin, "bench", "--only", "python-monitor", "--python", sys.executable,
-         "--python-seconds", "20", "--json"],
+        [harvemu_bin, "bench", *args, "--python", sys.executable, "--json"],
         cwd=ROOT, capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stderr
-    rows = [json.loads(line) for line in out.stdout.splitlines()]
+    return [json.loads(line) for line in out.stdout.splitlines()]
+
+
+def test_the_bench_row_is_the_monitors_own_run(harvemu_bin):
+    rows = bench(harvemu_bin, "--only", "python-monitor", "--python-seconds", "20")
     assert len(rows) == 1, out.stdout
     row = rows[0]
     direct = monitor.run(20)
@@ -47,12 +51,8 @@ def test_a_python_without_the_package_is_a_clear_error(harvemu_bin):
 
 
 def test_the_recv_rows_measure_both_buses_in_one_run(harvemu_bin):
-    out = subprocess.run(
-        [harvemu_bin, "bench", "--only", "python-recv", "--python", sys.executable,
-         "--python-frames", "5000", "--json"],
-        cwd=ROOT, capture_output=True, text=True, timeout=600)
-    assert out.returncode == 0, out.stderr
-    rows = {r["scenario"]: r for r in map(json.loads, out.stdout.splitlines())}
+    rows = {r["scenario"]: r
+            for r in bench(harvemu_bin, "--only", "python-recv", "--python-frames", "5000")}
     assert set(rows) == {"python-virtual", "python-recv", "python-recv-passive"}
     virtual = rows["python-virtual"]
     assert virtual["ratio"] is None

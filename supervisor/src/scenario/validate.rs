@@ -115,14 +115,7 @@ pub fn action(
     index: usize,
     step: &Step,
 ) -> Result<Plan, Vec<Problem>> {
-    let mut c = Checks {
-        file,
-        nodes,
-        duration_s: f64::INFINITY,
-        signals: Plant::signal_names(),
-        found: Vec::new(),
-        sent: Vec::new(),
-    };
+    let mut c = Checks::running(file, nodes);
     let resolved = timeline::step(&mut c, "action", index, step);
     match resolved {
         Some(r) if c.found.is_empty() => Ok(Plan::new(vec![r], Vec::new())),
@@ -140,14 +133,7 @@ pub fn expectations(
     nodes: Vec<(String, NodeId)>,
     expect: &[Expect],
 ) -> Result<Vec<Check>, Vec<Problem>> {
-    let mut c = Checks {
-        file,
-        nodes,
-        duration_s: f64::INFINITY,
-        signals: Plant::signal_names(),
-        found: Vec::new(),
-        sent: Vec::new(),
-    };
+    let mut c = Checks::running(file, nodes);
     let checks: Vec<Check> = expect
         .iter()
         .enumerate()
@@ -219,7 +205,20 @@ fn sent_frames(s: &Scenario, h: &Harvester) -> Vec<(String, Vec<bus::Frame>)> {
         .collect()
 }
 
-impl Checks<'_> {
+impl<'a> Checks<'a> {
+    /// The checks for a harvester already running, whose nodes are `nodes`: a run without end,
+    /// whose frames are not known ahead.
+    fn running(file: &'a str, nodes: Vec<(String, NodeId)>) -> Checks<'a> {
+        Checks {
+            file,
+            nodes,
+            duration_s: f64::INFINITY,
+            signals: Plant::signal_names(),
+            found: Vec::new(),
+            sent: Vec::new(),
+        }
+    }
+
     fn push(&mut self, field: impl Into<String>, message: impl Into<String>) {
         self.found.push(Problem::at(self.file, field, message));
     }

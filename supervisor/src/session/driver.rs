@@ -268,12 +268,7 @@ impl Driver {
                         .get(id)
                         .ok_or_else(|| Error::Internal("the program's node is not on the bus".into()))?;
                     Ok(Own {
-                        state: NodeState {
-                            name: n.name.clone(),
-                            state: n.state.to_string(),
-                            tec: n.tec,
-                            rec: n.rec,
-                        },
+                        state: NodeState::of(n),
                         listen_only,
                     })
                 }));
@@ -302,17 +297,10 @@ impl Driver {
             }
             Command::States(tx) => {
                 let snap = self.running.hub.send(GetSnapshot).await;
-                let _ = tx.send(snap.map_err(Error::from).map(|s| {
-                    s.nodes
-                        .iter()
-                        .map(|n| NodeState {
-                            name: n.name.clone(),
-                            state: n.state.to_string(),
-                            tec: n.tec,
-                            rec: n.rec,
-                        })
-                        .collect()
-                }));
+                let _ = tx.send(
+                    snap.map_err(Error::from)
+                        .map(|s| s.nodes.iter().map(NodeState::of).collect()),
+                );
             }
             Command::Display(tx) => {
                 let shown = self

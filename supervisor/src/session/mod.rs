@@ -189,6 +189,18 @@ pub struct NodeState {
     pub rec: u16,
 }
 
+impl NodeState {
+    /// A node's state as the hub's snapshot has it.
+    pub(crate) fn of(n: &bus::schedule::NodeSnapshot) -> NodeState {
+        NodeState {
+            name: n.name.clone(),
+            state: n.state.to_string(),
+            tec: n.tec,
+            rec: n.rec,
+        }
+    }
+}
+
 /// A running harvester with a program on its bus.
 pub struct Session {
     commands: Option<mpsc::UnboundedSender<Command>>,

@@ -129,6 +129,13 @@ def _filter_specs(filters):
     return specs
 
 
+def _check_timeout(timeout):
+    """A bus call's ``timeout``: seconds (0 or more) or None."""
+    if timeout is not None and not (isinstance(timeout, (int, float))
+                                    and math.isfinite(timeout) and timeout >= 0):
+        raise can.CanOperationError(f"timeout={timeout!r}: give seconds (0 or more) or None")
+
+
 def _whole(value):
     """A whole number given as one or as its digits (as can.rc gives it), else None."""
     if isinstance(value, bool):
@@ -283,9 +290,7 @@ class HarvemuBus(can.BusABC):
         program works through this one (docs/PYTHON.md, "State")."""
         if not (self._listen_only and self._virtual):
             return self._slices.popleft()       # left from listen-only: they came first
-        if timeout is not None and not (isinstance(timeout, (int, float))
-                                        and math.isfinite(timeout) and timeout >= 0):
-            raise can.CanOperationError(f"timeout={timeout!r}: give seconds (0 or more) or None")
+        _check_timeout(timeout)
         if timeout == 0:
             timeout = self._longest_frame       # as recv(0) runs the bus otherwise
         deadline = None if timeout is None else self._seen + timeout
@@ -340,9 +345,7 @@ class HarvemuBus(can.BusABC):
         room, for at most ``timeout`` s of bus time (None: as long as it takes); then
         CanOperationError."""
         arbitration_id = _checked_id(msg)
-        if timeout is not None and not (isinstance(timeout, (int, float))
-                                        and math.isfinite(timeout) and timeout >= 0):
-            raise can.CanOperationError(f"timeout={timeout!r}: give seconds (0 or more) or None")
+        _check_timeout(timeout)
         try:
             queued = self._harvester.send(
                 arbitration_id,
