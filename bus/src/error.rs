@@ -40,6 +40,18 @@ pub enum Error {
         /// What is wrong.
         reason: String,
     },
+    /// A record of a binary trace file (BLF, pcapng, MF4) that could not be read.
+    #[error("{format} record {record} at byte {offset}: {reason}")]
+    TraceRecord {
+        /// The format's name (`BLF`, `pcapng`, `MF4`).
+        format: &'static str,
+        /// 1-based number of the record (block, object) in the file.
+        record: u64,
+        /// Where the record starts, bytes from the start of the file.
+        offset: u64,
+        /// What is wrong.
+        reason: String,
+    },
     /// A trace record came after one stamped later had already been handed to the sinks, by
     /// more than the reorder window ([`crate::trace::Reorder`]): it cannot be written in time
     /// order. Not the input's fault: the hub produced it later than the engine's contract

@@ -27,6 +27,8 @@
 pub mod asc;
 mod candump_log;
 mod convert;
+mod format;
+mod item;
 #[cfg(test)]
 mod limit_tests;
 mod lines;
@@ -35,6 +37,8 @@ pub mod pcapng;
 mod tests;
 
 pub use convert::AscWriter;
+pub use format::{FileFormat, Sniffed};
+pub use item::{Item, ItemWriter, Stamped};
 pub use lines::{LineError, Lines, MAX_LINE};
 pub use pcapng::PcapngWriter;
 
