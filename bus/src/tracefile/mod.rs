@@ -25,6 +25,7 @@
 //!   writes the hub's records as an ASC file.
 
 pub mod asc;
+pub mod blf;
 mod candump_log;
 mod convert;
 mod format;
@@ -32,6 +33,7 @@ mod item;
 #[cfg(test)]
 mod limit_tests;
 mod lines;
+pub mod mf4;
 pub mod pcapng;
 #[cfg(test)]
 mod tests;

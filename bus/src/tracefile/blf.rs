@@ -1,0 +1,1 @@
+//! Vector BLF (binary logging) in and out.
