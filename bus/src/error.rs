@@ -52,6 +52,22 @@ pub enum Error {
         /// What is wrong.
         reason: String,
     },
+    /// A record of a binary trace stamped earlier than the one before it.
+    #[error(
+        "{format} record {record}: time {at} goes backwards: record {before_record} is at {before} (a trace must be in time order)"
+    )]
+    TraceTime {
+        /// The format, in words.
+        format: &'static str,
+        /// The record's number.
+        record: u64,
+        /// Its time.
+        at: crate::time::Stamp,
+        /// The number of the record before it.
+        before_record: u64,
+        /// That record's time.
+        before: crate::time::Stamp,
+    },
     /// A trace record came after one stamped later had already been handed to the sinks, by
     /// more than the reorder window ([`crate::trace::Reorder`]): it cannot be written in time
     /// order. Not the input's fault: the hub produced it later than the engine's contract

@@ -43,6 +43,10 @@ pub(super) struct ReadState {
     radix: u32,
     relative: bool,
     clock: Stamp,
+    /// The channel of the last frame or error frame.
+    pub(super) channel: u32,
+    /// The measurement's start, from the first `date` line that reads as one.
+    pub(super) start: Option<Stamp>,
 }
 
 impl Default for ReadState {
@@ -51,6 +55,8 @@ impl Default for ReadState {
             radix: 16,
             relative: false,
             clock: Stamp(0),
+            channel: 1,
+            start: None,
         }
     }
 }
@@ -68,6 +74,9 @@ impl ReadState {
     /// Parses one line (trimmed, not blank): `None` for lines that hold no frame.
     pub(super) fn parse_line(&mut self, line: &str) -> Result<Option<(Stamp, Entry)>, String> {
         let lower = line.to_ascii_lowercase();
+        if lower.starts_with("date ") && self.start.is_none() {
+            self.start = parse_date(&line[5..]);
+        }
         if lower.starts_with("//") || HEADER.iter().any(|h| lower.starts_with(h)) {
             return Ok(None);
         }
@@ -114,12 +123,14 @@ impl ReadState {
         match rest.as_slice() {
             ["CANFD", ..] => Err("CAN FD frame: only classic CAN is supported".to_string()),
             [channel, word, ..] if is_channel(channel) && word.eq_ignore_ascii_case("errorframe") => {
+                self.channel = channel.parse().unwrap_or(u32::MAX);
                 Ok(Some((at, Entry::Error(None))))
             }
             [channel, id, dir, fields @ ..] if is_channel(channel) && is_direction(dir) => {
                 let frame = self
                     .frame(id, fields)
                     .map_err(|e| format!("{}: {e}", quote(line)))?;
+                self.channel = channel.parse().unwrap_or(u32::MAX);
                 Ok(Some((at, Entry::Frame(frame))))
             }
             // Events: start of measurement, statistics, chip status, SV:, J1939TP, ...
@@ -225,6 +236,44 @@ pub fn date(start: SystemTime) -> String {
         t.year()
     )
 }
+
+/// Reads a `date` line's date as [`date`] writes it, or in 24-hour time without `am`/`pm`
+/// (`Thu Feb 22 17:15:03.978 2024`), as UTC. `None` for anything else (a date in another
+/// language): the measurement's start is then unknown.
+pub fn parse_date(text: &str) -> Option<Stamp> {
+    let t: Vec<&str> = text.split_whitespace().collect();
+    let (month, day, clock, half, year) = match t.as_slice() {
+        [_, month, day, clock, half, year] => (month, day, clock, Some(half.to_ascii_lowercase()), year),
+        [_, month, day, clock, year] => (month, day, clock, None, year),
+        _ => return None,
+    };
+    let month = MONTHS
+        .iter()
+        .position(|m| m.eq_ignore_ascii_case(month))
+        .and_then(|i| time::Month::try_from(i as u8 + 1).ok())?;
+    let (hms, millis) = clock.split_once('.').unwrap_or((clock, "0"));
+    let mut parts = hms.split(':').map(|p| p.parse::<u8>().ok());
+    let (Some(Some(mut hour)), Some(Some(minute)), Some(Some(second)), None) =
+        (parts.next(), parts.next(), parts.next(), parts.next())
+    else {
+        return None;
+    };
+    match half.as_deref() {
+        Some("am") if hour == 12 => hour = 0,
+        Some("pm") if hour < 12 => hour += 12,
+        Some("am" | "pm") | None => {}
+        Some(_) => return None,
+    }
+    let nanos: u32 = format!("{millis:0<9}").get(..9)?.parse().ok()?;
+    let date = time::Date::from_calendar_date(year.parse().ok()?, month, day.parse().ok()?).ok()?;
+    let clock = time::Time::from_hms_nano(hour, minute, second, nanos).ok()?;
+    let at = date.with_time(clock).assume_utc().unix_timestamp_nanos();
+    u64::try_from(at).ok().map(Stamp)
+}
+
+const MONTHS: [&str; 12] = [
+    "Jan", "Feb", "Mar", "Apr", "May", "Jun", "Jul", "Aug", "Sep", "Oct", "Nov", "Dec",
+];
 
 /// Appends the header of a measurement that started at `start`.
 pub fn header(out: &mut String, start: SystemTime) {

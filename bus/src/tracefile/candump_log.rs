@@ -9,8 +9,8 @@ use crate::text::quote;
 use crate::time::Stamp;
 use crate::trace::ErrorFrame;
 
-/// Parses one line (already trimmed, not blank).
-pub(super) fn parse_line(line: &str) -> Result<(Stamp, Entry), String> {
+/// Parses one line (already trimmed, not blank): its time, interface and entry.
+pub(super) fn parse_line(line: &str) -> Result<(Stamp, &str, Entry), String> {
     let (time, rest) = line
         .strip_prefix('(')
         .and_then(|l| l.split_once(')'))
@@ -22,7 +22,7 @@ pub(super) fn parse_line(line: &str) -> Result<(Stamp, Entry), String> {
         })?;
     let at = parse_time(time)?;
     let mut fields = rest.split_whitespace();
-    let (Some(_iface), Some(frame)) = (fields.next(), fields.next()) else {
+    let (Some(iface), Some(frame)) = (fields.next(), fields.next()) else {
         return Err(format!("{} lacks the interface or the frame", quote(line)));
     };
     match fields.next() {
@@ -36,10 +36,10 @@ pub(super) fn parse_line(line: &str) -> Result<(Stamp, Entry), String> {
         ));
     }
     if let Some(error) = error_frame(frame)? {
-        return Ok((at, Entry::Error(Some(error))));
+        return Ok((at, iface, Entry::Error(Some(error))));
     }
     let frame = parse_frame(frame).map_err(|e| format!("frame {}: {e}", quote(frame)))?;
-    Ok((at, Entry::Frame(frame)))
+    Ok((at, iface, Entry::Frame(frame)))
 }
 
 /// An error frame, when the identifier has `CAN_ERR_FLAG` set.

@@ -60,31 +60,43 @@ impl<W: ItemWriter> Stamped<W> {
     pub fn writer(&mut self) -> &mut W {
         &mut self.writer
     }
+}
 
-    /// The item a record gives, in `item` (whose interface string is reused).
-    pub fn fill(item: &mut Item, epoch: Epoch, r: &Record<'_>) {
-        item.at = epoch.stamp(r.at);
-        item.interface.clear();
-        item.interface.push_str(r.bus);
-        if let Source::Controller { name, .. } = r.source {
-            item.interface.push('.');
-            // One word, as an interface name would be (as the candump writer does).
-            item.interface
-                .extend(name.chars().map(|c| if c.is_ascii_graphic() { c } else { '_' }));
-        }
-        item.entry = match r.kind {
-            Kind::Frame(f) => Entry::Frame(f),
-            Kind::Error(e) => Entry::Error(Some(e)),
-        };
+/// The item a record gives, in `item` (whose interface string is reused).
+pub fn fill(item: &mut Item, epoch: Epoch, r: &Record<'_>) {
+    item.at = epoch.stamp(r.at);
+    item.interface.clear();
+    item.interface.push_str(r.bus);
+    if let Source::Controller { name, .. } = r.source {
+        item.interface.push('.');
+        // One word, as an interface name would be (as the candump writer does).
+        item.interface
+            .extend(name.chars().map(|c| if c.is_ascii_graphic() { c } else { '_' }));
     }
+    item.entry = match r.kind {
+        Kind::Frame(f) => Entry::Frame(f),
+        Kind::Error(e) => Entry::Error(Some(e)),
+    };
 }
 
 impl<W: ItemWriter> Sink for Stamped<W> {
     fn record(&mut self, r: &Record<'_>) -> io::Result<()> {
-        Stamped::<W>::fill(&mut self.item, self.epoch, r);
+        fill(&mut self.item, self.epoch, r);
         self.writer.write(&self.item)
     }
     fn flush(&mut self) -> io::Result<()> {
         self.writer.flush()
+    }
+}
+
+impl<W: ItemWriter + ?Sized> ItemWriter for Box<W> {
+    fn write(&mut self, item: &Item) -> io::Result<()> {
+        (**self).write(item)
+    }
+    fn flush(&mut self) -> io::Result<()> {
+        (**self).flush()
+    }
+    fn finish(&mut self) -> io::Result<()> {
+        (**self).finish()
     }
 }

@@ -24,6 +24,7 @@
 //! - [`asc`] formats ASC lines; [`AscWriter`] is a trace sink ([`crate::trace::Sink`]) that
 //!   writes the hub's records as an ASC file.
 
+mod any;
 pub mod asc;
 pub mod blf;
 mod candump_log;
@@ -35,19 +36,25 @@ mod limit_tests;
 mod lines;
 pub mod mf4;
 pub mod pcapng;
+mod pcapng_read;
+#[cfg(test)]
+mod pcapng_tests;
 #[cfg(test)]
 mod tests;
 
-pub use convert::AscWriter;
+pub use any::{Items, items};
+pub use convert::{AscWriter, LogWriter};
 pub use format::{FileFormat, Sniffed};
-pub use item::{Item, ItemWriter, Stamped};
+pub use item::{Item, ItemWriter, Stamped, fill};
 pub use lines::{LineError, Lines, MAX_LINE};
 pub use pcapng::PcapngWriter;
+pub use pcapng_read::PcapngReader;
 
 use crate::text::quote;
 use crate::time::Stamp;
 use crate::trace::ErrorFrame;
 use crate::{Error, Frame};
+use std::fmt::Write as _;
 use std::io::BufRead;
 
 /// The two formats a [`Reader`] understands.
@@ -98,6 +105,8 @@ pub struct Reader {
     line: usize,
     /// The time of the last frame or error frame, with its line.
     last: Option<(Stamp, usize)>,
+    /// The interface of the last record: a candump log's, or `canN` for ASC channel N+1.
+    interface: String,
 }
 
 impl Reader {
@@ -109,6 +118,7 @@ impl Reader {
             asc: asc::ReadState::default(),
             line: 0,
             last: None,
+            interface: String::new(),
         }
     }
 
@@ -120,6 +130,22 @@ impl Reader {
     /// Lines taken so far.
     pub fn lines(&self) -> usize {
         self.line
+    }
+
+    /// The interface of the last record given: a candump log's own, `canN` for ASC channel
+    /// N + 1 (ASC numbers channels from 1, SocketCAN and python-can from 0).
+    pub fn interface(&self) -> &str {
+        &self.interface
+    }
+
+    /// The time of a record since 1970: a candump log's as it is; an ASC time added to the
+    /// measurement's start (its `date` line, to the millisecond; 1970 when there is none that
+    /// reads as a date).
+    pub fn since_1970(&self, at: Stamp) -> Stamp {
+        match self.format {
+            Some(Format::Asc) => Stamp(at.0.saturating_add(self.asc.start.unwrap_or_default().0)),
+            _ => at,
+        }
     }
 
     /// Takes the next line (without its line break); gives the record it holds, if any.
@@ -136,8 +162,17 @@ impl Reader {
             Format::Asc
         });
         let parsed = match format {
-            Format::Candump => candump_log::parse_line(trimmed).map(Some),
-            Format::Asc => self.asc.parse_line(trimmed),
+            Format::Candump => candump_log::parse_line(trimmed).map(|(at, iface, entry)| {
+                self.interface.clear();
+                self.interface.push_str(iface);
+                Some((at, entry))
+            }),
+            Format::Asc => self.asc.parse_line(trimmed).inspect(|entry| {
+                if entry.is_some() {
+                    self.interface.clear();
+                    let _ = write!(self.interface, "can{}", self.asc.channel.saturating_sub(1));
+                }
+            }),
         };
         let entry = parsed.map_err(|reason| Error::TraceLine { line, reason })?;
         if let Some((at, _)) = entry {
@@ -172,6 +207,27 @@ pub fn read_numbered(
     input: impl BufRead,
     errors: ErrorFrames,
 ) -> impl Iterator<Item = Result<(u64, Record), Error>> {
+    read_lines(input, errors, |_, record| record)
+}
+
+/// Every record of a text trace as an [`Item`], numbered by its line: times since 1970 (ASC's
+/// from its `date` line), interfaces as [`Reader::interface`] gives them.
+pub fn text_items(
+    input: impl BufRead,
+    errors: ErrorFrames,
+) -> impl Iterator<Item = Result<(u64, Item), Error>> {
+    read_lines(input, errors, |reader, record| Item {
+        at: reader.since_1970(record.at),
+        interface: reader.interface().to_string(),
+        entry: record.entry,
+    })
+}
+
+fn read_lines<T>(
+    input: impl BufRead,
+    errors: ErrorFrames,
+    mut make: impl FnMut(&Reader, Record) -> T,
+) -> impl Iterator<Item = Result<(u64, T), Error>> {
     let mut reader = Reader::new(errors);
     let mut lines = Lines::new(input, MAX_LINE);
     let mut failed = false;
@@ -204,7 +260,7 @@ pub fn read_numbered(
                 }),
             };
             match result {
-                Ok(Some(record)) => return Some(Ok((line as u64, record))),
+                Ok(Some(record)) => return Some(Ok((line as u64, make(&reader, record)))),
                 Ok(None) => {}
                 Err(e) => {
                     failed = true;

@@ -15,10 +15,11 @@
 //! `CAN_EFF_FLAG` for an extended id, `CAN_RTR_FLAG` for a remote frame, `CAN_ERR_FLAG` with the
 //! error classes for an error frame (linux/can/error.h, the details in its data).
 
+use super::{Entry, Item, ItemWriter, fill};
 use crate::Frame;
 use crate::filter::CAN_ERR_FLAG;
 use crate::time::Epoch;
-use crate::trace::{Kind, Record, Sink, Source};
+use crate::trace::{Record, Sink};
 use std::io::{self, Write};
 
 /// The link type of a SocketCAN capture.
@@ -35,6 +36,9 @@ pub struct PcapngWriter<W: Write> {
     /// The interfaces described so far, by name, in the order of their ids.
     interfaces: Vec<String>,
     block: Vec<u8>,
+    /// The item a hub record becomes, reused.
+    item: Item,
+    finished: bool,
 }
 
 impl<W: Write> PcapngWriter<W> {
@@ -57,7 +61,18 @@ impl<W: Write> PcapngWriter<W> {
             epoch,
             interfaces: Vec::new(),
             block,
+            item: Item {
+                at: crate::time::Stamp(0),
+                interface: String::new(),
+                entry: Entry::Error(None),
+            },
+            finished: false,
         })
+    }
+
+    /// The output, once the capture is done with.
+    pub fn into_inner(self) -> W {
+        self.inner
     }
 
     /// The id of the interface called `name`, describing it first when it is new.
@@ -105,20 +120,21 @@ pub fn frame_packet(frame: &Frame) -> [u8; 16] {
     can_frame(id, frame.data(), frame.dlc())
 }
 
-impl<W: Write> Sink for PcapngWriter<W> {
-    fn record(&mut self, r: &Record<'_>) -> io::Result<()> {
-        let name = match r.source {
-            Source::Bus => r.bus.to_string(),
-            Source::Controller { name, .. } => format!("{}.{name}", r.bus),
-        };
-        let interface = self.interface(&name)?;
-        let packet = match &r.kind {
-            Kind::Frame(frame) => frame_packet(frame),
-            Kind::Error(e) => can_frame(CAN_ERR_FLAG | e.can_id, &e.data, 8),
+impl<W: Write> ItemWriter for PcapngWriter<W> {
+    fn write(&mut self, item: &Item) -> io::Result<()> {
+        if self.finished {
+            return Err(io::Error::other("the capture has ended"));
+        }
+        let interface = self.interface(&item.interface)?;
+        let packet = match &item.entry {
+            Entry::Frame(frame) => frame_packet(frame),
+            Entry::Error(Some(e)) => can_frame(CAN_ERR_FLAG | e.can_id, &e.data, 8),
+            // An error frame without details (from ASC or BLF): the flag, no class.
+            Entry::Error(None) => can_frame(CAN_ERR_FLAG, &[0; 8], 8),
         };
         // Enhanced Packet Block: interface, timestamp (ns since 1970, high word first), captured
         // and original length, the packet.
-        let ns = self.epoch.stamp(r.at).as_nanos();
+        let ns = item.at.as_nanos();
         let mut body = Vec::with_capacity(36);
         body.extend_from_slice(&interface.to_le_bytes());
         body.extend_from_slice(&((ns >> 32) as u32).to_le_bytes());
@@ -129,6 +145,32 @@ impl<W: Write> Sink for PcapngWriter<W> {
         self.block.clear();
         wrap(&mut self.block, 6, &body);
         self.inner.write_all(&self.block)
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        self.inner.flush()
+    }
+
+    fn finish(&mut self) -> io::Result<()> {
+        self.finished = true;
+        self.inner.flush()
+    }
+}
+
+impl<W: Write> Sink for PcapngWriter<W> {
+    fn record(&mut self, r: &Record<'_>) -> io::Result<()> {
+        let mut item = std::mem::replace(
+            &mut self.item,
+            Item {
+                at: crate::time::Stamp(0),
+                interface: String::new(),
+                entry: Entry::Error(None),
+            },
+        );
+        fill(&mut item, self.epoch, r);
+        let written = ItemWriter::write(self, &item);
+        self.item = item;
+        written
     }
 
     fn flush(&mut self) -> io::Result<()> {
@@ -163,6 +205,7 @@ fn wrap(out: &mut Vec<u8>, kind: u32, body: &[u8]) {
 mod tests {
     use super::*;
     use crate::time::BusTime;
+    use crate::trace::{Kind, Source};
 
     fn u32_at(b: &[u8], at: usize) -> u32 {
         u32::from_le_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]])
