@@ -465,7 +465,11 @@ impl Epoch {
         let us = t.duration_since(UNIX_EPOCH).map_or(0, |d| d.as_micros());
         Epoch(u64::try_from(us).unwrap_or(u64::MAX / 1_000))
     }
-    /// Whole seconds since 1970.
+    /// `us` microseconds after 1970.
+    pub const fn from_micros(us: u64) -> Epoch {
+        Epoch(us)
+    }
+    /// `s` seconds after 1970.
     pub const fn from_secs(s: u64) -> Epoch {
         Epoch(s.saturating_mul(1_000_000))
     }

@@ -9,6 +9,7 @@
 pub mod bench;
 pub mod campaign;
 pub mod configs;
+pub mod convert;
 pub mod coverage;
 pub mod dbc;
 pub mod error;
@@ -28,6 +29,7 @@ pub mod scenarios_cli;
 pub mod session;
 pub mod soak;
 pub mod stop;
+pub mod traces;
 pub mod tui;
 
 pub use error::{Error, Result};

@@ -7,7 +7,9 @@
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 use supervisor::exit::{self, Ended};
-use supervisor::{bench, campaign, configs, coverage, dbc, inspect, replay, run, scenarios_cli, soak, stop};
+use supervisor::{
+    bench, campaign, configs, convert, coverage, dbc, inspect, replay, run, scenarios_cli, soak, stop,
+};
 
 #[derive(Parser)]
 #[command(
@@ -42,6 +44,13 @@ Examples:
 const REPLAY_EXAMPLES: &str = "\
 Examples:
   harvemu replay harvest.asc --without D3 --skip-emulated --fast";
+
+const CONVERT_EXAMPLES: &str = "\
+Examples:
+  harvemu convert harvest.log harvest.blf          candump log to BLF (CANoe, CANalyzer, python-can)
+  harvemu convert harvest.blf harvest.pcapng       BLF to pcapng (Wireshark)
+  harvemu convert harvest.pcapng harvest.mf4       to MF4 (asammdf, CANape)
+  harvemu convert capture.pcap harvest.log         a tcpdump capture to a candump log";
 
 const SCENARIO_EXAMPLES: &str = "\
 Examples:
@@ -98,7 +107,7 @@ enum Command {
     /// Run the emulated harvester on the virtual hub.
     #[command(after_help = RUN_EXAMPLES)]
     Run(run::Args),
-    /// Play a candump log or Vector ASC trace onto the emulated harvester's bus.
+    /// Play a trace (candump log, ASC, BLF, pcapng, MF4) onto the emulated harvester's bus.
     #[command(after_help = REPLAY_EXAMPLES)]
     Replay(replay::Args),
     /// Run scenarios in virtual time and give verdicts (exit code 1 if any expectation fails,
@@ -115,6 +124,10 @@ enum Command {
     /// Check harvester configs, node scripts and scenarios without running anything.
     #[command(after_help = VALIDATE_EXAMPLES)]
     Validate(scenarios_cli::ValidateArgs),
+    /// Convert a trace from one format to another (candump log, ASC, BLF, pcapng, MF4), saying
+    /// what the target cannot carry.
+    #[command(after_help = CONVERT_EXAMPLES)]
+    Convert(convert::Args),
     /// Decode one frame: identifier fields, catalogue message, CRC, bit lengths, filters.
     #[command(after_help = INSPECT_EXAMPLES)]
     Inspect(inspect::Args),
@@ -170,7 +183,12 @@ fn main() -> ExitCode {
     // quick commands (and bench, which has no outputs to finish) keep the default.
     let runs = matches!(
         cli.command,
-        Command::Run(_) | Command::Replay(_) | Command::Scenario(_) | Command::Campaign(_) | Command::Soak(_)
+        Command::Run(_)
+            | Command::Replay(_)
+            | Command::Scenario(_)
+            | Command::Campaign(_)
+            | Command::Soak(_)
+            | Command::Convert(_)
     );
     let handled = stop::ignore_file_size_limit().and_then(|()| if runs { stop::install() } else { Ok(()) });
     if let Err(e) = handled {
@@ -186,6 +204,7 @@ fn main() -> ExitCode {
         Command::Scenario(args) => scenarios_cli::run(&args),
         Command::Campaign(args) => campaign::cli::run(&args),
         Command::Soak(args) => soak::run(&args),
+        Command::Convert(args) => convert::run(&args),
         Command::Inspect(args) => inspect::run(&args).map(|()| done),
         Command::Bench(args) => bench::run(&args).map(|()| done),
         Command::Dbc(args) => dbc::run(&args).map(|()| done),

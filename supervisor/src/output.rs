@@ -138,6 +138,14 @@ impl Write for Output {
     }
 }
 
+/// A regular file's output can go back (BLF and MF4 fill in their headers at the end); a stream
+/// cannot, and says so with the system's error.
+impl io::Seek for Output {
+    fn seek(&mut self, pos: io::SeekFrom) -> io::Result<u64> {
+        self.file.seek(pos)
+    }
+}
+
 /// Writes `bytes` to `path`, wholly or not at all (for a regular file).
 pub fn write_whole(path: &Path, bytes: &[u8]) -> Result<()> {
     let mut out = Output::create(path)?;

@@ -1,38 +1,31 @@
 //! `--record FILE`: where the hub's trace goes.
 //!
-//! Contract: a file whose name ends in `.asc` (any case) gets Vector ASC, one ending in
-//! `.pcapng` a pcapng capture (LINKTYPE_CAN_SOCKETCAN, an interface per controller), any other
-//! file a candump log, all written from the hub's trace records ([`bus::trace`]). [`create`] gives the
-//! hub its sink ([`Feed`]) and the caller the
-//! [`Trace`], which [`Trace::finish`] ends once the run is over: for ASC a comment line when the
-//! run was interrupted, then the `End TriggerBlock` footer; then the file is put in place whole
-//! ([`crate::output`]: a regular file is replaced only by a complete trace, a stream ends on a
-//! whole line). The first write that fails stops the trace; `finish` reports it, naming the file.
-//! A file that cannot be created is an [`crate::Error::Output`] naming it.
+//! Contract: the format is `--format`'s when given, else the one the file's name asks for
+//! ([`FileFormat::of_path`]: `.asc` Vector ASC, `.blf` Vector BLF, `.pcapng` pcapng, `.mf4`
+//! MF4, anything else a candump log), written from the hub's trace records ([`bus::trace`])
+//! through the format's [`ItemWriter`]. [`create`] gives the hub its sink ([`Feed`]) and the
+//! caller the [`Trace`], which [`Trace::finish`] ends once the run is over (a run cut short by
+//! SIGTERM or Ctrl-C included): for ASC a comment line when the run was interrupted, then the
+//! format's end (ASC's footer, BLF's header counts, MF4's block lengths); then the file is put
+//! in place whole ([`crate::output`]: a regular file is replaced only by a complete trace, a
+//! stream ends on a whole record). BLF and MF4 go back into the file at its end, so they need a
+//! file, not a stream: asking for one on a stream is bad input. The first write that fails
+//! stops the trace; `finish` reports it, naming the file. A file that cannot be created is an
+//! [`crate::Error::Output`] naming it.
 //!
-//! Timestamps: a candump log has bus time stamped with the run's [`Epoch`] ([`epoch`] picks it:
-//! `--start-time`, else the wall clock at the start of a real-time run, else
-//! [`Epoch::FIXED`]); an ASC file is dated at that epoch and its times count from it.
+//! Timestamps: bus time stamped with the run's [`Epoch`] ([`epoch`] picks it: `--start-time`,
+//! else the wall clock at the start of a real-time run, else [`Epoch::FIXED`]); ASC, BLF and MF4
+//! are dated at that epoch and count their times from it.
 
-use crate::output::{Output, failed};
+use crate::output::{Output, failed, is_stream};
 use crate::stop::Signal;
-use bus::time::Epoch;
-use bus::trace::{CandumpWriter, Record, Sink};
-use bus::tracefile::{AscWriter, PcapngWriter};
+use bus::time::{BusTime, Epoch, Stamp};
+use bus::trace::{Record, Sink};
+use bus::tracefile::{AscWriter, FileFormat, Item, ItemWriter, LogWriter, PcapngWriter, fill};
 use std::cell::RefCell;
-use std::io::{self, Write};
+use std::io::{self, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 use std::rc::Rc;
-
-/// True when `path` names an ASC file.
-pub fn is_asc(path: &Path) -> bool {
-    path.extension().is_some_and(|e| e.eq_ignore_ascii_case("asc"))
-}
-
-/// True when `path` names a pcapng file.
-pub fn is_pcapng(path: &Path) -> bool {
-    path.extension().is_some_and(|e| e.eq_ignore_ascii_case("pcapng"))
-}
 
 /// The output, shared by the format's writer and the end of the trace.
 #[derive(Clone)]
@@ -47,34 +40,33 @@ impl Write for Shared {
     }
 }
 
-enum Format {
-    Log(CandumpWriter<Shared>),
-    Asc(AscWriter<Shared>),
-    Pcapng(PcapngWriter<Shared>),
+impl Seek for Shared {
+    fn seek(&mut self, pos: SeekFrom) -> io::Result<u64> {
+        self.0.borrow_mut().seek(pos)
+    }
 }
 
 struct State {
-    format: Option<Format>,
+    writer: Option<Box<dyn ItemWriter>>,
     /// Taken out by [`Trace::finish`].
     out: Option<Shared>,
     /// The first write that failed.
     error: Option<io::Error>,
+    epoch: Epoch,
+    /// The item a hub record becomes, reused.
+    item: Item,
 }
 
-/// The sink the hub hands its records to.
-pub struct Feed(Rc<RefCell<State>>);
-
-impl Feed {
+impl State {
     fn guard<T>(&mut self, op: impl FnOnce(&mut State) -> io::Result<T>) -> io::Result<T> {
-        let mut s = self.0.borrow_mut();
-        if let Some(e) = &s.error {
+        if let Some(e) = &self.error {
             return Err(io::Error::new(e.kind(), e.to_string()));
         }
-        match op(&mut s) {
+        match op(self) {
             Err(e) => {
                 // The trace keeps the first error itself, for `finish`, and hands out copies.
                 let copy = io::Error::new(e.kind(), e.to_string());
-                s.error = Some(e);
+                self.error = Some(e);
                 Err(copy)
             }
             ok => ok,
@@ -82,20 +74,26 @@ impl Feed {
     }
 }
 
+fn ended() -> io::Error {
+    io::Error::other("the trace has ended")
+}
+
+/// The sink the hub hands its records to.
+pub struct Feed(Rc<RefCell<State>>);
+
 impl Sink for Feed {
     fn record(&mut self, r: &Record<'_>) -> io::Result<()> {
-        self.guard(|s| match s.format.as_mut() {
-            Some(Format::Log(c)) => c.record(r),
-            Some(Format::Asc(a)) => a.record(r),
-            Some(Format::Pcapng(p)) => p.record(r),
-            None => Err(io::Error::other("the trace has ended")),
+        self.0.borrow_mut().guard(|s| {
+            fill(&mut s.item, s.epoch, r);
+            match s.writer.as_mut() {
+                Some(w) => w.write(&s.item),
+                None => Err(ended()),
+            }
         })
     }
     fn flush(&mut self) -> io::Result<()> {
-        self.guard(|s| match s.format.as_mut() {
-            Some(Format::Log(c)) => c.flush(),
-            Some(Format::Asc(a)) => a.flush(),
-            Some(Format::Pcapng(p)) => Sink::flush(p),
+        self.0.borrow_mut().guard(|s| match s.writer.as_mut() {
+            Some(w) => w.flush(),
             None => Ok(()),
         })
     }
@@ -119,39 +117,88 @@ pub fn parse_start_time(text: &str) -> Result<Epoch, String> {
     Epoch::parse(text)
 }
 
-/// Starts the trace file at `path`, in the format its name asks for, for a run whose trace is
-/// stamped with `epoch`: the hub's sink and the trace to finish.
-pub fn create(path: &Path, epoch: Epoch) -> crate::Result<(Box<dyn Sink>, Trace)> {
+/// The format of a trace written to `path`: `format` when given (`--format`), else the one its
+/// name asks for.
+pub fn format_for(path: &Path, format: Option<FileFormat>) -> FileFormat {
+    format.unwrap_or_else(|| FileFormat::of_path(path))
+}
+
+/// Starts the trace file at `path` in `format` (else the one its name asks for), for a run
+/// whose trace is stamped with `epoch`: the hub's sink and the trace to finish.
+pub fn create(
+    path: &Path,
+    format: Option<FileFormat>,
+    epoch: Epoch,
+) -> crate::Result<(Box<dyn Sink>, Trace)> {
+    let trace = start(path, format, epoch.stamp(BusTime::ZERO), epoch)?;
+    Ok((Box::new(Feed(trace.state.clone())), trace))
+}
+
+/// Starts a trace file of items (`harvemu convert`): dated `start`.
+pub fn create_items(path: &Path, format: FileFormat, start: Stamp) -> crate::Result<Trace> {
+    // The epoch only turns hub records into items; items come stamped already.
+    start_at(path, format, start, Epoch::UNIX)
+}
+
+fn start(path: &Path, format: Option<FileFormat>, start: Stamp, epoch: Epoch) -> crate::Result<Trace> {
+    start_at(path, format_for(path, format), start, epoch)
+}
+
+fn start_at(path: &Path, format: FileFormat, start: Stamp, epoch: Epoch) -> crate::Result<Trace> {
+    if format.needs_seek() && is_stream(path) {
+        return Err(crate::Error::BadInput(format!(
+            "{}: {format} is finished by going back into the file at its end, which a stream \
+             cannot do: record to a file (or choose --format log, asc or pcapng)",
+            path.display()
+        )));
+    }
     let out = Shared(Rc::new(RefCell::new(Output::create(path)?)));
-    let format = if is_asc(path) {
-        let asc = AscWriter::new(out.clone(), epoch).map_err(|e| failed("write", path, e))?;
-        Format::Asc(asc)
-    } else if is_pcapng(path) {
-        let pcapng = PcapngWriter::new(out.clone(), epoch).map_err(|e| failed("write", path, e))?;
-        Format::Pcapng(pcapng)
-    } else {
-        Format::Log(CandumpWriter::new(out.clone(), epoch))
+    let made: io::Result<Box<dyn ItemWriter>> = match format {
+        FileFormat::Log => Ok(Box::new(LogWriter::new(out.clone()))),
+        // ASC dates its measurement to the millisecond and counts from there: from the start
+        // cut to its millisecond, so that the date and the times together are exact.
+        FileFormat::Asc => AscWriter::new(
+            out.clone(),
+            Epoch::from_micros(start.as_nanos() / 1_000_000 * 1000),
+        )
+        .map(|w| Box::new(w) as Box<dyn ItemWriter>),
+        FileFormat::Pcapng => {
+            PcapngWriter::new(out.clone(), Epoch::UNIX).map(|w| Box::new(w) as Box<dyn ItemWriter>)
+        }
+        FileFormat::Blf => bus::tracefile::blf::BlfWriter::new(out.clone(), start)
+            .map(|w| Box::new(w) as Box<dyn ItemWriter>),
+        FileFormat::Mf4 => Err(io::Error::other("not written yet")),
     };
+    let writer = made.map_err(|e| failed("write", path, e))?;
     let state = Rc::new(RefCell::new(State {
-        format: Some(format),
+        writer: Some(writer),
         out: Some(out),
         error: None,
+        epoch,
+        item: Item {
+            at: Stamp(0),
+            interface: String::new(),
+            entry: bus::tracefile::Entry::Error(None),
+        },
     }));
-    let trace = Trace {
+    Ok(Trace {
         path: path.to_path_buf(),
-        state: state.clone(),
-    };
-    Ok((Box::new(Feed(state)), trace))
+        state,
+    })
 }
 
 /// The hub's sink and the trace to finish, when there is a trace.
 pub type Recording = (Option<Box<dyn Sink>>, Option<Trace>);
 
 /// [`create`] for an optional `--record`.
-pub fn create_opt(path: Option<&PathBuf>, epoch: Epoch) -> crate::Result<Recording> {
+pub fn create_opt(
+    path: Option<&PathBuf>,
+    format: Option<FileFormat>,
+    epoch: Epoch,
+) -> crate::Result<Recording> {
     match path {
         Some(p) => {
-            let (w, t) = create(p, epoch)?;
+            let (w, t) = create(p, format, epoch)?;
             Ok((Some(w), Some(t)))
         }
         None => Ok((None, None)),
@@ -159,38 +206,45 @@ pub fn create_opt(path: Option<&PathBuf>, epoch: Epoch) -> crate::Result<Recordi
 }
 
 impl Trace {
-    /// Ends the trace: for ASC an `interrupted` comment when the run was, and the footer; then
-    /// the file is flushed and put in place. An error names the file; the file is then left as
-    /// it was (a regular file) or ends where writing failed (a stream).
+    /// Writes one item (`harvemu convert`); after an error nothing more is written and
+    /// [`Trace::finish`] reports it.
+    pub fn write(&self, item: &Item) -> crate::Result<()> {
+        self.state
+            .borrow_mut()
+            .guard(|s| match s.writer.as_mut() {
+                Some(w) => w.write(item),
+                None => Err(ended()),
+            })
+            .map_err(|e| failed("write", &self.path, e))
+    }
+
+    /// Ends the trace: for ASC an `interrupted` comment when the run was; the format's end;
+    /// then the file is flushed and put in place. An error names the file; the file is then
+    /// left as it was (a regular file) or ends where writing failed (a stream).
     pub fn finish(self, interrupted: Option<Signal>) -> crate::Result<()> {
         let mut s = self.state.borrow_mut();
-        let format = s.format.take();
+        let writer = s.writer.take();
         let out = s.out.take();
         if let Some(e) = s.error.take() {
             return Err(failed("write", &self.path, e));
         }
         drop(s);
-        let Some(mut out) = out else {
+        let Some(out) = out else {
             return Ok(());
         };
-        // The format's writer holds the output too: it is done with before the output is.
-        if let Some(Format::Log(mut log)) = format {
-            log.flush().map_err(|e| failed("write", &self.path, e))?;
-        } else if let Some(Format::Pcapng(mut pcapng)) = format {
-            Sink::flush(&mut pcapng).map_err(|e| failed("write", &self.path, e))?;
-        } else if let Some(Format::Asc(mut asc)) = format {
+        if let Some(mut writer) = writer {
             let mut end = || -> io::Result<()> {
-                asc.flush()?;
                 if let Some(sig) = interrupted {
-                    let note = format!(
-                        "// harvemu: interrupted by {}: the measurement ends here\n",
+                    writer.note(&format!(
+                        "harvemu: interrupted by {}: the measurement ends here",
                         sig.describe()
-                    );
-                    out.write_all(note.as_bytes())?;
+                    ))?;
                 }
-                asc.finish()
+                writer.finish()
             };
             end().map_err(|e| failed("write", &self.path, e))?;
+            // The format's writer holds the output too: it is done with before the output is.
+            drop(writer);
         }
         let out = Rc::try_unwrap(out.0)
             .map_err(|_| failed("write", &self.path, io::Error::other("still in use")))?;
@@ -203,17 +257,22 @@ mod tests {
     use super::*;
 
     #[test]
-    fn the_name_picks_the_format() {
-        for (name, asc) in [
-            ("run.asc", true),
-            ("RUN.ASC", true),
-            ("dir.asc/run.log", false),
-            ("run.log", false),
-            ("asc", false),
-            ("run.asc.log", false),
+    fn the_name_picks_the_format_unless_one_is_given() {
+        for (name, format) in [
+            ("run.asc", FileFormat::Asc),
+            ("RUN.ASC", FileFormat::Asc),
+            ("dir.asc/run.log", FileFormat::Log),
+            ("run.log", FileFormat::Log),
+            ("asc", FileFormat::Log),
+            ("run.asc.log", FileFormat::Log),
+            ("run.Mf4", FileFormat::Mf4),
         ] {
-            assert_eq!(is_asc(Path::new(name)), asc, "{name}");
+            assert_eq!(format_for(Path::new(name), None), format, "{name}");
         }
+        assert_eq!(
+            format_for(Path::new("run.log"), Some(FileFormat::Blf)),
+            FileFormat::Blf
+        );
     }
 
     #[test]
@@ -222,7 +281,7 @@ mod tests {
         let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("t.asc");
-        let (mut feed, trace) = create(&path, Epoch::UNIX).unwrap();
+        let (mut feed, trace) = create(&path, None, Epoch::UNIX).unwrap();
         let frame = bus::candump::parse_frame("0601F5D0#200D0002FFBFFF00").unwrap();
         let record = Record {
             at: bus::time::BusTime::from_millis(1000),

@@ -31,10 +31,13 @@ pub struct ScenarioArgs {
     /// Write a JUnit XML report here.
     #[arg(long, value_name = "FILE")]
     junit: Option<PathBuf>,
-    /// Write the trace here (with several files, the last one's): Vector ASC when the name ends
-    /// in .asc, pcapng (Wireshark) when it ends in .pcapng, else a candump log.
+    /// Write the trace here (with several files, the last one's); the format follows the name: .asc Vector ASC, .blf Vector BLF, .pcapng
+    /// pcapng (Wireshark), .mf4 MF4 (asammdf), anything else a candump log.
     #[arg(long, value_name = "FILE")]
     record: Option<PathBuf>,
+    /// The trace's format whatever its name says: log (candump), asc, blf, pcapng or mf4.
+    #[arg(long, value_name = "FORMAT", value_parser = crate::traces::parse_format, requires = "record")]
+    format: Option<bus::tracefile::FileFormat>,
     /// Write an HTML report here: one page, a section per scenario, plots inline (written also
     /// when expectations fail or the run is interrupted).
     #[arg(long, value_name = "FILE")]
@@ -106,7 +109,7 @@ pub fn run(args: &ScenarioArgs) -> crate::Result<Ended> {
         if crate::stop::received().is_some() {
             break;
         }
-        let outcome = match run_one(l, args.record.as_ref()) {
+        let outcome = match run_one(l, args.record.as_ref(), args.format) {
             Ok(outcome) => outcome,
             Err(e) => {
                 // A trace that could not be written ends the batch; what ran before it is still
@@ -235,9 +238,13 @@ fn write(mut out: Output, bytes: &[u8]) -> crate::Result<()> {
     Ok(())
 }
 
-fn run_one(l: &Loaded, record: Option<&PathBuf>) -> crate::Result<scenario::Outcome> {
+fn run_one(
+    l: &Loaded,
+    record: Option<&PathBuf>,
+    format: Option<bus::tracefile::FileFormat>,
+) -> crate::Result<scenario::Outcome> {
     let epoch = l.harvester.epoch.unwrap_or(bus::time::Epoch::FIXED);
-    let (trace, recording) = crate::record::create_opt(record, epoch)?;
+    let (trace, recording) = crate::record::create_opt(record, format, epoch)?;
     let bar = ProgressBar::new(l.scenario.duration_s.ceil() as u64);
     bar.set_style(
         ProgressStyle::with_template("{msg:30} {bar:30} {pos}/{len} s virtual time")

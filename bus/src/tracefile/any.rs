@@ -25,8 +25,9 @@ pub fn items<'a, R: Read + Seek + 'a>(
     let inner: Items<'a> = match format {
         FileFormat::Log | FileFormat::Asc => Box::new(text_items(input, errors)),
         FileFormat::Pcapng => Box::new(PcapngReader::new(input)?),
-        // BLF and MF4 readers: being written.
-        FileFormat::Blf | FileFormat::Mf4 => {
+        FileFormat::Blf => Box::new(super::blf::BlfReader::new(input)?),
+        // MF4 reader: being written.
+        FileFormat::Mf4 => {
             return Err(Error::TraceRecord {
                 format: format.describe(),
                 record: 0,

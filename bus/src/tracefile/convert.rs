@@ -93,6 +93,9 @@ impl<W: Write> Drop for AscWriter<W> {
 }
 
 impl<W: Write> ItemWriter for AscWriter<W> {
+    fn note(&mut self, text: &str) -> io::Result<()> {
+        self.comment(text)
+    }
     fn write(&mut self, item: &Item) -> io::Result<()> {
         if self.finished {
             return Err(io::Error::other("the ASC measurement has ended"));

@@ -30,6 +30,11 @@ pub trait ItemWriter {
     fn write(&mut self, item: &Item) -> io::Result<()>;
     /// Passes on what is buffered, as far as the format allows before its end.
     fn flush(&mut self) -> io::Result<()>;
+    /// Keeps a remark where the format has room for one (an ASC `//` comment); the others
+    /// leave it out.
+    fn note(&mut self, _text: &str) -> io::Result<()> {
+        Ok(())
+    }
     /// Ends the file: what the format writes last or goes back to fill in. Items given after
     /// it are refused. Calling it again does nothing.
     fn finish(&mut self) -> io::Result<()>;
@@ -95,6 +100,9 @@ impl<W: ItemWriter + ?Sized> ItemWriter for Box<W> {
     }
     fn flush(&mut self) -> io::Result<()> {
         (**self).flush()
+    }
+    fn note(&mut self, text: &str) -> io::Result<()> {
+        (**self).note(text)
     }
     fn finish(&mut self) -> io::Result<()> {
         (**self).finish()

@@ -1,11 +1,11 @@
-//! `harvemu replay FILE`: a candump log or Vector ASC trace played onto the bus of the emulated
-//! harvester.
+//! `harvemu replay FILE`: a trace in any format harvemu reads (candump log, Vector ASC, BLF,
+//! pcapng or pcap, MF4; [`crate::traces`]) played onto the bus of the emulated harvester.
 //!
 //! Contract: the whole trace is read and checked before anything starts (a bad line is bad input
-//! naming `file:line`), then read again as it is played, once per pass: it is never held in
-//! memory, so memory does not grow with the trace ([`schedule`]), and it must be a file that can
-//! be read more than once (not a pipe). A line longer than [`bus::tracefile::MAX_LINE`] is a bad
-//! line. The replay is one more controller on the hub, with no receive filter
+//! naming `file:line`, a bad record of a binary trace names its number and byte offset), then
+//! read again as it is played, once per pass: it is never held in memory, so memory does not grow
+//! with the trace ([`schedule`]), and it must be a file that can be read more than once (not a
+//! pipe). A line longer than [`bus::tracefile::MAX_LINE`] is a bad line. The replay is one more controller on the hub, with no receive filter
 //! match, so its frames arbitrate with the emulated nodes' and reach them through their filters.
 //! Each frame is handed to that controller at the start of the replay plus its offset
 //! ([`schedule`]), in virtual time (`--fast`) or in real time; the bus is run up to that moment
@@ -24,12 +24,11 @@ use crate::stop::Stop;
 use actix::prelude::*;
 use bus::engine::{ControllerConfig, Filter, NodeId};
 use bus::time::{BusDuration, BusTime};
-use bus::tracefile::{self, ErrorFrames, Record};
+use bus::tracefile::{ErrorFrames, Record};
 use bus_runtime::hub::{Attach, FlushTrace, GetSnapshot, SubmitAt, runtime};
 use protocol::ident::Address;
 use schedule::{Passes, Schedule, Source, Survey};
 use std::collections::BTreeSet;
-use std::io::BufReader;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
@@ -39,7 +38,8 @@ pub const TAIL: Duration = Duration::from_millis(100);
 /// Arguments of `harvemu replay`.
 #[derive(clap::Args)]
 pub struct Args {
-    /// The trace: a candump log or a Vector ASC file (the format is read from the file).
+    /// The trace: a candump log, Vector ASC or BLF, pcapng (or pcap), or MF4 (the format is read
+    /// from the file, and must agree with its name's extension).
     #[arg(value_name = "TRACE")]
     file: PathBuf,
     /// Harvester config: the emulated nodes that run alongside the replay.
@@ -63,10 +63,13 @@ pub struct Args {
     /// Stop this long after the replay starts (e.g. 30s, 10m).
     #[arg(long = "for", value_name = "DURATION", value_parser = parse_duration)]
     duration: Option<Duration>,
-    /// Record the resulting bus: Vector ASC when the name ends in .asc, pcapng (Wireshark) when
-    /// it ends in .pcapng, else a candump log.
+    /// Record the resulting bus; the format follows the name: .asc Vector ASC, .blf Vector BLF, .pcapng
+    /// pcapng (Wireshark), .mf4 MF4 (asammdf), anything else a candump log.
     #[arg(long, value_name = "FILE")]
     record: Option<PathBuf>,
+    /// The trace's format whatever its name says: log (candump), asc, blf, pcapng or mf4.
+    #[arg(long, value_name = "FORMAT", value_parser = crate::traces::parse_format, requires = "record")]
+    format: Option<bus::tracefile::FileFormat>,
     /// Where bus time zero lies in the recorded trace's timestamps: RFC 3339
     /// (2024-01-01T00:00:00Z) or seconds since 1970. Default: the wall clock at the start in
     /// real time, 2024-01-01T00:00:00Z with --fast. The trace replayed plays from its first
@@ -144,29 +147,24 @@ pub fn records(path: &Path) -> Box<dyn Iterator<Item = crate::Result<Record>>> {
     Box::new(numbered(path).map(|r| r.map(|(_, record)| record)))
 }
 
-/// [`records`], each with the number of its line.
+/// [`records`], each with its number: its line in a text trace, its record in a binary one.
 pub fn numbered(path: &Path) -> Box<dyn Iterator<Item = crate::Result<(u64, Record)>>> {
-    let file = match std::fs::File::open(path) {
-        Ok(f) => f,
-        Err(source) => {
-            let e = Error::Input {
-                path: path.to_path_buf(),
-                source,
-            };
-            return Box::new(std::iter::once(Err(e)));
-        }
-    };
-    let path = path.to_path_buf();
-    Box::new(
-        tracefile::read_numbered(BufReader::new(file), ErrorFrames::Keep).map(move |r| {
-            r.map_err(|e| match e {
-                bus::Error::TraceLine { line, reason } => {
-                    Error::BadInput(format!("{}:{line}: {reason}", path.display()))
-                }
-                other => Error::BadInput(format!("{}: {other}", path.display())),
+    match crate::traces::open(path, ErrorFrames::Keep) {
+        Ok((_, items)) => Box::new(items.map(|r| {
+            r.map(|(number, item)| {
+                let line = usize::try_from(number).unwrap_or(usize::MAX);
+                (
+                    number,
+                    Record {
+                        at: item.at,
+                        line,
+                        entry: item.entry,
+                    },
+                )
             })
-        }),
-    )
+        })),
+        Err(e) => Box::new(std::iter::once(Err(e))),
+    }
 }
 
 /// The trace file at `path` read again for each pass.
@@ -315,7 +313,7 @@ pub fn run(args: &Args) -> crate::Result<Ended> {
     let counts = schedule.counts();
     let epoch = crate::record::epoch(args.start_time, !args.fast);
     h.epoch = Some(epoch);
-    let (trace, recording) = crate::record::create_opt(args.record.as_ref(), epoch)?;
+    let (trace, recording) = crate::record::create_opt(args.record.as_ref(), args.format, epoch)?;
     crate::say!(
         "harvemu: replaying {} ({} records, {} to send per pass) onto {} from {}, {}",
         args.file.display(),

@@ -31,10 +31,13 @@ pub struct Args {
     /// Stop after this much emulated time (e.g. 120s, 10m, 1h, 500ms).
     #[arg(long = "for", value_name = "DURATION", value_parser = parse_duration)]
     duration: Option<Duration>,
-    /// Write every frame on the bus to this file: Vector ASC when it ends in .asc, pcapng
-    /// (Wireshark) when it ends in .pcapng, else a candump log.
+    /// Write every frame on the bus to this file; the format follows the name: .asc Vector ASC, .blf Vector BLF, .pcapng
+    /// pcapng (Wireshark), .mf4 MF4 (asammdf), anything else a candump log.
     #[arg(long, value_name = "FILE")]
     record: Option<PathBuf>,
+    /// The trace's format whatever its name says: log (candump), asc, blf, pcapng or mf4.
+    #[arg(long, value_name = "FORMAT", value_parser = crate::traces::parse_format, requires = "record")]
+    format: Option<bus::tracefile::FileFormat>,
     /// Serve the bus to socketcand clients (python-can's `socketcand` interface, ...) on this
     /// address; loopback port 29536 when no address is given. The bus is called `harv0`.
     #[arg(long, num_args = 0..=1, default_missing_value = "127.0.0.1:29536", value_name = "ADDR")]
@@ -164,7 +167,7 @@ pub fn run(args: &Args) -> crate::Result<Ended> {
     h.coverage = args.coverage.is_some();
     let epoch = crate::record::epoch(args.start_time, !args.fast);
     h.epoch = Some(epoch);
-    let (trace, recording) = crate::record::create_opt(args.record.as_ref(), epoch)?;
+    let (trace, recording) = crate::record::create_opt(args.record.as_ref(), args.format, epoch)?;
     let end = args.duration.map(BusTime::from_duration);
     // Two lines, so that the default config's fits 80 columns.
     crate::say!(

@@ -32,10 +32,13 @@ pub struct Args {
     /// Seed of the run and of its faults (default: the scenario's, else its config's).
     #[arg(long, value_name = "N")]
     seed: Option<u64>,
-    /// Write the trace here: Vector ASC when the name ends in .asc, pcapng (Wireshark) when it
-    /// ends in .pcapng, else a candump log.
+    /// Write the trace here; the format follows the name: .asc Vector ASC, .blf Vector BLF, .pcapng
+    /// pcapng (Wireshark), .mf4 MF4 (asammdf), anything else a candump log.
     #[arg(long, value_name = "FILE")]
     record: Option<PathBuf>,
+    /// The trace's format whatever its name says: log (candump), asc, blf, pcapng or mf4.
+    #[arg(long, value_name = "FORMAT", value_parser = crate::traces::parse_format, requires = "record")]
+    format: Option<bus::tracefile::FileFormat>,
     /// Where bus time zero lies in the trace's timestamps: RFC 3339 (2024-01-01T00:00:00Z) or
     /// seconds since 1970. Default: 2024-01-01T00:00:00Z (virtual time: a seed gives the same
     /// trace).
@@ -68,7 +71,7 @@ pub fn run(args: &Args) -> crate::Result<Ended> {
     )?;
     let epoch = crate::record::epoch(args.start_time, false);
     loaded.harvester.epoch = Some(epoch);
-    let (trace, recording) = crate::record::create_opt(args.record.as_ref(), epoch)?;
+    let (trace, recording) = crate::record::create_opt(args.record.as_ref(), args.format, epoch)?;
     let s = &loaded.scenario;
     let mut rss = memory::Samples {
         duration_s: s.duration_s,

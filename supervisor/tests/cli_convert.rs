@@ -1,0 +1,228 @@
+//! `harvemu convert` and the binary formats on the command line: a trace with error frames goes
+//! candump log -> BLF -> pcapng -> MF4 -> candump log and comes back byte for byte; replay reads
+//! every format as its candump twin; `--format` overrides the name; a file whose name denies its
+//! bytes, a cut-off file and a stream for BLF or MF4 are bad input (exit 2) naming what and
+//! where; a run stopped by SIGTERM leaves BLF and MF4 that read to their end, python-can agreeing.
+
+mod common;
+
+use common::{harvemu, scratch, spawn};
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::sync::OnceLock;
+
+fn ok(out: Output) -> String {
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(out.status.success(), "{err}");
+    err
+}
+
+fn bad(out: Output) -> String {
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+    err
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// A scenario's trace with error frames on the controllers' interfaces (D2 bus off), recorded
+/// once: its folder and the candump log.
+fn recorded() -> &'static (PathBuf, PathBuf) {
+    static R: OnceLock<(PathBuf, PathBuf)> = OnceLock::new();
+    R.get_or_init(|| {
+        let dir = scratch("convert", "shared");
+        let log = dir.join("bus_off.log");
+        ok(harvemu(&[
+            "scenario",
+            "configs/scenarios/bus_off.ron",
+            "--seed",
+            "3",
+            "--record",
+            s(&log),
+        ]));
+        (dir, log)
+    })
+}
+
+/// Error frames of a candump log, counted from its text: an 8-digit id with CAN_ERR_FLAG.
+fn error_lines(log: &str) -> usize {
+    log.lines()
+        .filter(|l| {
+            let id = l.split_whitespace().nth(2).and_then(|f| f.split_once('#')).map(|(id, _)| id);
+            id.is_some_and(|id| id.len() == 8 && u32::from_str_radix(id, 16).is_ok_and(|v| v & 0x2000_0000 != 0))
+        })
+        .count()
+}
+
+#[test]
+fn a_log_through_blf_pcapng_and_mf4_comes_back_byte_for_byte() {
+    let (dir, log) = recorded();
+    let original = std::fs::read_to_string(log).unwrap();
+    let errors = error_lines(&original);
+    assert!(errors > 100, "the trace must have error frames: {errors}");
+    let interfaces: std::collections::BTreeSet<&str> =
+        original.lines().filter_map(|l| l.split_whitespace().nth(1)).collect();
+    assert!(interfaces.len() > 1, "{interfaces:?}");
+    let chain = ["rt.blf", "rt.pcapng", "rt.mf4", "rt.log"];
+    let mut from = log.clone();
+    for name in chain {
+        let to = dir.join(name);
+        let err = ok(harvemu(&["convert", s(&from), s(&to)]));
+        let records = original.lines().count();
+        assert!(err.contains(&format!("{records} records")), "{name}: {err}");
+        from = to;
+    }
+    let back = std::fs::read_to_string(&from).unwrap();
+    assert!(back == original, "the round trip changed the trace");
+}
+
+#[test]
+fn asc_is_told_what_it_cannot_carry() {
+    let (dir, log) = recorded();
+    let original = std::fs::read_to_string(log).unwrap();
+    let asc = dir.join("lossy.asc");
+    let err = ok(harvemu(&["convert", s(log), s(&asc)]));
+    let errors = error_lines(&original);
+    assert!(
+        err.contains(&format!("keeps no error-frame details: {errors} error frames")),
+        "{err}"
+    );
+    assert!(err.contains("keeps no interface names"), "{err}");
+    // The frames themselves are all there, at their times.
+    let back = dir.join("from-asc.log");
+    ok(harvemu(&["convert", s(&asc), s(&back)]));
+    let frames = |t: &str| -> Vec<String> {
+        t.lines()
+            .filter(|l| l.contains(" harv0 ") || l.contains(" can0 "))
+            .map(|l| {
+                let f: Vec<&str> = l.split_whitespace().collect();
+                format!("{} {}", f[0], f[2])
+            })
+            .collect()
+    };
+    assert_eq!(frames(&std::fs::read_to_string(back).unwrap()), frames(&original));
+}
+
+#[test]
+fn replay_reads_every_format_as_its_candump_twin() {
+    let dir = scratch("convert", "replay");
+    let log = dir.join("run.log");
+    ok(harvemu(&["run", "--fast", "--for", "6s", "--record", s(&log)]));
+    let mut played = Vec::new();
+    for ext in ["log", "blf", "pcapng", "mf4"] {
+        let trace = dir.join(format!("twin.{ext}"));
+        ok(harvemu(&["convert", s(&log), s(&trace)]));
+        let out = dir.join(format!("played-{ext}.log"));
+        let args = ["--fast", "--without", "D3", "--skip-emulated", "--record", s(&out)];
+        ok(harvemu(&[&["replay", s(&trace)], &args[..]].concat()));
+        played.push((ext, std::fs::read_to_string(out).unwrap()));
+    }
+    for (ext, text) in &played[1..] {
+        assert!(text == &played[0].1, "replaying the {ext} twin gave another bus");
+    }
+}
+
+#[test]
+fn format_overrides_the_name_and_blf_or_mf4_on_a_stream_is_refused() {
+    let dir = scratch("convert", "format");
+    let dat = dir.join("run.dat");
+    ok(harvemu(&["run", "--fast", "--for", "1s", "--record", s(&dat), "--format", "pcapng"]));
+    let bytes = std::fs::read(&dat).unwrap();
+    assert_eq!(&bytes[..4], &[0x0A, 0x0D, 0x0D, 0x0A], "a pcapng Section Header Block");
+    for format in ["blf", "mf4"] {
+        let err = bad(harvemu(&["run", "--fast", "--for", "1s", "--record", "/dev/stdout", "--format", format]));
+        assert!(err.contains("/dev/stdout") && err.contains("record to a file"), "{err}");
+    }
+    let err = bad(harvemu(&["run", "--fast", "--for", "1s", "--record", s(&dat), "--format", "xlsx"]));
+    assert!(err.contains("xlsx") && err.contains("blf"), "{err}");
+}
+
+#[test]
+fn a_file_whose_name_denies_its_bytes_is_refused_naming_both() {
+    let (dir, log) = recorded();
+    for (name, says) in [("log.blf", "Vector BLF"), ("log.mf4", "MF4"), ("log.pcapng", "pcapng")] {
+        let wrong = dir.join(name);
+        std::fs::copy(log, &wrong).unwrap();
+        let err = bad(harvemu(&["convert", s(&wrong), s(&dir.join("x.log"))]));
+        assert!(err.contains("this is text") && err.contains(&format!("its name says {says}")), "{err}");
+        let err = bad(harvemu(&["replay", s(&wrong), "--fast"]));
+        assert!(err.contains("its name says"), "{err}");
+    }
+    let blf = dir.join("real.blf");
+    ok(harvemu(&["convert", s(log), s(&blf)]));
+    let as_log = dir.join("blf.log");
+    std::fs::copy(&blf, &as_log).unwrap();
+    let err = bad(harvemu(&["convert", s(&as_log), s(&dir.join("y.asc"))]));
+    assert!(err.contains("this is Vector BLF") && err.contains("rename it to .blf"), "{err}");
+    let zeros = dir.join("zeros.mf4");
+    std::fs::write(&zeros, [0u8; 4096]).unwrap();
+    let err = bad(harvemu(&["convert", s(&zeros), s(&dir.join("z.log"))]));
+    assert!(err.contains("its name says MF4"), "{err}");
+}
+
+#[test]
+fn a_cut_off_binary_file_is_refused_at_its_record_and_byte() {
+    let (dir, log) = recorded();
+    for ext in ["blf", "pcapng", "mf4"] {
+        let whole = dir.join(format!("whole.{ext}"));
+        ok(harvemu(&["convert", s(log), s(&whole)]));
+        let bytes = std::fs::read(&whole).unwrap();
+        for cut in [bytes.len() * 2 / 3 + 1, bytes.len() - 3] {
+            let part = dir.join(format!("cut.{ext}"));
+            std::fs::write(&part, &bytes[..cut]).unwrap();
+            let out = dir.join("cut.log");
+            let err = bad(harvemu(&["convert", s(&part), s(&out)]));
+            assert!(err.contains("record ") && err.contains(" at byte "), "{ext} cut at {cut}: {err}");
+            assert!(!out.exists(), "{ext}: nothing written from a bad input");
+        }
+    }
+}
+
+/// The python with python-can: HARVEMU_PYTHON, else python3.
+fn python() -> PathBuf {
+    std::env::var_os("HARVEMU_PYTHON").map_or_else(|| "python3".into(), PathBuf::from)
+}
+
+/// Messages python-can reads from `path` (BLFReader or MF4Reader).
+fn python_can_count(path: &Path) -> usize {
+    let script = "import sys, can\n\
+        r = can.BLFReader(sys.argv[1]) if sys.argv[1].endswith('.blf') else can.MF4Reader(sys.argv[1])\n\
+        print(sum(1 for _ in r))";
+    let out = Command::new(python()).args(["-c", script]).arg(path).output();
+    let out = out.unwrap_or_else(|e| panic!("{e}: set HARVEMU_PYTHON to a python with python-can and asammdf"));
+    assert!(
+        out.status.success(),
+        "python-can could not read {} (set HARVEMU_PYTHON to a python with python-can and asammdf): {}",
+        path.display(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).trim().parse().unwrap()
+}
+
+#[test]
+fn a_run_stopped_by_sigterm_leaves_blf_and_mf4_that_read_to_their_end() {
+    let dir = scratch("convert", "sigterm");
+    for ext in ["blf", "mf4"] {
+        let trace = dir.join(format!("cut.{ext}"));
+        let mut child = spawn(&["run", "--record", s(&trace)]);
+        let mut err = BufReader::new(child.stderr.take().unwrap());
+        let mut startup = String::new();
+        while !startup.contains("real time (Ctrl-C stops)") {
+            assert!(err.read_line(&mut startup).unwrap() > 0, "{startup}");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2000));
+        common::signal(&child, libc::SIGTERM);
+        let mut rest = String::new();
+        std::io::Read::read_to_string(&mut err, &mut rest).unwrap();
+        assert_eq!(child.wait().unwrap().code(), Some(143), "{rest}");
+        let log = dir.join(format!("cut-{ext}.log"));
+        let said = ok(harvemu(&["convert", s(&trace), s(&log)]));
+        let ours = std::fs::read_to_string(&log).unwrap().lines().count();
+        assert!(ours > 100, "{ext}: {ours} records; {said}");
+        assert_eq!(python_can_count(&trace), ours, "{ext}: python-can and harvemu disagree");
+    }
+}
