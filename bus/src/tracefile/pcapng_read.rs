@@ -183,7 +183,7 @@ impl<R: Read> PcapngReader<R> {
     /// length at both ends; moves past it.
     fn rest_of_block(&mut self, block: &mut Vec<u8>, total: usize, little: bool) -> Result<(), Error> {
         let (number, offset) = (self.number + 1, self.offset);
-        if total < 12 || total % 4 != 0 || total < block.len() {
+        if total < 12 || !total.is_multiple_of(4) || total < block.len() {
             return Err(bad(
                 number,
                 offset,
