@@ -93,14 +93,11 @@ pub fn format_of(path: &Path) -> Result<FileFormat> {
     }
 }
 
+/// Numbered records of a trace, each a bad-input error naming the file when it cannot be read.
+pub type Records = Box<dyn Iterator<Item = Result<(u64, tracefile::Item)>>>;
+
 /// The records of the trace at `path`, in its format ([`format_of`]).
-pub fn open(
-    path: &Path,
-    errors: ErrorFrames,
-) -> Result<(
-    FileFormat,
-    Box<dyn Iterator<Item = Result<(u64, tracefile::Item)>>>,
-)> {
+pub fn open(path: &Path, errors: ErrorFrames) -> Result<(FileFormat, Records)> {
     let format = format_of(path)?;
     let file = std::fs::File::open(path).map_err(|source| Error::Input {
         path: path.to_path_buf(),
