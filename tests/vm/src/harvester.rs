@@ -9,9 +9,12 @@
 //! 4.5 s on it freezes harvemu three times for 400 ms (SIGSTOP, SIGCONT, 1.5 s apart). Then it
 //! waits for the child and checks the identifiers, the periods before the first freeze, A0's
 //! state before and after the command, the frames' format, the monitor's sessions, the stalls
-//! ([`crate::outside`]) and what harvemu said on stderr. Last, [`crate::replay`] checks
-//! `harvemu replay --iface`.
+//! ([`crate::outside`]) and what harvemu said on stderr. tcpdump and dumpcap capture vcan0 from
+//! before harvemu starts until it has exited, and harvemu must read their captures back as the
+//! frames recorded here ([`crate::captures`]). Last, [`crate::replay`] checks `harvemu replay
+//! --iface`.
 
+use crate::captures::Captures;
 use crate::monitor::Monitor;
 use crate::{Outcome, Report, create_vcan, delete_vcan, format_frame, parse_frame, read_error};
 use socketcan::{CanFrame, CanSocket, EmbeddedFrame, Id, Socket, SocketOptions};
@@ -90,6 +93,8 @@ pub struct Stall {
 pub struct Recording {
     /// Every frame, in order of arrival (the monitor's own included).
     pub frames: Vec<Rx>,
+    /// The first frame's kernel receive time, which `Rx::at` counts from.
+    pub origin: Option<SystemTime>,
     /// When the row command was sent, in seconds since the first frame.
     injected_at: Option<f64>,
     /// Read errors other than timeouts, and the injection's and the monitor's send failures.
@@ -160,47 +165,21 @@ pub fn spawn_keeping_stderr(command: &mut Command) -> io::Result<(Child, Arc<Mut
     Ok((child, lines))
 }
 
-/// Starts harvemu, records while monitoring, waits for it and checks what was recorded.
+/// Starts the capture tools and harvemu, records while monitoring, waits for harvemu, stops the
+/// tools and checks what was recorded and captured.
 fn with_socket(rx: &CanSocket, tx: &CanSocket, harvemu: &Path, config: &Path, report: &mut Report) {
-    let mut command = Command::new(harvemu);
-    command
-        .arg("run")
-        .arg(config)
-        .args(["--iface", IFACE, "--without", "F5", "--for", RUN_FOR]);
-    let shown = format!(
-        "{} run {} --iface {IFACE} --without F5 --for {RUN_FOR}",
-        harvemu.display(),
-        config.display()
-    );
-    println!("vmcheck: starting {shown}");
-    let (mut child, stderr) = match spawn_keeping_stderr(&mut command) {
-        Ok(started) => started,
-        Err(e) => {
-            report.check(&format!("start {shown}"), Err(e.to_string()));
-            return;
-        }
+    let mut captures = Captures::start(report);
+    let ran = run_and_record(rx, tx, harvemu, config, report);
+    captures.stop(rx, tx, report);
+    let Some((recording, stderr)) = ran else {
+        captures.fail("harvemu did not run", report);
+        return;
     };
-    report.check(&format!("start {shown}"), Ok(format!("pid {}", child.id())));
-    let spawned = Instant::now();
-
-    let recording = record(rx, tx, &mut child, spawned);
-    // harvemu's live line (in a terminal) ends without a newline; start the checker's lines on a fresh one.
-    println!();
-    report.check(
-        "harvemu exits with code 0",
-        wait(&mut child).and_then(|status| match status.code() {
-            Some(0) => Ok(format!(
-                "{:.1} s after it started",
-                spawned.elapsed().as_secs_f64()
-            )),
-            Some(code) => Err(format!("exit code {code}")),
-            None => Err(format!("ended by {status}")),
-        }),
-    );
     let recording = match recording {
         Ok(recording) => recording,
         Err(why) => {
             report.check("record the bus", Err(why));
+            captures.fail("the bus was not recorded", report);
             return;
         }
     };
@@ -227,6 +206,56 @@ fn with_socket(rx: &CanSocket, tx: &CanSocket, harvemu: &Path, config: &Path, re
     // The stderr thread ends with harvemu; what it kept is complete once harvemu has exited.
     let lines = stderr.lock().map(|l| l.clone()).unwrap_or_default();
     crate::outside::check(&recording, &lines, report);
+    captures.check(&recording, harvemu, config, report);
+}
+
+/// What harvemu's run gave: the recording (or why there is none) and harvemu's stderr lines.
+type Ran = (Result<Recording, String>, Arc<Mutex<Vec<String>>>);
+
+/// Starts harvemu, records while monitoring and waits for it; None when it did not start.
+fn run_and_record(
+    rx: &CanSocket,
+    tx: &CanSocket,
+    harvemu: &Path,
+    config: &Path,
+    report: &mut Report,
+) -> Option<Ran> {
+    let mut command = Command::new(harvemu);
+    command
+        .arg("run")
+        .arg(config)
+        .args(["--iface", IFACE, "--without", "F5", "--for", RUN_FOR]);
+    let shown = format!(
+        "{} run {} --iface {IFACE} --without F5 --for {RUN_FOR}",
+        harvemu.display(),
+        config.display()
+    );
+    println!("vmcheck: starting {shown}");
+    let (mut child, stderr) = match spawn_keeping_stderr(&mut command) {
+        Ok(started) => started,
+        Err(e) => {
+            report.check(&format!("start {shown}"), Err(e.to_string()));
+            return None;
+        }
+    };
+    report.check(&format!("start {shown}"), Ok(format!("pid {}", child.id())));
+    let spawned = Instant::now();
+
+    let recording = record(rx, tx, &mut child, spawned);
+    // harvemu's live line (in a terminal) ends without a newline; start the checker's lines on a fresh one.
+    println!();
+    report.check(
+        "harvemu exits with code 0",
+        wait(&mut child).and_then(|status| match status.code() {
+            Some(0) => Ok(format!(
+                "{:.1} s after it started",
+                spawned.elapsed().as_secs_f64()
+            )),
+            Some(code) => Err(format!("exit code {code}")),
+            None => Err(format!("ended by {status}")),
+        }),
+    );
+    Some((recording, stderr))
 }
 
 /// Records frames until `RECORD` after the first one, answering as the monitor, injecting the
@@ -235,6 +264,7 @@ fn with_socket(rx: &CanSocket, tx: &CanSocket, harvemu: &Path, config: &Path, re
 fn record(rx: &CanSocket, tx: &CanSocket, child: &mut Child, spawned: Instant) -> Result<Recording, String> {
     let mut recording = Recording {
         frames: Vec::new(),
+        origin: None,
         injected_at: None,
         errors: Vec::new(),
         monitor: Monitor::default(),
@@ -278,6 +308,7 @@ fn record(rx: &CanSocket, tx: &CanSocket, child: &mut Child, spawned: Instant) -
                     );
                     (stamp, Instant::now())
                 });
+                recording.origin = Some(origin);
                 let at = seconds_since(origin, stamp);
                 for answer in recording.monitor.handle(at, &frame) {
                     if let Err(e) = tx.write_frame(&answer)
@@ -668,6 +699,7 @@ mod tests {
         ];
         let ok = Recording {
             frames,
+            origin: None,
             injected_at: Some(0.5),
             errors: Vec::new(),
             monitor: Monitor::default(),
@@ -677,6 +709,7 @@ mod tests {
         assert!(row_state(&ok).is_ok(), "{:?}", row_state(&ok));
         let late = Recording {
             frames: vec![rx(0.1, "0300F5A0#1000000000"), rx(0.75, "0300F5A0#1000000000")],
+            origin: None,
             injected_at: Some(0.5),
             errors: Vec::new(),
             monitor: Monitor::default(),

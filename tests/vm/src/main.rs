@@ -13,9 +13,11 @@
 //!
 //! `harvemu-vmcheck harvester HARVEMU CONFIG` is the end-to-end check of `harvemu run --iface
 //! vcan0 --without F5` with an outside monitor ([`monitor`]), freezes of harvemu ([`outside`]) and
-//! `harvemu replay --iface` ([`replay`]) instead (see [`harvester`]).
+//! `harvemu replay --iface` ([`replay`]) instead (see [`harvester`]), and reads captures of the
+//! interface by tcpdump and dumpcap back with harvemu ([`captures`]).
 #![warn(missing_docs)]
 
+mod captures;
 mod harvester;
 mod monitor;
 mod outside;
