@@ -167,7 +167,8 @@ fn start_at(path: &Path, format: FileFormat, start: Stamp, epoch: Epoch) -> crat
         }
         FileFormat::Blf => bus::tracefile::blf::BlfWriter::new(out.clone(), start)
             .map(|w| Box::new(w) as Box<dyn ItemWriter>),
-        FileFormat::Mf4 => Err(io::Error::other("not written yet")),
+        FileFormat::Mf4 => bus::tracefile::mf4::Mf4Writer::new(out.clone(), start)
+            .map(|w| Box::new(w) as Box<dyn ItemWriter>),
     };
     let writer = made.map_err(|e| failed("write", path, e))?;
     let state = Rc::new(RefCell::new(State {

@@ -26,15 +26,7 @@ pub fn items<'a, R: Read + Seek + 'a>(
         FileFormat::Log | FileFormat::Asc => Box::new(text_items(input, errors)),
         FileFormat::Pcapng => Box::new(PcapngReader::new(input)?),
         FileFormat::Blf => Box::new(super::blf::BlfReader::new(input)?),
-        // MF4 reader: being written.
-        FileFormat::Mf4 => {
-            return Err(Error::TraceRecord {
-                format: format.describe(),
-                record: 0,
-                offset: 0,
-                reason: "not read yet".into(),
-            });
-        }
+        FileFormat::Mf4 => Box::new(super::mf4::Mf4Reader::new(input)?),
     };
     let text = matches!(format, FileFormat::Log | FileFormat::Asc);
     let mut last: Option<(Stamp, u64)> = None;
