@@ -52,8 +52,14 @@ fn recorded() -> &'static (PathBuf, PathBuf) {
 fn error_lines(log: &str) -> usize {
     log.lines()
         .filter(|l| {
-            let id = l.split_whitespace().nth(2).and_then(|f| f.split_once('#')).map(|(id, _)| id);
-            id.is_some_and(|id| id.len() == 8 && u32::from_str_radix(id, 16).is_ok_and(|v| v & 0x2000_0000 != 0))
+            let id = l
+                .split_whitespace()
+                .nth(2)
+                .and_then(|f| f.split_once('#'))
+                .map(|(id, _)| id);
+            id.is_some_and(|id| {
+                id.len() == 8 && u32::from_str_radix(id, 16).is_ok_and(|v| v & 0x2000_0000 != 0)
+            })
         })
         .count()
 }
@@ -64,8 +70,10 @@ fn a_log_through_blf_pcapng_and_mf4_comes_back_byte_for_byte() {
     let original = std::fs::read_to_string(log).unwrap();
     let errors = error_lines(&original);
     assert!(errors > 100, "the trace must have error frames: {errors}");
-    let interfaces: std::collections::BTreeSet<&str> =
-        original.lines().filter_map(|l| l.split_whitespace().nth(1)).collect();
+    let interfaces: std::collections::BTreeSet<&str> = original
+        .lines()
+        .filter_map(|l| l.split_whitespace().nth(1))
+        .collect();
     assert!(interfaces.len() > 1, "{interfaces:?}");
     let chain = ["rt.blf", "rt.pcapng", "rt.mf4", "rt.log"];
     let mut from = log.clone();
@@ -105,7 +113,10 @@ fn asc_is_told_what_it_cannot_carry() {
             })
             .collect()
     };
-    same(&frames(&std::fs::read_to_string(back).unwrap(), "can0"), &frames(&original, "harv0"));
+    same(
+        &frames(&std::fs::read_to_string(back).unwrap(), "can0"),
+        &frames(&original, "harv0"),
+    );
 }
 
 /// Equal lists, or the first place they differ.
@@ -126,7 +137,14 @@ fn replay_reads_every_format_as_its_candump_twin() {
         let trace = dir.join(format!("twin.{ext}"));
         ok(harvemu(&["convert", s(&log), s(&trace)]));
         let out = dir.join(format!("played-{ext}.log"));
-        let args = ["--fast", "--without", "D3", "--skip-emulated", "--record", s(&out)];
+        let args = [
+            "--fast",
+            "--without",
+            "D3",
+            "--skip-emulated",
+            "--record",
+            s(&out),
+        ];
         ok(harvemu(&[&["replay", s(&trace)], &args[..]].concat()));
         played.push((ext, std::fs::read_to_string(out).unwrap()));
     }
@@ -139,25 +157,66 @@ fn replay_reads_every_format_as_its_candump_twin() {
 fn format_overrides_the_name_and_blf_or_mf4_on_a_stream_is_refused() {
     let dir = scratch("convert", "format");
     let dat = dir.join("run.dat");
-    ok(harvemu(&["run", "--fast", "--for", "1s", "--record", s(&dat), "--format", "pcapng"]));
+    ok(harvemu(&[
+        "run",
+        "--fast",
+        "--for",
+        "1s",
+        "--record",
+        s(&dat),
+        "--format",
+        "pcapng",
+    ]));
     let bytes = std::fs::read(&dat).unwrap();
-    assert_eq!(&bytes[..4], &[0x0A, 0x0D, 0x0D, 0x0A], "a pcapng Section Header Block");
+    assert_eq!(
+        &bytes[..4],
+        &[0x0A, 0x0D, 0x0D, 0x0A],
+        "a pcapng Section Header Block"
+    );
     for format in ["blf", "mf4"] {
-        let err = bad(harvemu(&["run", "--fast", "--for", "1s", "--record", "/dev/stdout", "--format", format]));
-        assert!(err.contains("/dev/stdout") && err.contains("record to a file"), "{err}");
+        let err = bad(harvemu(&[
+            "run",
+            "--fast",
+            "--for",
+            "1s",
+            "--record",
+            "/dev/stdout",
+            "--format",
+            format,
+        ]));
+        assert!(
+            err.contains("/dev/stdout") && err.contains("record to a file"),
+            "{err}"
+        );
     }
-    let err = bad(harvemu(&["run", "--fast", "--for", "1s", "--record", s(&dat), "--format", "xlsx"]));
+    let err = bad(harvemu(&[
+        "run",
+        "--fast",
+        "--for",
+        "1s",
+        "--record",
+        s(&dat),
+        "--format",
+        "xlsx",
+    ]));
     assert!(err.contains("xlsx") && err.contains("blf"), "{err}");
 }
 
 #[test]
 fn a_file_whose_name_denies_its_bytes_is_refused_naming_both() {
     let (dir, log) = recorded();
-    for (name, says) in [("log.blf", "Vector BLF"), ("log.mf4", "MF4"), ("log.pcapng", "pcapng")] {
+    for (name, says) in [
+        ("log.blf", "Vector BLF"),
+        ("log.mf4", "MF4"),
+        ("log.pcapng", "pcapng"),
+    ] {
         let wrong = dir.join(name);
         std::fs::copy(log, &wrong).unwrap();
         let err = bad(harvemu(&["convert", s(&wrong), s(&dir.join("x.log"))]));
-        assert!(err.contains("this is text") && err.contains(&format!("its name says {says}")), "{err}");
+        assert!(
+            err.contains("this is text") && err.contains(&format!("its name says {says}")),
+            "{err}"
+        );
         let err = bad(harvemu(&["replay", s(&wrong), "--fast"]));
         assert!(err.contains("its name says"), "{err}");
     }
@@ -166,7 +225,10 @@ fn a_file_whose_name_denies_its_bytes_is_refused_naming_both() {
     let as_log = dir.join("blf.log");
     std::fs::copy(&blf, &as_log).unwrap();
     let err = bad(harvemu(&["convert", s(&as_log), s(&dir.join("y.asc"))]));
-    assert!(err.contains("this is Vector BLF") && err.contains("rename it to .blf"), "{err}");
+    assert!(
+        err.contains("this is Vector BLF") && err.contains("rename it to .blf"),
+        "{err}"
+    );
     let zeros = dir.join("zeros.mf4");
     std::fs::write(&zeros, [0u8; 4096]).unwrap();
     let err = bad(harvemu(&["convert", s(&zeros), s(&dir.join("z.log"))]));
@@ -185,7 +247,10 @@ fn a_cut_off_binary_file_is_refused_at_its_record_and_byte() {
             std::fs::write(&part, &bytes[..cut]).unwrap();
             let out = dir.join("cut.log");
             let err = bad(harvemu(&["convert", s(&part), s(&out)]));
-            assert!(err.contains("record ") && err.contains(" at byte "), "{ext} cut at {cut}: {err}");
+            assert!(
+                err.contains("record ") && err.contains(" at byte "),
+                "{ext} cut at {cut}: {err}"
+            );
             assert!(!out.exists(), "{ext}: nothing written from a bad input");
         }
     }
@@ -202,7 +267,8 @@ fn python_can_count(path: &Path) -> usize {
         r = can.BLFReader(sys.argv[1]) if sys.argv[1].endswith('.blf') else can.MF4Reader(sys.argv[1])\n\
         print(sum(1 for _ in r))";
     let out = Command::new(python()).args(["-c", script]).arg(path).output();
-    let out = out.unwrap_or_else(|e| panic!("{e}: set HARVEMU_PYTHON to a python with python-can and asammdf"));
+    let out =
+        out.unwrap_or_else(|e| panic!("{e}: set HARVEMU_PYTHON to a python with python-can and asammdf"));
     assert!(
         out.status.success(),
         "python-can could not read {} (set HARVEMU_PYTHON to a python with python-can and asammdf): {}",
@@ -232,6 +298,10 @@ fn a_run_stopped_by_sigterm_leaves_blf_and_mf4_that_read_to_their_end() {
         let said = ok(harvemu(&["convert", s(&trace), s(&log)]));
         let ours = std::fs::read_to_string(&log).unwrap().lines().count();
         assert!(ours > 100, "{ext}: {ours} records; {said}");
-        assert_eq!(python_can_count(&trace), ours, "{ext}: python-can and harvemu disagree");
+        assert_eq!(
+            python_can_count(&trace),
+            ours,
+            "{ext}: python-can and harvemu disagree"
+        );
     }
 }

@@ -10,7 +10,10 @@ use common::{harvemu, scratch};
 
 /// The number after `label` in `text` (`bus: 105098 frames`).
 fn number_after(text: &str, label: &str) -> u64 {
-    let rest = &text[text.find(label).unwrap_or_else(|| panic!("no {label:?} in {text}")) + label.len()..];
+    let rest = &text[text
+        .find(label)
+        .unwrap_or_else(|| panic!("no {label:?} in {text}"))
+        + label.len()..];
     rest.split_whitespace().next().unwrap().parse().unwrap()
 }
 
@@ -38,6 +41,9 @@ fn an_hours_soak_writes_mf4_and_blf_with_memory_flat_and_every_frame_in_them() {
         let read = harvemu(&["convert", path, "/dev/null", "--format", "log"]);
         let said = String::from_utf8_lossy(&read.stderr).into_owned();
         assert!(read.status.success(), "{said}");
-        assert!(said.contains(&format!(": {} records", frames + errors)), "{ext}: {said}");
+        assert!(
+            said.contains(&format!(": {} records", frames + errors)),
+            "{ext}: {said}"
+        );
     }
 }
