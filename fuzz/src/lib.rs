@@ -153,7 +153,9 @@ pub fn binary_trace(format: bus::tracefile::FileFormat, input: &[u8]) {
     let mut out = Cursor::new(Vec::new());
     {
         let mut writer: Box<dyn ItemWriter + '_> = match format {
-            FileFormat::Pcapng => Box::new(bus::tracefile::PcapngWriter::new(&mut out, bus::time::Epoch::UNIX).unwrap()),
+            FileFormat::Pcapng => {
+                Box::new(bus::tracefile::PcapngWriter::new(&mut out, bus::time::Epoch::UNIX).unwrap())
+            }
             FileFormat::Blf => Box::new(bus::tracefile::blf::BlfWriter::new(&mut out, start).unwrap()),
             FileFormat::Mf4 => Box::new(bus::tracefile::mf4::Mf4Writer::new(&mut out, start).unwrap()),
             other => panic!("{other} is not binary"),
