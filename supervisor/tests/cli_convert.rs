@@ -2,7 +2,8 @@
 //! candump log -> BLF -> pcapng -> MF4 -> candump log and comes back byte for byte; replay reads
 //! every format as its candump twin; `--format` overrides the name; a file whose name denies its
 //! bytes, a cut-off file and a stream for BLF or MF4 are bad input (exit 2) naming what and
-//! where; a run stopped by SIGTERM leaves BLF and MF4 that read to their end, python-can agreeing.
+//! where; a run stopped by SIGTERM leaves BLF and MF4 that read to their end, python-can agreeing;
+//! asammdf decodes the MF4 with `harvemu dbc`'s DBC as cantools decodes the candump log.
 
 mod common;
 
@@ -304,4 +305,71 @@ fn a_run_stopped_by_sigterm_leaves_blf_and_mf4_that_read_to_their_end() {
             "{ext}: python-can and harvemu disagree"
         );
     }
+}
+
+/// Decodes the plain (not multiplexed) messages of `argv[2]`'s DBC two ways: cantools on the
+/// frames python-can reads from the candump log `argv[1]`, and asammdf's `extract_bus_logging`
+/// of the MF4 `argv[3]`; prints the counts and the signals that differ.
+const DECODE_BOTH: &str = r#"
+import json, sys, asammdf, can, cantools
+def value(v):
+    if isinstance(v, bytes):
+        return v.decode()
+    if isinstance(v, (int, float)):
+        return float(v)
+    return str(v)
+db = cantools.database.load_file(sys.argv[2])
+plain = {m.frame_id: m for m in db.messages if not m.is_multiplexed()}
+want = {}
+for msg in can.LogReader(sys.argv[1]):
+    m = plain.get(msg.arbitration_id)
+    if m is None or msg.is_error_frame or msg.is_remote_frame or not msg.is_extended_id:
+        continue
+    for name, v in m.decode(bytes(msg.data)).items():
+        want.setdefault(f"{m.name}.{name}", []).append((round(msg.timestamp * 1e6), value(v)))
+mdf = asammdf.MDF(sys.argv[3])
+start = mdf.header.start_time.timestamp()
+out = mdf.extract_bus_logging({"CAN": [(sys.argv[2], 0)]})
+got = {}
+for gi, g in enumerate(out.groups):
+    # "CAN1 message ID=0x500F5B0 EXT=True"
+    fid = int(g.channel_group.acq_name.split()[2].split("=")[1], 16)
+    if fid not in plain:
+        continue
+    for ci, c in enumerate(g.channels):
+        if c.name != "time":
+            s = out.get(group=gi, index=ci)
+            got.setdefault(f"{plain[fid].name}.{c.name}", []).extend(
+                (round((start + t) * 1e6), value(v)) for t, v in zip(s.timestamps, s.samples.tolist()))
+differ = sorted(k for k in set(want) | set(got) if sorted(got.get(k, [])) != want.get(k))
+print(json.dumps({"messages": len({k.split(".")[0] for k in want}), "signals": len(want),
+                  "samples": sum(map(len, want.values())), "differ": differ}))
+"#;
+
+#[test]
+fn asammdf_decodes_the_mf4_with_harvemus_dbc_as_cantools_decodes_the_log() {
+    let (dir, log) = recorded();
+    let mf4 = dir.join("decoded.mf4");
+    ok(harvemu(&["convert", s(log), s(&mf4)]));
+    let dbc = dir.join("harvester.dbc");
+    ok(harvemu(&["dbc", "-o", s(&dbc)]));
+    let out = Command::new(python())
+        .env("TZ", "UTC")
+        .args(["-c", DECODE_BOTH])
+        .args([log, &dbc, &mf4])
+        .output()
+        .unwrap_or_else(|e| {
+            panic!("{e}: set HARVEMU_PYTHON to a python with python-can, cantools and asammdf")
+        });
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "the python check failed (HARVEMU_PYTHON needs python-can, cantools and asammdf): {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_str(text.trim()).unwrap();
+    assert_eq!(report["differ"], serde_json::json!([]), "{report}");
+    // The harvester's cyclic plain messages: speed, row, alarm and parameter status at least.
+    assert!(report["messages"].as_u64().unwrap() >= 10, "{report}");
+    assert!(report["samples"].as_u64().unwrap() > 1000, "{report}");
 }
