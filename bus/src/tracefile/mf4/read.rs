@@ -296,7 +296,13 @@ pub(super) fn nanos(t: f64) -> Option<i128> {
 }
 
 /// The item a record holds.
-fn decode(l: &Layout, r: &[u8], index: u64, start: Stamp, names: &[Option<String>]) -> Result<Item, String> {
+pub(super) fn decode(
+    l: &Layout,
+    r: &[u8],
+    index: u64,
+    start: Stamp,
+    names: &[Option<String>],
+) -> Result<Item, String> {
     let t = seconds(l, r, index);
     let at = nanos(t)
         .map(|ns| ns + i128::from(start.0))
@@ -322,8 +328,10 @@ fn decode(l: &Layout, r: &[u8], index: u64, start: Stamp, names: &[Option<String
         return Err(format!("a CAN FD frame ({length} bytes); harvemu is CAN 2.0"));
     }
     let mut data = [0u8; 8];
-    if let Some(b) = &f.bytes {
+    // A remote frame has no data, whatever its DataLength says (which may pass 8).
+    if let Some(b) = f.bytes.as_ref().filter(|_| l.kind != Kind::Remote) {
         let stored = (b.bits / 8) as usize;
+        // At most 8: a longer length was refused above.
         let n = if l.kind == Kind::Error {
             (length as usize).min(stored)
         } else {

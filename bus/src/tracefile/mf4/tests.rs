@@ -408,3 +408,55 @@ fn an_unsorted_data_group_split_over_blocks_reads() {
         assert!(read(&file[..len]).is_err(), "{len}");
     }
 }
+
+/// A record layout of `kind` with a DataLength byte at 0 and 16 DataBytes at 1, no time channel.
+fn wide_layout(kind: Kind) -> super::groups::Layout {
+    use super::groups::{Field, Fields, Layout, Master};
+    let field = |byte, bits, data_type| {
+        Some(Field {
+            byte,
+            bit: 0,
+            bits,
+            data_type,
+        })
+    };
+    Layout {
+        kind,
+        what: format!("{} of data group 1", kind.name()),
+        data: 0,
+        dg: 0,
+        id_size: 0,
+        record_id: 0,
+        others: Vec::new(),
+        size: 17,
+        cycles: 1,
+        master: Master {
+            field: None,
+            offset: 0.0,
+            factor: 1.0,
+        },
+        fields: Fields {
+            length: field(0, 8, UINT_LE),
+            bytes: field(1, 128, BYTE_ARRAY),
+            ..Fields::default()
+        },
+    }
+}
+
+#[test]
+fn a_long_data_length_with_wide_data_bytes_is_refused_or_ignored_never_a_panic() {
+    use super::read::decode;
+    let mut record = [0x5Au8; 17];
+    record[0] = 12;
+    // A remote frame's DataLength is its DLC; 12 is no CAN 2.0 DLC, and its bytes are not read.
+    let e = decode(&wide_layout(Kind::Remote), &record, 0, Stamp(START), &[]).unwrap_err();
+    assert!(e.contains("remote frame"), "{e}");
+    record[0] = 3;
+    let item = decode(&wide_layout(Kind::Remote), &record, 0, Stamp(START), &[]).unwrap();
+    assert_eq!(item.entry, remote(0, false, 3));
+    for kind in [Kind::Data, Kind::Error] {
+        record[0] = 12;
+        let e = decode(&wide_layout(kind), &record, 0, Stamp(START), &[]).unwrap_err();
+        assert!(e.contains("a CAN FD frame (12 bytes)"), "{e}");
+    }
+}
