@@ -18,7 +18,28 @@ pub enum Error {
         /// What is wrong.
         reason: String,
     },
+    /// A DBC file that cannot be read: where (line and column from 1; 0 when the parser could
+    /// not say) and why.
+    #[error("{}", dbc_at(file, *line, *column, reason))]
+    Dbc {
+        /// The file, as the caller names it.
+        file: String,
+        /// Line, from 1.
+        line: usize,
+        /// Column, from 1.
+        column: usize,
+        /// What is wrong.
+        reason: String,
+    },
     /// A CAN-level refusal (an identifier out of range, a payload over 8 bytes).
     #[error(transparent)]
     Can(#[from] bus::Error),
+}
+
+fn dbc_at(file: &str, line: usize, column: usize, reason: &str) -> String {
+    if line == 0 {
+        format!("{file}: {reason}")
+    } else {
+        format!("{file}:{line}:{column}: {reason}")
+    }
 }
