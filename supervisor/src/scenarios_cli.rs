@@ -280,7 +280,10 @@ pub fn validate(args: &ValidateArgs) -> crate::Result<()> {
         let name = source.to_string();
         let result = match nodes::script::top_name(&text) {
             Some("Scenario") => scenario::load(f, None).map(|_| "scenario"),
-            Some("NodeScript") => nodes::script::from_text(&name, &text, &signals).map(|_| "node script"),
+            Some("NodeScript") => {
+                nodes::script::from_file_text(&name, &source.path, &text, &signals, &source.reader())
+                    .map(|_| "node script")
+            }
             Some("Instance") => {
                 nodes::script::from_file_text(&name, &source.path, &text, &signals, &source.reader())
                     .map(|_| "node script from a template")

@@ -1,15 +1,18 @@
 //! Reading scripts and checking them against the catalogue and the plant, reporting every
 //! problem at once.
 
+use super::book::Def;
 use super::model::*;
 use crate::{Error, Problem};
 use bus::Frame;
 use bus::filter::AcceptanceFilter;
 use bus::text::{LIST_CHARS, cut, quote};
 use protocol::catalogue::{self, Direction, MessageDef};
+use protocol::database::Database;
 use protocol::ident::Address;
 use std::collections::BTreeSet;
 use std::path::Path;
+use std::sync::Arc;
 
 /// What a script may read and write in its environment (the plant).
 pub trait Signals {
@@ -42,10 +45,23 @@ pub fn from_file_text(
     signals: &dyn Signals,
     read: super::Reader,
 ) -> Result<NodeScript, Error> {
-    if super::top_name(text) != Some("Instance") {
-        return from_text(file, text, signals);
+    let mut script = if super::top_name(text) == Some("Instance") {
+        super::expand(file, path, text, read)?
+    } else {
+        parse(file, text)?
+    };
+    if let Some(rel) = &script.database {
+        let at = path.parent().unwrap_or(Path::new("")).join(rel);
+        let db = read(&at).and_then(|(name, text)| {
+            Database::parse(&name, &text)
+                .map_err(|e| Error::Invalid(vec![Problem::at(file, "database", e.to_string())]))
+        });
+        match db {
+            Ok(db) => script.db = Some(Arc::new(db)),
+            Err(Error::Invalid(p)) => return Err(Error::Invalid(p)),
+            Err(e) => return Err(Error::Invalid(vec![Problem::at(file, "database", e.to_string())])),
+        }
     }
-    let script = super::expand(file, path, text, read)?;
     let problems = validate(file, &script, signals);
     if problems.is_empty() {
         Ok(script)
@@ -92,7 +108,22 @@ pub fn validate(file: &str, s: &NodeScript, signals: &dyn Signals) -> Vec<Proble
         problems: Vec::new(),
     };
     let address = Address(s.address);
+    let db = s.db.as_ref();
+    // A database that could not be had: its messages are not looked for in the catalogue.
+    let unread = s.database.is_some() && db.is_none();
+    match (&s.database, db) {
+        (Some(_), None) => c.problem(
+            "database",
+            "the database is read when the script is loaded from its file (`harvemu validate FILE`)",
+        ),
+        (Some(_), Some(_)) if s.address != 0 => c.problem(
+            "address",
+            "a node of a network from a DBC file has no harvester address: leave `address` and `kind` out",
+        ),
+        _ => {}
+    }
     match address.kind() {
+        _ if s.database.is_some() => {}
         None => c.problem(
             "address",
             format!("0x{:02X} is not a harvester address", s.address),
@@ -188,6 +219,23 @@ pub fn validate(file: &str, s: &NodeScript, signals: &dyn Signals) -> Vec<Proble
         }
         for (j, f) in m.frames.iter().enumerate() {
             let fat = format!("{at}.frames[{j}]");
+            if unread {
+                continue;
+            }
+            if let Some(db) = db {
+                let Some(def) = in_database(&mut c, &fat, &f.message, db) else {
+                    continue;
+                };
+                for (name, e) in &f.fields {
+                    let at = format!("{fat}.fields.{name}");
+                    if def.has_field(name) {
+                        expr(&mut c, &at, e, signals, &vars, None);
+                    } else {
+                        c.problem(at, format!("{} has no signal {}", def.name(), quote(name)));
+                    }
+                }
+                continue;
+            }
             let Some(def) = message(&mut c, &fat, &f.message, address, Direction::ToMonitor) else {
                 continue;
             };
@@ -240,25 +288,37 @@ pub fn validate(file: &str, s: &NodeScript, signals: &dyn Signals) -> Vec<Proble
     }
     for (i, r) in s.reactions.iter().enumerate() {
         let at = format!("reactions[{i}] ({})", r.message);
-        let def = message(&mut c, &at, &r.message, address, Direction::FromMonitor);
+        let def = match db {
+            _ if unread => None,
+            Some(db) => in_database(&mut c, &at, &r.message, db),
+            None => message(&mut c, &at, &r.message, address, Direction::FromMonitor).map(Def::Catalogue),
+        };
         for st in &r.states {
             state_ok(&mut c, format!("{at}.states"), st);
         }
         for (name, v) in &r.when {
             finite(&mut c, &format!("{at}.when.{name}"), "the value to match", *v);
         }
-        if let Some(def) = def {
+        if let Some(def) = &def {
             for name in r.when.keys() {
-                if def.field(name).is_none() {
+                if !def.has_field(name) {
                     c.problem(
                         format!("{at}.when.{name}"),
-                        format!("{} has no field {}", def.name, quote(name)),
+                        format!("{} has no field {}", def.name(), quote(name)),
                     );
                 }
             }
         }
         actions(
-            &mut c, &at, &r.actions, &states, &sends, &timers, &vars, signals, def,
+            &mut c,
+            &at,
+            &r.actions,
+            &states,
+            &sends,
+            &timers,
+            &vars,
+            signals,
+            def.as_ref(),
         );
     }
     for (i, t) in s.timers.iter().enumerate() {
@@ -302,6 +362,27 @@ fn filter(c: &mut Checker, s: &NodeScript, node: Address) {
     };
     let mut checked = BTreeSet::new();
     for (i, r) in s.reactions.iter().enumerate() {
+        if let Some(db) = &s.db {
+            // The database's frame with this identifier; an unknown message is reported with
+            // the reaction.
+            let frame = db.message(&r.message).and_then(|m| {
+                Frame::new_data(super::book::dbc_id(m)?, &vec![0; usize::from(m.dlc.min(8))]).ok()
+            });
+            if let Some(frame) = frame
+                && checked.insert(frame.raw_id())
+                && !filter.accepts(&frame)
+            {
+                c.problem(
+                    "filter",
+                    format!(
+                        "rejects {} (identifier {:X}), which reactions[{i}] answers",
+                        r.message,
+                        frame.raw_id()
+                    ),
+                );
+            }
+            continue;
+        }
         // Unknown messages, and messages of other nodes or going the other way, are reported
         // with the reaction.
         let Some(def) = catalogue::by_name(&r.message) else {
@@ -384,13 +465,25 @@ fn message(
     Some(def)
 }
 
+/// The database's message called `name`, or a problem.
+fn in_database(c: &mut Checker, at: &str, name: &str, db: &Arc<Database>) -> Option<Def> {
+    let def = Def::find(Some(db), name);
+    if def.is_none() {
+        c.problem(
+            format!("{at}.message"),
+            format!("{} is not a message of the database", quote(name)),
+        );
+    }
+    def
+}
+
 fn expr(
     c: &mut Checker,
     at: &str,
     e: &Expr,
     signals: &dyn Signals,
     vars: &BTreeSet<&str>,
-    frame: Option<&MessageDef>,
+    frame: Option<&Def>,
 ) {
     match e {
         Expr::Const(v) => finite(c, at, "Const", *v),
@@ -400,8 +493,8 @@ fn expr(
         Expr::Var(v) if !vars.contains(v.as_str()) => c.problem(at, format!("unknown variable {}", quote(v))),
         Expr::Field(f) => match frame {
             None => c.problem(at, format!("Field(\"{f}\") only has a meaning in a reaction")),
-            Some(def) if def.field(f).is_none() => {
-                c.problem(at, format!("{} has no field {}", def.name, quote(f)))
+            Some(def) if !def.has_field(f) => {
+                c.problem(at, format!("{} has no field {}", def.name(), quote(f)))
             }
             _ => {}
         },
@@ -427,7 +520,51 @@ fn expr(
             }
             expr(c, at, inner, signals, vars, frame)
         }
+        Expr::Ramp { from, to, period_s } => {
+            finite(c, at, "Ramp from", *from);
+            finite(c, at, "Ramp to", *to);
+            positive(c, at, "Ramp period_s", *period_s);
+        }
+        Expr::Sine {
+            mean,
+            amplitude,
+            period_s,
+        } => {
+            finite(c, at, "Sine mean", *mean);
+            finite(c, at, "Sine amplitude", *amplitude);
+            positive(c, at, "Sine period_s", *period_s);
+        }
+        Expr::RandomWalk {
+            start,
+            step,
+            min,
+            max,
+        } => {
+            finite(c, at, "RandomWalk start", *start);
+            finite(c, at, "RandomWalk min", *min);
+            finite(c, at, "RandomWalk max", *max);
+            if !(step.is_finite() && *step >= 0.0) {
+                c.problem(at, format!("RandomWalk step {step} is not a finite number >= 0"));
+            }
+            if min > max {
+                c.problem(at, format!("RandomWalk min {min} is above its max {max}"));
+            }
+        }
+        Expr::Counter { from, to, step } => {
+            finite(c, at, "Counter from", *from);
+            finite(c, at, "Counter to", *to);
+            finite(c, at, "Counter step", *step);
+            if *step == 0.0 || (to - from) * step < 0.0 {
+                c.problem(at, format!("Counter step {step} never takes {from} to {to}"));
+            }
+        }
         _ => {}
+    }
+}
+
+fn positive(c: &mut Checker, at: &str, what: &str, v: f64) {
+    if !(v.is_finite() && v > 0.0) {
+        c.problem(at, format!("{what} is {v}, not a positive finite number"));
     }
 }
 
@@ -457,7 +594,7 @@ fn actions(
     timers: &[&str],
     vars: &BTreeSet<&str>,
     signals: &dyn Signals,
-    frame: Option<&MessageDef>,
+    frame: Option<&Def>,
 ) {
     for (k, a) in list.iter().enumerate() {
         let here = format!("{at}.actions[{k}]");

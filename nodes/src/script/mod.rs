@@ -13,12 +13,14 @@
 //! instead be an instance of a template with parameters ([`expand`]). The format is documented
 //! in `docs/BEHAVIOUR.md`.
 
+mod book;
 mod filter;
 mod load;
 mod model;
 mod run;
 mod template;
 
+pub use book::{Def, Received};
 pub use filter::FilterProblem;
 pub use load::{Signals, from_file_text, from_text, load, parse, validate};
 pub use model::*;

@@ -9,12 +9,22 @@ use std::collections::BTreeMap;
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct NodeScript {
-    /// Bus address (e.g. `0xD0`).
+    /// Bus address (e.g. `0xD0`); a harvester node's. A node of a network imported from a DBC
+    /// file (one with `database`) has none: leave it out.
+    #[serde(default)]
     pub address: u8,
     /// Name in traces and reports ("D0").
     pub name: String,
-    /// Node kind; must agree with the address.
+    /// Node kind; must agree with the address. Left out with `database`.
+    #[serde(default = "no_kind")]
     pub kind: NodeKind,
+    /// A DBC file, relative to the script, whose messages the script sends and answers instead
+    /// of the harvester catalogue's (`harvemu import` writes such scripts).
+    #[serde(default)]
+    pub database: Option<String>,
+    /// The database read from `database` when the script is loaded: never in a file.
+    #[serde(skip)]
+    pub db: Option<std::sync::Arc<protocol::database::Database>>,
     /// The acceptance filter of the node's CAN controller, as its firmware sets it up.
     pub filter: FilterDef,
     /// Time from power-on to the end of boot, ms.
@@ -40,6 +50,12 @@ pub struct NodeScript {
     /// Sensor faults active from the start (scenarios add more at run time).
     #[serde(default)]
     pub faults: Vec<SignalFault>,
+}
+
+/// What `kind` is when a script leaves it out: no field node's kind, so that a harvester script
+/// without it is told its address belongs to another.
+fn no_kind() -> NodeKind {
+    NodeKind::Monitor
 }
 
 /// A CAN controller's acceptance filter, in the registers of the chip the node is built on
@@ -202,6 +218,47 @@ pub enum Expr {
     /// `value` rounded to a multiple of `step`, so that an analog input sent on change does not
     /// change with every bit of noise.
     Quantize(Box<Expr>, f64),
+    /// A sawtooth: `from` at boot, rising (or falling) evenly to `to` over `period_s` seconds,
+    /// then again from `from`.
+    Ramp {
+        /// Value at the start of each period.
+        from: f64,
+        /// Value approached at its end.
+        to: f64,
+        /// Length of a period, s.
+        period_s: f64,
+    },
+    /// `mean + amplitude × sin(2π t / period_s)`, t seconds since boot.
+    Sine {
+        /// Middle value.
+        mean: f64,
+        /// Half the swing.
+        amplitude: f64,
+        /// Period, s.
+        period_s: f64,
+    },
+    /// Starts at `start`; each time it is read it moves by a uniform random amount in
+    /// `-step..=step` (from the run's seed), kept within `min..=max`.
+    RandomWalk {
+        /// First value.
+        start: f64,
+        /// Largest move per reading.
+        step: f64,
+        /// Lowest value.
+        min: f64,
+        /// Highest value.
+        max: f64,
+    },
+    /// `from`, then `from + step`, ... each time it is read, back to `from` after passing `to`
+    /// (a message counter).
+    Counter {
+        /// First value.
+        from: f64,
+        /// Last value before it wraps.
+        to: f64,
+        /// Increment.
+        step: f64,
+    },
 }
 
 impl Expr {
@@ -210,6 +267,8 @@ impl Expr {
     pub fn is_internal(&self) -> bool {
         match self {
             Expr::Const(_) | Expr::Var(_) | Expr::StateCode => true,
+            // They change with time or with every reading, not with the node.
+            Expr::Ramp { .. } | Expr::Sine { .. } | Expr::RandomWalk { .. } | Expr::Counter { .. } => false,
             Expr::Signal(_) | Expr::Port(_) | Expr::Field(_) => false,
             Expr::Scaled(e, ..) | Expr::Clamp(e, ..) | Expr::Quantize(e, _) => e.is_internal(),
         }

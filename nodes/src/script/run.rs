@@ -1,10 +1,11 @@
 //! The interpreter: a [`NodeScript`] run as a sans-IO [`NodeLogic`].
 
+use super::book::{Def, Received, dbc_id};
 use super::model::*;
 use bus::Frame;
 use bus::node::{NodeFault, NodeLogic, Refused};
 use bus::time::{BusDuration, BusTime};
-use protocol::catalogue::{self, Decoded, Direction};
+use protocol::catalogue::{self, Direction};
 use protocol::ident::Address;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -56,21 +57,32 @@ struct SendState {
     idle: bool,
 }
 
-/// A frame spec resolved against the catalogue.
+/// A frame spec resolved against the catalogue or the script's database.
 struct Resolved {
-    def: &'static catalogue::MessageDef,
-    /// For each of the spec's fields, in its order, the position in `def.fields` (None for a
-    /// name the message does not have: validation reports it, the frame leaves it out).
+    def: Def,
+    /// For each of the spec's fields, in its order, the position in the message's fields or
+    /// signals (None for a name the message does not have: validation reports it, the frame
+    /// leaves it out).
     slots: Rc<[Option<usize>]>,
 }
 
 impl Resolved {
-    fn of(spec: &FrameSpec) -> Option<Resolved> {
-        let def = catalogue::by_name(&spec.message)?;
-        let slots = spec.fields.keys().map(|name| def.field_index(name)).collect();
+    fn of(db: Option<&std::sync::Arc<protocol::database::Database>>, spec: &FrameSpec) -> Option<Resolved> {
+        let def = Def::find(db, &spec.message)?;
+        let slots = spec
+            .fields
+            .keys()
+            .map(|name| match &def {
+                Def::Catalogue(d) => d.field_index(name),
+                Def::Dbc(..) => def.dbc()?.signals.iter().position(|s| &s.name == name),
+            })
+            .collect();
         Some(Resolved { def, slots })
     }
 }
+
+/// The running value of a `RandomWalk` or `Counter`.
+type Generated = BTreeMap<usize, f64>;
 
 /// A value could not be had: a sensor was read through a dropout fault, or the arithmetic gave
 /// no number (a NaN, or a clamp whose range is empty or not a number, which a validated script
@@ -146,6 +158,9 @@ pub struct ScriptedNode {
     /// entries before it have been handled); None outside the sends pass and what precedes it.
     unchecked_from: Option<usize>,
     rng: ChaCha8Rng,
+    /// The values of the script's `RandomWalk`s and `Counter`s, by the address of their
+    /// expression in the script (which the node holds, unchanged, for its life).
+    generated: Generated,
     now: BusTime,
     sent: u64,
     skipped: u64,
@@ -182,7 +197,12 @@ impl ScriptedNode {
             defs: script
                 .messages
                 .iter()
-                .map(|m| m.frames.iter().map(Resolved::of).collect())
+                .map(|m| {
+                    m.frames
+                        .iter()
+                        .map(|f| Resolved::of(script.db.as_ref(), f))
+                        .collect()
+                })
                 .collect(),
             s: Rc::new(script),
             env,
@@ -198,6 +218,7 @@ impl ScriptedNode {
             rng: ChaCha8Rng::seed_from_u64(
                 seed ^ 0x5eed_0000_0000_0000 ^ u64::from(power_on.as_nanos() as u32),
             ),
+            generated: Generated::new(),
             now: power_on,
             sent: 0,
             skipped: 0,
@@ -309,12 +330,12 @@ impl ScriptedNode {
 
     /// The value of `e`, never NaN: f64 arithmetic is not trusted to have a meaning here, since a
     /// script built in code need not have been validated.
-    fn eval(&mut self, e: &Expr, frame: Option<&Decoded>) -> Result<f64, NoValue> {
+    fn eval(&mut self, e: &Expr, frame: Option<&Received>) -> Result<f64, NoValue> {
         let v = self.eval_unchecked(e, frame)?;
         if v.is_nan() { Err(NoValue) } else { Ok(v) }
     }
 
-    fn eval_unchecked(&mut self, e: &Expr, frame: Option<&Decoded>) -> Result<f64, NoValue> {
+    fn eval_unchecked(&mut self, e: &Expr, frame: Option<&Received>) -> Result<f64, NoValue> {
         Ok(match e {
             Expr::Const(v) => *v,
             Expr::Port(p) => self.read_signal(Some(*p))?,
@@ -324,7 +345,7 @@ impl ScriptedNode {
                 self.read_signal(port)?
             }
             Expr::Var(v) => self.vars.get(v).copied().unwrap_or(0.0),
-            Expr::Field(f) => frame.and_then(|d| d.get(f)).map_or(0.0, |v| v.physical),
+            Expr::Field(f) => frame.and_then(|d| d.physical(f)).unwrap_or(0.0),
             Expr::StateCode => f64::from(self.s.states.get(self.state).map_or(0, |d| d.code)),
             Expr::Scaled(inner, gain, offset) => self.eval(inner, frame)? * gain + offset,
             // f64::clamp panics on such a range.
@@ -334,11 +355,80 @@ impl ScriptedNode {
                 let v = self.eval(inner, frame)?;
                 if *step > 0.0 { (v / step).round() * step } else { v }
             }
+            Expr::Ramp { from, to, period_s } => {
+                let t = self.since_boot();
+                if *period_s > 0.0 {
+                    from + (to - from) * (t % period_s) / period_s
+                } else {
+                    *from
+                }
+            }
+            Expr::Sine {
+                mean,
+                amplitude,
+                period_s,
+            } => {
+                let t = self.since_boot();
+                if *period_s > 0.0 {
+                    mean + amplitude * (std::f64::consts::TAU * t / period_s).sin()
+                } else {
+                    *mean
+                }
+            }
+            Expr::RandomWalk {
+                start,
+                step,
+                min,
+                max,
+            } => {
+                use rand::Rng;
+                let key = e as *const Expr as usize;
+                let next = match self.generated.get(&key) {
+                    None => *start,
+                    Some(v) => {
+                        let delta = if *step > 0.0 {
+                            self.rng.random_range(-step..=*step)
+                        } else {
+                            0.0
+                        };
+                        v + delta
+                    }
+                };
+                // f64::clamp panics on such a range.
+                if min.is_nan() || max.is_nan() || min > max {
+                    return Err(NoValue);
+                }
+                let next = next.clamp(*min, *max);
+                self.generated.insert(key, next);
+                next
+            }
+            Expr::Counter { from, to, step } => {
+                let key = e as *const Expr as usize;
+                let next = match self.generated.get(&key) {
+                    None => *from,
+                    Some(v) => {
+                        let n = v + step;
+                        let past = if *step >= 0.0 { n > *to } else { n < *to };
+                        if past { *from } else { n }
+                    }
+                };
+                self.generated.insert(key, next);
+                next
+            }
         })
     }
 
+    /// Seconds since the end of boot (0 before it).
+    fn since_boot(&self) -> f64 {
+        if self.now > self.boot_at {
+            self.now.since(self.boot_at).as_secs_f64()
+        } else {
+            0.0
+        }
+    }
+
     /// The frames of send `k` as they would go out now.
-    fn build(&mut self, k: usize, frame: Option<&Decoded>) -> Option<Vec<Frame>> {
+    fn build(&mut self, k: usize, frame: Option<&Received>) -> Option<Vec<Frame>> {
         let script = Rc::clone(&self.s);
         let specs = &script.messages[k].frames;
         // The buffer of a build that was not sent: checks build far more often than they send.
@@ -346,26 +436,43 @@ impl ScriptedNode {
         frames.clear();
         for (j, spec) in specs.iter().enumerate() {
             let (def, slots) = match &self.defs[k][j] {
-                Some(r) => (r.def, Rc::clone(&r.slots)),
+                Some(r) => (r.def.clone(), Rc::clone(&r.slots)),
                 None => return None,
             };
-            let mut values = [None; 8];
-            for (e, slot) in spec.fields.values().zip(slots.iter()) {
-                let v = self.eval(e, frame).ok()?;
-                if let (Some(i), Some(f)) = (*slot, slot.and_then(|i| def.fields.get(i))) {
-                    // A sensor saturates at the ends of what its message can carry.
-                    if let Some(value) = values.get_mut(i) {
-                        *value = Some(v.clamp(f.min, f.max));
+            match &def {
+                Def::Catalogue(def) => {
+                    let mut values = [None; 8];
+                    for (e, slot) in spec.fields.values().zip(slots.iter()) {
+                        let v = self.eval(e, frame).ok()?;
+                        if let (Some(i), Some(f)) = (*slot, slot.and_then(|i| def.fields.get(i))) {
+                            // A sensor saturates at the ends of what its message can carry.
+                            if let Some(value) = values.get_mut(i) {
+                                *value = Some(v.clamp(f.min, f.max));
+                            }
+                        }
                     }
+                    let value = |i: usize| values.get(i).copied().flatten();
+                    frames.push(def.encode_indexed(self.address, value).ok()?);
+                }
+                Def::Dbc(..) => {
+                    let m = def.dbc()?;
+                    let mut values = vec![None; m.signals.len()];
+                    for (e, slot) in spec.fields.values().zip(slots.iter()) {
+                        let v = self.eval(e, frame).ok()?;
+                        if let Some(value) = slot.and_then(|i| values.get_mut(i)) {
+                            *value = Some(v);
+                        }
+                    }
+                    // Each signal is limited to its range and bits as it is encoded.
+                    let data = m.encode_with(|i| values.get(i).copied().flatten())?;
+                    frames.push(Frame::new_data(dbc_id(m)?, &data).ok()?);
                 }
             }
-            let value = |i: usize| values.get(i).copied().flatten();
-            frames.push(def.encode_indexed(self.address, value).ok()?);
         }
         Some(frames)
     }
 
-    fn emit(&mut self, k: usize, frame: Option<&Decoded>) {
+    fn emit(&mut self, k: usize, frame: Option<&Received>) {
         let built = self.build(k, frame);
         self.send(k, built);
     }
@@ -445,7 +552,7 @@ impl ScriptedNode {
         }
     }
 
-    fn run_actions(&mut self, actions: &[Action], frame: Option<&Decoded>) {
+    fn run_actions(&mut self, actions: &[Action], frame: Option<&Received>) {
         for a in actions {
             match a {
                 Action::SetState(s) => self.set_state(s),
@@ -520,23 +627,39 @@ impl NodeLogic for ScriptedNode {
         if !self.booted {
             return;
         }
-        let Ok(Some(d)) = catalogue::decode(frame) else {
-            return;
+        let d = match &self.s.db {
+            // A DBC node answers any frame of the database but its own.
+            Some(db) => match Received::of_dbc(db, frame) {
+                Some(d) => {
+                    let sender = db.message(d.message()).and_then(|m| m.transmitter.as_deref());
+                    if sender == Some(self.s.name.as_str()) {
+                        return;
+                    }
+                    d
+                }
+                None => return,
+            },
+            None => {
+                let Ok(Some(d)) = catalogue::decode(frame) else {
+                    return;
+                };
+                if d.node != self.address || d.message.direction != Direction::FromMonitor {
+                    return;
+                }
+                Received::Catalogue(d)
+            }
         };
-        if d.node != self.address || d.message.direction != Direction::FromMonitor {
-            return;
-        }
         self.env.borrow_mut().advance_to(now);
         let script = Rc::clone(&self.s);
         // Which reactions apply is decided before any of them runs (one may change the state).
         let matching: Vec<&Reaction> = script
             .reactions
             .iter()
-            .filter(|r| r.message == d.message.name && self.active(&r.states))
+            .filter(|r| r.message == d.message() && self.active(&r.states))
             .filter(|r| {
                 r.when
                     .iter()
-                    .all(|(f, v)| d.get(f).is_some_and(|x| x.raw as f64 == *v))
+                    .all(|(f, v)| d.raw(f).is_some_and(|x| x as f64 == *v))
             })
             .collect();
         for r in matching {
@@ -673,7 +796,15 @@ fn resolve_ports(script: &mut NodeScript, env: &dyn Environment) {
                 }
             }
             Expr::Scaled(inner, ..) | Expr::Clamp(inner, ..) | Expr::Quantize(inner, _) => expr(inner, env),
-            Expr::Const(_) | Expr::Port(_) | Expr::Var(_) | Expr::Field(_) | Expr::StateCode => {}
+            Expr::Const(_)
+            | Expr::Port(_)
+            | Expr::Var(_)
+            | Expr::Field(_)
+            | Expr::StateCode
+            | Expr::Ramp { .. }
+            | Expr::Sine { .. }
+            | Expr::RandomWalk { .. }
+            | Expr::Counter { .. } => {}
         }
     }
     fn actions(list: &mut [Action], env: &dyn Environment) {

@@ -721,4 +721,5 @@ fn huge_times_never_come_instead_of_overflowing() {
     assert!(drive(&mut n, BusTime::from_millis(800), &[]).is_empty());
 }
 
+mod database;
 mod numbers;

@@ -167,10 +167,23 @@ pub(super) fn build(
         }
         Spec::Script(script) => {
             let env: SharedEnv = plant.clone();
-            let seed = h.config.network.seed ^ (u64::from(script.address) << 32) ^ power_on.as_nanos();
+            // A DBC network's nodes have no address: their names tell their randomness apart.
+            let own = if script.database.is_some() {
+                name_seed(&script.name)
+            } else {
+                u64::from(script.address) << 32
+            };
+            let seed = h.config.network.seed ^ own ^ power_on.as_nanos();
             Box::new(ScriptedNode::new((**script).clone(), env, power_on, seed))
         }
     }
+}
+
+/// A number from a node's name (FNV-1a), the same on every run.
+fn name_seed(name: &str) -> u64 {
+    name.bytes().fold(0xcbf2_9ce4_8422_2325, |h, b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+    })
 }
 
 /// Builds the harvester on a new hub and runs it through start-up: the monitor from time 0, the

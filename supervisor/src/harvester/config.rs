@@ -243,6 +243,7 @@ impl Harvester {
         if problems.is_empty() {
             let expected = scripts
                 .iter()
+                .filter(|s| s.database.is_none())
                 .map(|s| (s.name.clone(), Address(s.address), s.boot_delay_ms))
                 .chain(
                     firmware
@@ -361,6 +362,10 @@ fn clashes(file: &str, scripts: &[NodeScript], places: &[String]) -> Vec<Problem
                 place,
                 format!("{other} has the same name: every node needs a name of its own"),
             ));
+        }
+        // A node of a DBC network has no harvester address.
+        if s.database.is_some() {
+            continue;
         }
         if let Some((other, name)) = addresses.insert(s.address, (place, &s.name)) {
             problems.push(problem(

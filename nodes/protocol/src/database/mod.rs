@@ -156,19 +156,24 @@ impl Message {
     /// multiplexed signals are written (the others are left 0). A value that is not a number
     /// is `None`.
     pub fn encode(&self, values: &BTreeMap<String, f64>) -> Option<Vec<u8>> {
+        self.encode_with(|i| self.signals.get(i).and_then(|s| values.get(&s.name).copied()))
+    }
+
+    /// [`Message::encode`] with the values by signal index (`None`: the signal's initial value).
+    pub fn encode_with(&self, value: impl Fn(usize) -> Option<f64>) -> Option<Vec<u8>> {
         let mut data = vec![0u8; usize::from(self.dlc.min(8))];
-        let value = |s: &Signal| values.get(&s.name).copied().unwrap_or_else(|| s.initial());
-        let mux = match self.multiplexor() {
-            Some(m) => Some(m.to_raw(value(m))?),
+        let value = |i: usize, s: &Signal| value(i).unwrap_or_else(|| s.initial());
+        let mux = match self.signals.iter().position(|s| s.mux == Mux::Multiplexor) {
+            Some(i) => Some(self.signals[i].to_raw(value(i, &self.signals[i]))?),
             None => None,
         };
-        for s in &self.signals {
+        for (i, s) in self.signals.iter().enumerate() {
             if let Mux::On(n) = s.mux
                 && mux != Some(i128::from(n))
             {
                 continue;
             }
-            s.insert(&mut data, s.to_raw(value(s))?);
+            s.insert(&mut data, s.to_raw(value(i, s))?);
         }
         Some(data)
     }
