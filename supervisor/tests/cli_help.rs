@@ -6,12 +6,17 @@ mod common;
 
 use common::harvemu;
 
-const SUBCOMMANDS: [&str; 10] = [
-    "run", "replay", "scenario", "soak", "validate", "inspect", "bench", "dbc", "config", "protocol",
+const SUBCOMMANDS: [&str; 11] = [
+    "run", "replay", "scenario", "soak", "validate", "convert", "inspect", "bench", "dbc", "config",
+    "protocol",
 ];
 
-/// Every placeholder a help may use: files are `<FILE>`, durations `<DURATION>`, counts `<N>`.
-const PLACEHOLDERS: [&str; 16] = [
+/// Every placeholder a help may use: files are `<FILE>` (`convert`'s two, `<IN>` and `<OUT>`),
+/// durations `<DURATION>`, counts `<N>`, trace formats `<FORMAT>`.
+const PLACEHOLDERS: [&str; 19] = [
+    "<IN>",
+    "<OUT>",
+    "<FORMAT>",
     "<FILE>",
     "<FROM..TO>",
     "<DIR>",
