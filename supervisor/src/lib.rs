@@ -15,6 +15,7 @@ pub mod dbc;
 pub mod error;
 pub mod exit;
 pub mod harvester;
+pub mod import;
 pub mod inspect;
 pub mod network;
 pub mod output;

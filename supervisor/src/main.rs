@@ -8,7 +8,7 @@ use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 use supervisor::exit::{self, Ended};
 use supervisor::{
-    bench, campaign, configs, convert, coverage, dbc, inspect, replay, run, scenarios_cli, soak, stop,
+    bench, campaign, configs, convert, coverage, dbc, import, inspect, replay, run, scenarios_cli, soak, stop,
 };
 
 #[derive(Parser)]
@@ -92,6 +92,13 @@ const DBC_EXAMPLES: &str = "\
 Examples:
   harvemu dbc -o harvester.dbc";
 
+const IMPORT_EXAMPLES: &str = "\
+Examples:
+  harvemu import tractor.dbc --out tractor                 a network from a DBC; then:
+  harvemu run tractor/network.ron --fast --for 60s --record tractor.log
+  harvemu import tractor.dbc --out tractor --signals walk --force   signals that move
+  harvemu dbc --config tractor/network.ron -o again.dbc    and back to a DBC";
+
 const CONFIG_EXAMPLES: &str = "\
 Examples:
   harvemu config export configs        the built-in configs, to edit: ./configs/ then wins
@@ -140,6 +147,10 @@ enum Command {
     /// Write a DBC of the whole harvester (catalogue messages, cycle times from the node scripts).
     #[command(after_help = DBC_EXAMPLES)]
     Dbc(dbc::Args),
+    /// Write a runnable network from a DBC file: a network file and a node script per node
+    /// that sends.
+    #[command(after_help = IMPORT_EXAMPLES)]
+    Import(import::Args),
     /// The built-in configs (harvester, node scripts, scenarios, soak): write them out to edit,
     /// or list them.
     #[command(subcommand, after_help = CONFIG_EXAMPLES)]
@@ -208,6 +219,7 @@ fn main() -> ExitCode {
         Command::Inspect(args) => inspect::run(&args).map(|()| done),
         Command::Bench(args) => bench::run(&args).map(|()| done),
         Command::Dbc(args) => dbc::run(&args).map(|()| done),
+        Command::Import(args) => import::run(&args).map(|()| done),
         Command::Coverage(args) => coverage::run(&args).map(|()| done),
         Command::Config(command) => configs::cli::run(&command).map(|()| done),
         Command::Protocol { markdown } => protocol(markdown).map(|()| done),

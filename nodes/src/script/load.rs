@@ -558,6 +558,14 @@ fn expr(
                 c.problem(at, format!("Counter step {step} never takes {from} to {to}"));
             }
         }
+        Expr::Cycle(values) => {
+            if values.is_empty() {
+                c.problem(at, "Cycle of no values");
+            }
+            for v in values {
+                finite(c, at, "a Cycle value", *v);
+            }
+        }
         _ => {}
     }
 }

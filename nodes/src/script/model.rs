@@ -259,6 +259,9 @@ pub enum Expr {
         /// Increment.
         step: f64,
     },
+    /// Each reading the next of these values, round and round: a multiplexor's pages, or an
+    /// enumeration's named values.
+    Cycle(Vec<f64>),
 }
 
 impl Expr {
@@ -268,7 +271,11 @@ impl Expr {
         match self {
             Expr::Const(_) | Expr::Var(_) | Expr::StateCode => true,
             // They change with time or with every reading, not with the node.
-            Expr::Ramp { .. } | Expr::Sine { .. } | Expr::RandomWalk { .. } | Expr::Counter { .. } => false,
+            Expr::Ramp { .. }
+            | Expr::Sine { .. }
+            | Expr::RandomWalk { .. }
+            | Expr::Counter { .. }
+            | Expr::Cycle(_) => false,
             Expr::Signal(_) | Expr::Port(_) | Expr::Field(_) => false,
             Expr::Scaled(e, ..) | Expr::Clamp(e, ..) | Expr::Quantize(e, _) => e.is_internal(),
         }

@@ -415,6 +415,14 @@ impl ScriptedNode {
                 self.generated.insert(key, next);
                 next
             }
+            Expr::Cycle(values) => {
+                // The position in the list is what is kept.
+                let key = e as *const Expr as usize;
+                let at = self.generated.get(&key).map_or(0, |&i| i as usize + 1);
+                let at = if at < values.len() { at } else { 0 };
+                self.generated.insert(key, at as f64);
+                *values.get(at).ok_or(NoValue)?
+            }
         })
     }
 
@@ -804,7 +812,8 @@ fn resolve_ports(script: &mut NodeScript, env: &dyn Environment) {
             | Expr::Ramp { .. }
             | Expr::Sine { .. }
             | Expr::RandomWalk { .. }
-            | Expr::Counter { .. } => {}
+            | Expr::Counter { .. }
+            | Expr::Cycle(_) => {}
         }
     }
     fn actions(list: &mut [Action], env: &dyn Environment) {

@@ -28,6 +28,15 @@ use std::collections::BTreeMap;
 
 pub use codec::PAYLOAD_BITS;
 
+/// A DBC file's bytes as text: UTF-8 when they are, else Windows-1252, the code page DBC
+/// editors write.
+pub fn text_of(bytes: &[u8]) -> String {
+    match std::str::from_utf8(bytes) {
+        Ok(t) => t.to_string(),
+        Err(_) => can_dbc::encodings::WINDOWS_1252.decode(bytes).0.into_owned(),
+    }
+}
+
 /// How a signal's bytes are ordered.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum ByteOrder {
