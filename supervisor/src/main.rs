@@ -144,7 +144,8 @@ enum Command {
     /// Firmware code coverage: merge the coverage folders of several runs.
     #[command(subcommand, after_help = COVERAGE_EXAMPLES)]
     Coverage(coverage::Args),
-    /// Write a DBC of the whole harvester (catalogue messages, cycle times from the node scripts).
+    /// Write a DBC of the whole harvester (catalogue messages, cycle times from the node scripts),
+    /// or of a network imported from a DBC (its database, the scripts' cycle times).
     #[command(after_help = DBC_EXAMPLES)]
     Dbc(dbc::Args),
     /// Write a runnable network from a DBC file: a network file and a node script per node

@@ -15,10 +15,13 @@
 //! - [`Signal::positions`] places a signal's bits as DBC defines them for both byte orders;
 //!   [`Signal::to_raw`] turns a physical value into the raw one the frame carries (limited to
 //!   the signal's range and bits); [`Message::encode`] builds a payload from physical values.
+//! - [`Database::to_dbc`] writes the database back as DBC text with the cycle times a network
+//!   sends; read again, it gives the same messages and signals.
 //!   Nothing here does I/O or panics on any input.
 
 mod codec;
 mod read;
+mod write;
 
 #[cfg(test)]
 mod tests;
@@ -27,6 +30,7 @@ use crate::Error;
 use std::collections::BTreeMap;
 
 pub use codec::PAYLOAD_BITS;
+pub use write::Written;
 
 /// A DBC file's bytes as text: UTF-8 when they are, else Windows-1252, the code page DBC
 /// editors write.

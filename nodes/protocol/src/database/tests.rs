@@ -214,3 +214,25 @@ fn a_syntax_error_is_refused_at_its_line_and_column() {
         "{e}"
     );
 }
+
+#[test]
+fn written_back_it_reads_as_the_same_database() {
+    let db = Database::parse("sample.dbc", SAMPLE).unwrap();
+    let cycles: BTreeMap<String, u32> = [("EEC1".to_string(), 20), ("Dash".to_string(), 50)].into();
+    let text = db.to_dbc(&Written {
+        name: "Sample",
+        bitrate: 250_000,
+        cycles: &cycles,
+    });
+    let again = Database::parse("again.dbc", &text).unwrap_or_else(|e| panic!("{e}\n{text}"));
+    assert_eq!(again.nodes, db.nodes);
+    assert_eq!(again.bitrate, Some(250_000));
+    assert_eq!(again.name.as_deref(), Some("Sample"));
+    assert_eq!(again.comment, db.comment);
+    assert_eq!(again.messages.len(), db.messages.len());
+    for (a, b) in again.messages.iter().zip(&db.messages) {
+        let mut want = b.clone();
+        want.cycle_ms = cycles.get(&b.name).copied();
+        assert_eq!(a, &want, "{text}");
+    }
+}
