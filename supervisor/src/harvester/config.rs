@@ -232,7 +232,7 @@ impl Harvester {
                 )),
             }
         }
-        problems.extend(clashes(&file, &scripts, &places));
+        problems.extend(clashes(&file, &scripts, &places, config.monitor.enabled));
         problems.extend(firmware_clashes(
             &file,
             &scripts,
@@ -336,9 +336,10 @@ impl Harvester {
 pub const MAX_REACTION_US: u64 = 1_000_000;
 
 /// Nodes that would be mistaken for one another: two with one name (`--without`, scenarios and
-/// traces pick nodes by name), one named F5 (the monitor's name), two with one address, or one
-/// at the monitor's address. `places[i]` says where `scripts[i]` is in the config.
-fn clashes(file: &str, scripts: &[NodeScript], places: &[String]) -> Vec<Problem> {
+/// traces pick nodes by name), one named F5 (the monitor's name) while the monitor runs
+/// (`monitor`), two with one harvester address, or one at the monitor's address. `places[i]`
+/// says where `scripts[i]` is in the config.
+fn clashes(file: &str, scripts: &[NodeScript], places: &[String], monitor: bool) -> Vec<Problem> {
     let mut problems = Vec::new();
     let problem = |s: &NodeScript, place: &str, message: String| Problem {
         file: file.to_string(),
@@ -350,7 +351,7 @@ fn clashes(file: &str, scripts: &[NodeScript], places: &[String]) -> Vec<Problem
     let mut names = std::collections::BTreeMap::new();
     let mut addresses = std::collections::BTreeMap::new();
     for (s, place) in scripts.iter().zip(places) {
-        if s.name == "F5" {
+        if monitor && s.name == "F5" {
             problems.push(problem(s, place, "F5 is the monitor's name".into()));
         }
         if s.address == Address::MONITOR.0 {
