@@ -1,0 +1,157 @@
+//! `harvemu import` on the command line: what it writes runs and validates; a DBC that does not
+//! parse is exit 2 at its line and column; an `--out` that holds files is refused unless
+//! `--force`; each case the scripts cannot do as the DBC says is a warning line and a comment
+//! in the script concerned.
+
+mod common;
+
+use common::{harvemu, scratch};
+use std::path::{Path, PathBuf};
+use std::process::Output;
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// A small network with one of each thing an import warns about: DASH sends nothing, Event has
+/// no cycle time, Over shares bit 0 with Lamp, Wide reaches past its 2-byte message.
+const DBC: &str = r#"VERSION ""
+
+NS_ :
+
+BS_:
+
+BU_: ENGINE BRAKE DASH
+
+BO_ 2566844926 EEC1: 8 ENGINE
+ SG_ EngineSpeed : 24|16@1+ (0.125,0) [0|8031.875] "rpm" DASH,BRAKE
+ SG_ Torque : 16|8@1- (1,-125) [-125|125] "%" DASH
+
+BO_ 256 Brake: 4 BRAKE
+ SG_ Mode M : 7|8@0+ (1,0) [0|2] "" DASH
+ SG_ Pressure m1 : 15|16@0+ (0.1,0) [0|250] "bar" DASH
+ SG_ Temp m2 : 15|8@0- (1,0) [-40|125] "C" DASH
+
+BO_ 512 Lamps: 2 BRAKE
+ SG_ Lamp : 0|1@1+ (1,0) [0|1] "" DASH
+ SG_ Over : 0|4@1+ (1,0) [0|15] "" DASH
+ SG_ Wide : 8|16@1+ (1,0) [0|100] "" DASH
+
+BO_ 513 Event: 1 ENGINE
+ SG_ Code : 0|8@1+ (1,0) [0|255] "" DASH
+
+BA_DEF_ BO_ "GenMsgCycleTime" INT 0 65535;
+BA_DEF_DEF_ "GenMsgCycleTime" 0;
+BA_ "GenMsgCycleTime" BO_ 2566844926 20;
+BA_ "GenMsgCycleTime" BO_ 256 100;
+BA_ "GenMsgCycleTime" BO_ 512 500;
+"#;
+
+fn dbc(dir: &Path, text: &str) -> PathBuf {
+    let path = dir.join("truck.dbc");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+#[test]
+fn an_import_runs_validates_and_says_what_it_could_not_do() {
+    let dir = scratch("import", "warnings");
+    let file = dbc(&dir, DBC);
+    let out_dir = dir.join("truck");
+    let out = harvemu(&["import", s(&file), "--out", s(&out_dir), "--signals", "sine"]);
+    let err = stderr(&out);
+    assert!(out.status.success(), "{err}");
+    for warning in [
+        "harvemu: warning: node DASH sends nothing: no script for it",
+        "harvemu: warning: Event (0x201): no cycle time: an event message, written with `when: OnRequest`",
+        "harvemu: warning: Lamps (0x200) signal Over: shares bit 0 with signal Lamp",
+        "harvemu: warning: Lamps (0x200) signal Wide: 16 bits from bit 8 do not fit in the message's 2 bytes",
+    ] {
+        assert!(err.contains(warning), "{warning}\n{err}");
+    }
+    assert!(
+        err.contains("2 nodes sending 3 messages on their own, 1 event messages"),
+        "{err}"
+    );
+    let brake = std::fs::read_to_string(out_dir.join("nodes/brake.ron")).unwrap();
+    assert!(
+        brake.contains("// Warning: Lamps (0x200) signal Over: shares bit 0"),
+        "{brake}"
+    );
+    assert!(
+        brake.contains("// Warning: Lamps (0x200) signal Wide: 16 bits"),
+        "{brake}"
+    );
+    let engine = std::fs::read_to_string(out_dir.join("nodes/engine.ron")).unwrap();
+    assert!(
+        engine.contains("// Not generated (event messages, no cycle time): Event."),
+        "{engine}"
+    );
+    assert!(!out_dir.join("nodes/dash.ron").exists());
+    assert_eq!(std::fs::read_to_string(out_dir.join("truck.dbc")).unwrap(), DBC);
+
+    let network = out_dir.join("network.ron");
+    let out = harvemu(&["validate", s(&network)]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let log = dir.join("truck.log");
+    let out = harvemu(&["run", s(&network), "--fast", "--for", "2s", "--record", s(&log)]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let text = std::fs::read_to_string(&log).unwrap();
+    // 2 s: EEC1 every 20 ms, Brake every 100 ms, Lamps every 500 ms, Event never.
+    let count = |id: &str| text.lines().filter(|l| l.contains(&format!(" {id}#"))).count();
+    assert_eq!(
+        (count("18FEF1FE"), count("100"), count("200"), count("201")),
+        (100, 20, 4, 0),
+        "{text}"
+    );
+}
+
+#[test]
+fn a_dbc_that_does_not_parse_is_refused_at_its_line_and_column() {
+    let dir = scratch("import", "bad");
+    let file = dbc(&dir, &DBC.replace("(0.125,0)", "(0.125,zero)"));
+    let out = harvemu(&["import", s(&file), "--out", s(&dir.join("x"))]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert_eq!(
+        stderr(&out).trim(),
+        format!("harvemu: error: {}:10:36: expected offset", file.display())
+    );
+    assert!(!dir.join("x").exists());
+    // A base identifier too wide for 11 bits, at its line.
+    let file = dbc(&dir, &DBC.replace("BO_ 512 Lamps", "BO_ 4095 Lamps"));
+    let out = harvemu(&["import", s(&file), "--out", s(&dir.join("x"))]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        stderr(&out).contains("truck.dbc:18:1: message Lamps: identifier 4095 is over 0x7FF"),
+        "{}",
+        stderr(&out)
+    );
+    // /dev/zero is no DBC and never ends: refused at the size limit.
+    let out = harvemu(&["import", "/dev/zero", "--out", s(&dir.join("x"))]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("larger than 1 MiB"), "{}", stderr(&out));
+}
+
+#[test]
+fn an_out_folder_that_holds_files_is_refused_unless_force() {
+    let dir = scratch("import", "force");
+    let file = dbc(&dir, DBC);
+    let out_dir = dir.join("net");
+    std::fs::create_dir_all(&out_dir).unwrap();
+    std::fs::write(out_dir.join("notes.txt"), "mine").unwrap();
+    let out = harvemu(&["import", s(&file), "--out", s(&out_dir)]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("the folder holds files: nothing written (--force writes into it)"));
+    assert!(!out_dir.join("network.ron").exists());
+    let out = harvemu(&["import", s(&file), "--out", s(&out_dir), "--force"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(out_dir.join("network.ron").exists());
+    assert_eq!(
+        std::fs::read_to_string(out_dir.join("notes.txt")).unwrap(),
+        "mine"
+    );
+}
