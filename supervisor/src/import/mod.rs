@@ -80,6 +80,12 @@ pub fn run(args: &Args) -> crate::Result<()> {
         output::write_whole(path, bytes)?;
     }
     let (nodes, own, events) = plan.counts;
+    if events > 0 {
+        crate::say!(
+            "harvemu: a DBC holds no protocol logic (requests, acknowledgements, calibration, states): \
+             the {events} event messages above are for reactions you add to send"
+        );
+    }
     crate::say!(
         "harvemu: wrote {}: {nodes} nodes sending {own} messages on their own, {events} event messages \
          for actions to send; {} warnings. Run it: harvemu run {}",
