@@ -1,7 +1,8 @@
 //! `harvemu import` on the command line: what it writes runs and validates; a DBC that does not
 //! parse is exit 2 at its line and column; an `--out` that holds files is refused unless
 //! `--force`; each case the scripts cannot do as the DBC says is a warning line and a comment
-//! in the script concerned.
+//! in the script concerned; scenarios (and removing their fault fails them), a campaign, every
+//! trace format and the socketcand gateway work on an imported network.
 
 mod common;
 
@@ -153,5 +154,148 @@ fn an_out_folder_that_holds_files_is_refused_unless_force() {
     assert_eq!(
         std::fs::read_to_string(out_dir.join("notes.txt")).unwrap(),
         "mine"
+    );
+}
+
+/// A scenario on the imported network: BRAKE's frames corrupted for 150 ms from 5 s.
+const BRAKE_OFF: &str = r#"Scenario(
+    name: "BRAKE bus off",
+    description: "Every frame of BRAKE is corrupted for 150 ms from 5 s: it goes bus off and comes back; ENGINE stays error active.",
+    duration_s: 10.0,
+    timeline: [(at_s: 5.0, action: BitErrors(target: Node("BRAKE"), hits: Always, until_s: Some(5.15)))],
+    expect: [
+        NodeState(node: "BRAKE", state: BusOff, after_s: 5.0, within_ms: 120),
+        BusOffCount(node: "BRAKE", min: 1, max: 6),
+        NodeStateNever(node: "ENGINE", state: Passive, from_s: 0.0, to_s: 10.0),
+        NodeStateHolds(node: "BRAKE", state: Active, from_s: 8.0, to_s: 10.0),
+    ],
+)"#;
+
+/// Half a minute with random faults: every frame in the trace, no node crashing by itself.
+const FAULTS: &str = r#"Scenario(
+    name: "truck faults",
+    description: "Half a minute of the imported truck with a fault every second on average: every frame on the bus is in the trace and no node crashes by itself.",
+    duration_s: 30.0,
+    random_faults: Some((mean_interval_s: 1.0, kinds: [BitErrors, ErrorPassive, Crash, Hang, Babble, Disconnect], from_s: 5.0, quiet_end_s: 10.0)),
+    expect: [TraceComplete, NoCrashes],
+)"#;
+
+/// python-can's socketcand interface at argv[1] (host:port): the identifiers of 40 messages.
+const SOCKETCAND: &str = r#"
+import sys, can
+host, port = sys.argv[1].rsplit(":", 1)
+with can.Bus(interface="socketcand", channel="harv0", host=host, port=int(port)) as bus:
+    seen = set()
+    for _ in range(40):
+        m = bus.recv(timeout=5.0)
+        if m is not None:
+            seen.add((m.arbitration_id, m.is_extended_id))
+    print(sorted(seen))
+"#;
+
+#[test]
+fn scenarios_campaigns_every_trace_format_and_socketcand_work_on_an_imported_network() {
+    let dir = scratch("import", "everything");
+    let file = dbc(&dir, DBC);
+    let net = dir.join("truck");
+    let out = harvemu(&["import", s(&file), "--out", s(&net), "--signals", "walk"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let network = net.join("network.ron");
+
+    let scenario = dir.join("brake_off.ron");
+    std::fs::write(&scenario, BRAKE_OFF).unwrap();
+    let out = harvemu(&["scenario", s(&scenario), "--config", s(&network)]);
+    let said = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{said}{}", stderr(&out));
+    assert!(said.contains("4 passed, 0 failed"), "{said}");
+    // Without the fault BRAKE never goes bus off: an expectation fails (exit code 1).
+    let faultless = BRAKE_OFF.replace(
+        r#"timeline: [(at_s: 5.0, action: BitErrors(target: Node("BRAKE"), hits: Always, until_s: Some(5.15)))],"#,
+        "timeline: [],",
+    );
+    assert_ne!(faultless, BRAKE_OFF);
+    std::fs::write(&scenario, faultless).unwrap();
+    let out = harvemu(&["scenario", s(&scenario), "--config", s(&network)]);
+    let said = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(1), "{said}{}", stderr(&out));
+    assert!(said.contains("FAIL NodeState {"), "{said}");
+
+    let campaign = dir.join("faults.ron");
+    std::fs::write(&campaign, FAULTS).unwrap();
+    let runs = dir.join("campaign");
+    let out = harvemu(&[
+        "campaign",
+        s(&campaign),
+        "--config",
+        s(&network),
+        "--runs",
+        "4",
+        "--out",
+        s(&runs),
+    ]);
+    let said = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{said}{}", stderr(&out));
+    assert!(said.contains("4 of 4 runs, 4 passed, 0 failed"), "{said}");
+
+    // The same run in every format converts back to its candump log.
+    let log = dir.join("run.log");
+    let args = |record: &Path| {
+        vec![
+            "run".to_string(),
+            s(&network).into(),
+            "--fast".into(),
+            "--for".into(),
+            "3s".into(),
+            "--record".into(),
+            s(record).into(),
+        ]
+    };
+    let run = |record: &Path| {
+        let a = args(record);
+        let a: Vec<&str> = a.iter().map(String::as_str).collect();
+        let out = harvemu(&a);
+        assert!(out.status.success(), "{}", stderr(&out));
+    };
+    run(&log);
+    let want = std::fs::read_to_string(&log).unwrap();
+    assert!(want.lines().count() > 150, "{want}");
+    for ext in ["asc", "blf", "pcapng", "mf4"] {
+        let trace = dir.join(format!("run.{ext}"));
+        run(&trace);
+        let back = dir.join(format!("run-{ext}.log"));
+        let out = harvemu(&["convert", s(&trace), s(&back)]);
+        assert!(out.status.success(), "{ext}: {}", stderr(&out));
+        let got = std::fs::read_to_string(&back).unwrap();
+        if ext == "asc" {
+            // ASC keeps no interface names: the same frames at the same times.
+            let strip = |t: &str| {
+                t.lines()
+                    .map(|l| {
+                        let f: Vec<&str> = l.split(' ').collect();
+                        format!("{} {}", f[0], f[2])
+                    })
+                    .collect::<Vec<_>>()
+            };
+            assert_eq!(strip(&got), strip(&want), "{ext}");
+        } else {
+            assert_eq!(got, want, "{ext}");
+        }
+    }
+
+    let (mut child, addr) = common::socketcand_gateway(&[s(&network), "--for", "20s"]);
+    let py = std::env::var("HARVEMU_PYTHON").unwrap_or_else(|_| "python3".into());
+    let out = std::process::Command::new(&py)
+        .args(["-c", SOCKETCAND, &addr])
+        .output();
+    let _ = child.kill();
+    let _ = child.wait();
+    let out = out
+        .unwrap_or_else(|e| panic!("cannot run `{py}`: {e}; set HARVEMU_PYTHON to a python with python-can"));
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let seen = String::from_utf8_lossy(&out.stdout);
+    // EEC1 (29-bit) and Brake (11-bit 0x100) from the imported nodes.
+    assert!(
+        seen.contains("(419361278, True)") && seen.contains("(256, False)"),
+        "{seen}"
     );
 }
