@@ -24,6 +24,7 @@ fn screen(running: &supervisor::harvester::Running, snap: &bus_runtime::hub::Sna
         plant: &plant,
         rates: &rates,
         events: &running.events,
+        database: None,
     });
     let mut terminal = Terminal::new(TestBackend::new(200, 60)).unwrap();
     terminal.draw(|f| draw(f, &view)).unwrap();
@@ -141,5 +142,96 @@ fn the_seed_lab_with_firmware_on_both_benches_shows_on_screen() {
     assert!(row.contains("AA BB CC D4 E5 F6 97 18"), "{row}");
     for name in ["SENDER", "RECEIVER"] {
         line_with(&screen, &format!("{name} active 0/0"));
+    }
+}
+
+/// A network imported from a DBC has no monitor: the live display shows its bus, each node's
+/// controller and the DBC's messages, with the last frame of each as the trace has it.
+#[test]
+fn an_imported_network_shows_its_bus_without_a_monitor() {
+    const DBC: &str = r#"VERSION ""
+NS_ :
+BS_:
+BU_: ENGINE BRAKE
+BO_ 2566844926 EEC1: 8 ENGINE
+ SG_ EngineSpeed : 24|16@1+ (0.125,0) [0|8031.875] "rpm" BRAKE
+BO_ 256 Brake: 2 BRAKE
+ SG_ Pressure : 7|16@0+ (0.01,0) [0|655.35] "bar" ENGINE
+BA_DEF_ BO_ "GenMsgCycleTime" INT 0 65535;
+BA_DEF_DEF_ "GenMsgCycleTime" 0;
+BA_ "GenMsgCycleTime" BO_ 2566844926 20;
+BA_ "GenMsgCycleTime" BO_ 256 100;
+"#;
+    let dir = std::env::temp_dir().join(format!("harvemu-tui-imported-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(dir.join("nodes")).unwrap();
+    std::fs::write(dir.join("truck.dbc"), DBC).unwrap();
+    let db = protocol::database::Database::parse("truck.dbc", DBC).unwrap();
+    let plan = supervisor::import::plan(&db, "truck.dbc", "truck", supervisor::import::Signals::Ramp);
+    for f in &plan.files {
+        std::fs::write(dir.join(&f.path), &f.text).unwrap();
+    }
+    let h = supervisor::harvester::Harvester::load(&dir.join("network.ron")).unwrap();
+    let (trace, screen) = run_virtual(
+        h,
+        BusTime::from_secs(5),
+        |_| {},
+        |running, snap| {
+            let mut rates = RateMeter::default();
+            rates.update(snap);
+            let plant = running.plant.borrow();
+            assert!(running.display.is_none(), "a network has no monitor");
+            let view = View::build(&Sources {
+                machine: "truck",
+                clock: Clock::Virtual,
+                finished: true,
+                snapshot: snap,
+                display: None,
+                plant: &plant,
+                rates: &rates,
+                events: &running.events,
+                database: running.database(),
+            });
+            let mut terminal = Terminal::new(TestBackend::new(200, 60)).unwrap();
+            terminal.draw(|f| draw(f, &view)).unwrap();
+            let buffer = terminal.backend().buffer();
+            buffer
+                .content()
+                .chunks(200)
+                .map(|row| row.iter().map(|c| c.symbol()).collect::<String>())
+                .collect::<Vec<_>>()
+        },
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+    for name in ["ENGINE", "BRAKE"] {
+        line_with(&screen, &format!("{name} active 0/0"));
+    }
+    // Each message's row: its name, its transmitter, the last payload of the trace and its
+    // signal decoded here from the DBC's layout (EngineSpeed: bytes 3..4 low first, 0.125 rpm;
+    // Pressure: bytes 0..1 high first, 0.01 bar).
+    for (id, name, from) in [(0x18FE_F1FE, "EEC1", "ENGINE"), (0x100, "Brake", "BRAKE")] {
+        let last = trace.iter().rev().find(|l| l.frame.raw_id() == id).unwrap().frame;
+        let d = last.data();
+        let hex: Vec<String> = d.iter().map(|b| format!("{b:02X}")).collect();
+        let decoded = if id == 0x100 {
+            format!(
+                "Pressure={:.2} bar",
+                f64::from(u16::from_be_bytes([d[0], d[1]])) * 0.01
+            )
+        } else {
+            format!(
+                "EngineSpeed={:.3} rpm",
+                f64::from(u16::from_le_bytes([d[3], d[4]])) * 0.125
+            )
+        };
+        let key = if id > 0x7FF {
+            format!("{id:08X}")
+        } else {
+            format!("     {id:03X}")
+        };
+        let row = line_with(&screen, &key);
+        for part in [name, from, &hex.join(" "), &decoded] {
+            assert!(row.contains(part), "{part} in {row}\n{}", screen.join("\n"));
+        }
     }
 }

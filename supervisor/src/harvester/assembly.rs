@@ -243,6 +243,12 @@ pub async fn begin(h: &Harvester, paced: bool, sinks: Vec<Box<dyn Sink>>) -> cra
 }
 
 impl Running {
+    /// The DBC database of a network imported from one (its scripts name it), for showing its
+    /// frames by name; `None` for the harvester.
+    pub fn database(&self) -> Option<&protocol::database::Database> {
+        self.harvester.scripts.iter().find_map(|s| s.db.as_deref())
+    }
+
     async fn attach(
         &mut self,
         name: &str,

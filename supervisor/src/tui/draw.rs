@@ -419,7 +419,7 @@ fn id_row(v: &IdView, columns: &IdColumns) -> Row<'static> {
     } else {
         format!("{:03X}", v.id)
     };
-    let route = v.route.map_or(String::new(), |(src, dst)| format!("{src}>{dst}"));
+    let route = v.route.clone().unwrap_or_default();
     let payload = if v.remote {
         "remote".to_string()
     } else {
@@ -449,7 +449,10 @@ fn id_row(v: &IdView, columns: &IdColumns) -> Row<'static> {
     };
     let mut cells = vec![Cell::from(fit::number(&id, ID_WIDTH))];
     if columns.message > 0 {
-        cells.push(Cell::from(fit::label(v.message.unwrap_or(""), columns.message)));
+        cells.push(Cell::from(fit::label(
+            v.message.as_deref().unwrap_or(""),
+            columns.message,
+        )));
     }
     if columns.route > 0 {
         cells.push(Cell::from(words(&route, columns.route)));

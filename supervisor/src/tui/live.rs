@@ -141,6 +141,7 @@ async fn redraw(
         plant: &plant,
         rates,
         events: &running.events,
+        database: running.database(),
     });
     terminal.draw(|frame| draw(frame, &view)).map_err(Error::System)?;
     Ok(())

@@ -85,6 +85,7 @@ fn view_of(snapshot: &Snapshot, display: Option<&Display>, rates: &RateMeter) ->
         plant: &plant,
         rates,
         events: &[],
+        database: None,
     })
 }
 

@@ -3,7 +3,8 @@
 //! Contract: [`View::build`] reads its [`Sources`] and nothing else (no clock, no I/O), so the
 //! same inputs always give the same view. Numbers stay numbers here; [`super::draw`] formats
 //! them. Only decoded payload fields are text already, because how to show one (a named state,
-//! or a value with the decimals its scaling allows) comes from the catalogue.
+//! or a value with the decimals its scaling allows) comes from the catalogue, or from the DBC of
+//! a network imported from one.
 
 use super::RateMeter;
 use crate::harvester::SupervisorEvent;
@@ -15,7 +16,8 @@ use bus_runtime::hub::Snapshot;
 use nodes::monitor::Display;
 use nodes::plant::{Plant, ROWS};
 use protocol::catalogue::{self, Value};
-use protocol::ident::{Address, AppId};
+use protocol::database::{Database, Mux};
+use protocol::ident::AppId;
 
 /// How the emulation's clock runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -44,6 +46,9 @@ pub struct Sources<'a> {
     pub rates: &'a RateMeter,
     /// Crashes, restarts and power cycles so far.
     pub events: &'a [SupervisorEvent],
+    /// The DBC database of a network imported from one: its messages name and decode the
+    /// frames instead of the harvester catalogue.
+    pub database: Option<&'a Database>,
 }
 
 /// The whole screen.
@@ -131,7 +136,7 @@ pub struct NodeView {
 #[derive(Clone, Debug, PartialEq)]
 pub struct FieldView {
     /// Field name.
-    pub name: &'static str,
+    pub name: String,
     /// Value with unit, or the name of the value.
     pub text: String,
 }
@@ -145,17 +150,18 @@ pub struct IdView {
     pub extended: bool,
     /// Remote frames.
     pub remote: bool,
-    /// The catalogue message of the last payload.
-    pub message: Option<&'static str>,
-    /// Source and destination fields of a 29-bit identifier.
-    pub route: Option<(Address, Address)>,
+    /// The catalogue (or DBC) message of the last payload.
+    pub message: Option<String>,
+    /// Where it goes: a harvester identifier's source and destination (`D0>F5`), or a DBC
+    /// message's transmitter.
+    pub route: Option<String>,
     /// Frames per second, recently.
     pub rate: f64,
     /// Frames so far.
     pub count: u64,
     /// The last payload.
     pub payload: Vec<u8>,
-    /// The last payload, decoded through the catalogue.
+    /// The last payload, decoded through the catalogue (or the DBC).
     pub fields: Vec<FieldView>,
     /// Why the last payload does not fit its message's layout.
     pub problem: Option<String>,
@@ -194,7 +200,7 @@ impl View {
             now: s.snapshot.now,
             finished: s.finished,
             monitor: monitor(s.display, s.plant),
-            bus: bus(s.snapshot, s.rates, s.events),
+            bus: bus(s.snapshot, s.rates, s.events, s.database),
         }
     }
 }
@@ -355,7 +361,12 @@ fn monitor(display: Option<&Display>, plant: &Plant) -> MonitorView {
     }
 }
 
-fn bus(snapshot: &Snapshot, rates: &RateMeter, events: &[SupervisorEvent]) -> BusView {
+fn bus(
+    snapshot: &Snapshot,
+    rates: &RateMeter,
+    events: &[SupervisorEvent],
+    database: Option<&Database>,
+) -> BusView {
     let st = &snapshot.stats;
     let nodes = snapshot
         .nodes
@@ -376,7 +387,10 @@ fn bus(snapshot: &Snapshot, rates: &RateMeter, events: &[SupervisorEvent]) -> Bu
             let frame = frame_of(kernel, stats.last_payload());
             (
                 frame,
-                identifier(kernel, frame, rates.rate(kernel, stats), stats.count),
+                match database {
+                    Some(db) => dbc_identifier(db, kernel, frame, rates.rate(kernel, stats), stats.count),
+                    None => identifier(kernel, frame, rates.rate(kernel, stats), stats.count),
+                },
             )
         })
         .collect();
@@ -424,20 +438,20 @@ fn identifier(kernel: u32, frame: Option<Frame>, rate: f64, count: u64) -> IdVie
         problem: None,
     };
     if extended && let Ok(app) = AppId::from_raw(id) {
-        view.route = Some((app.source, app.destination));
+        view.route = Some(format!("{}>{}", app.source, app.destination));
     }
     let Some(frame) = frame else {
         return view;
     };
     match catalogue::decode(&frame) {
         Ok(Some(d)) => {
-            view.message = Some(d.message.name);
+            view.message = Some(d.message.name.to_string());
             view.fields = d
                 .values
                 .iter()
                 .filter(|v| v.field.constant.is_none())
                 .map(|v| FieldView {
-                    name: v.field.name,
+                    name: v.field.name.to_string(),
                     text: value_text(v),
                 })
                 .collect();
@@ -446,10 +460,56 @@ fn identifier(kernel: u32, frame: Option<Frame>, rate: f64, count: u64) -> IdVie
         Err(e) => {
             // The identifier and Data0 name the message even when the payload breaks it.
             if let Ok(app) = AppId::from_id(frame.id()) {
-                view.message = catalogue::lookup(&app, frame.data()).map(|(m, _)| m.name);
+                view.message = catalogue::lookup(&app, frame.data()).map(|(m, _)| m.name.to_string());
             }
             view.problem = Some(e.to_string());
         }
+    }
+    view
+}
+
+/// An identifier of a DBC network: its message, transmitter and signals (those of the
+/// multiplexor's page in a multiplexed message), each by its value name or physical value.
+fn dbc_identifier(db: &Database, kernel: u32, frame: Option<Frame>, rate: f64, count: u64) -> IdView {
+    let extended = kernel & CAN_EFF_FLAG != 0;
+    let id = kernel & if extended { CAN_EFF_MASK } else { CAN_SFF_MASK };
+    let message = db.messages.iter().find(|m| m.extended == extended && m.id == id);
+    let mut view = IdView {
+        id,
+        extended,
+        remote: kernel & CAN_RTR_FLAG != 0,
+        message: message.map(|m| m.name.clone()),
+        route: message.and_then(|m| m.transmitter.clone()),
+        rate,
+        count,
+        payload: frame.map(|f| f.data().to_vec()).unwrap_or_default(),
+        fields: Vec::new(),
+        problem: None,
+    };
+    let (Some(m), Some(frame)) = (message, frame) else {
+        return view;
+    };
+    let data = frame.data();
+    let page = m.multiplexor().and_then(|s| s.extract(data));
+    for s in &m.signals {
+        if let Mux::On(n) = s.mux
+            && page != Some(i128::from(n))
+        {
+            continue;
+        }
+        let Some(raw) = s.extract(data) else {
+            view.problem = Some(format!("{} bytes: too short for {}", data.len(), s.name));
+            break;
+        };
+        let text = match s.values.iter().find(|(v, _)| i128::from(*v) == raw) {
+            Some((_, name)) => name.clone(),
+            None if s.unit.is_empty() => format!("{:.*}", decimals(s.factor), s.physical(raw)),
+            None => format!("{:.*} {}", decimals(s.factor), s.physical(raw), s.unit),
+        };
+        view.fields.push(FieldView {
+            name: s.name.clone(),
+            text,
+        });
     }
     view
 }
