@@ -11,8 +11,8 @@
 //! state before and after the command, the frames' format, the monitor's sessions, the stalls
 //! ([`crate::outside`]) and what harvemu said on stderr. tcpdump and dumpcap capture vcan0 from
 //! before harvemu starts until it has exited, and harvemu must read their captures back as the
-//! frames recorded here ([`crate::captures`]). Last, [`crate::replay`] checks `harvemu replay
-//! --iface`.
+//! frames recorded here ([`crate::captures`]). Then [`crate::replay`] checks `harvemu replay
+//! --iface`, and [`crate::imported`] a network imported from a DBC file on the interface.
 
 use crate::captures::Captures;
 use crate::monitor::Monitor;
@@ -122,6 +122,7 @@ pub fn run(harvemu: &Path, config: &Path, report: &mut Report) {
             report.check("open raw CAN sockets with receive timestamps", Ok(String::new()));
             with_socket(&rx, &tx, harvemu, config, report);
             crate::replay::run(&rx, harvemu, config, report);
+            crate::imported::run(&rx, harvemu, report);
         }
         Err(why) => {
             report.check("open raw CAN sockets with receive timestamps", Err(why));

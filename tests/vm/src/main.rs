@@ -13,12 +13,14 @@
 //!
 //! `harvemu-vmcheck harvester HARVEMU CONFIG` is the end-to-end check of `harvemu run --iface
 //! vcan0 --without F5` with an outside monitor ([`monitor`]), freezes of harvemu ([`outside`]) and
-//! `harvemu replay --iface` ([`replay`]) instead (see [`harvester`]), and reads captures of the
-//! interface by tcpdump and dumpcap back with harvemu ([`captures`]).
+//! `harvemu replay --iface` ([`replay`]) instead (see [`harvester`]), reads captures of the
+//! interface by tcpdump and dumpcap back with harvemu ([`captures`]), and runs a network imported
+//! from a DBC file on the interface ([`imported`]).
 #![warn(missing_docs)]
 
 mod captures;
 mod harvester;
+mod imported;
 mod monitor;
 mod outside;
 mod replay;
