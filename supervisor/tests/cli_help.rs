@@ -6,14 +6,15 @@ mod common;
 
 use common::harvemu;
 
-const SUBCOMMANDS: [&str; 11] = [
-    "run", "replay", "scenario", "soak", "validate", "convert", "inspect", "bench", "dbc", "config",
-    "protocol",
+const SUBCOMMANDS: [&str; 12] = [
+    "run", "replay", "scenario", "soak", "validate", "convert", "inspect", "bench", "dbc", "import",
+    "config", "protocol",
 ];
 
 /// Every placeholder a help may use: files are `<FILE>` (`convert`'s two, `<IN>` and `<OUT>`),
-/// durations `<DURATION>`, counts `<N>`, trace formats `<FORMAT>`.
-const PLACEHOLDERS: [&str; 19] = [
+/// durations `<DURATION>`, counts `<N>`, trace formats `<FORMAT>`, other choices `<KIND>`.
+const PLACEHOLDERS: [&str; 20] = [
+    "<KIND>",
     "<IN>",
     "<OUT>",
     "<FORMAT>",
