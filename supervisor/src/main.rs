@@ -148,8 +148,7 @@ enum Command {
     /// or of a network imported from a DBC (its database, the scripts' cycle times).
     #[command(after_help = DBC_EXAMPLES)]
     Dbc(dbc::Args),
-    /// Write a runnable network from a DBC file: a network file and a node script per node
-    /// that sends.
+    /// Write a runnable network from a DBC file: a network file and a node script per node.
     #[command(after_help = IMPORT_EXAMPLES)]
     Import(import::Args),
     /// The built-in configs (harvester, node scripts, scenarios, soak): write them out to edit,

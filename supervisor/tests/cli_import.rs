@@ -67,7 +67,7 @@ fn an_import_runs_validates_and_says_what_it_could_not_do() {
     let err = stderr(&out);
     assert!(out.status.success(), "{err}");
     for warning in [
-        "harvemu: warning: node DASH sends nothing: no script for it",
+        "harvemu: warning: node DASH sends nothing: its script only listens (its controller acknowledges frames)",
         "harvemu: warning: Event (0x201): no cycle time: an event message, written with `when: OnRequest`",
         "harvemu: warning: Lamps (0x200) signal Over: shares bit 0 with signal Lamp",
         "harvemu: warning: Lamps (0x200) signal Wide: 16 bits from bit 8 do not fit in the message's 2 bytes",
@@ -75,7 +75,7 @@ fn an_import_runs_validates_and_says_what_it_could_not_do() {
         assert!(err.contains(warning), "{warning}\n{err}");
     }
     assert!(
-        err.contains("2 nodes sending 3 messages on their own, 1 event messages"),
+        err.contains("3 nodes sending 3 messages on their own, 1 event messages"),
         "{err}"
     );
     let brake = std::fs::read_to_string(out_dir.join("nodes/brake.ron")).unwrap();
@@ -92,7 +92,8 @@ fn an_import_runs_validates_and_says_what_it_could_not_do() {
         engine.contains("// Not generated (event messages, no cycle time): Event."),
         "{engine}"
     );
-    assert!(!out_dir.join("nodes/dash.ron").exists());
+    let dash = std::fs::read_to_string(out_dir.join("nodes/dash.ron")).unwrap();
+    assert!(dash.contains("messages: [\n    ],"), "{dash}");
     assert_eq!(std::fs::read_to_string(out_dir.join("truck.dbc")).unwrap(), DBC);
 
     let network = out_dir.join("network.ron");
@@ -291,11 +292,68 @@ fn scenarios_campaigns_every_trace_format_and_socketcand_work_on_an_imported_net
     let _ = child.wait();
     let out = out
         .unwrap_or_else(|e| panic!("cannot run `{py}`: {e}; set HARVEMU_PYTHON to a python with python-can"));
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "python-can's socketcand client failed (HARVEMU_PYTHON must have python-can): {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let seen = String::from_utf8_lossy(&out.stdout);
     // EEC1 (29-bit) and Brake (11-bit 0x100) from the imported nodes.
     assert!(
         seen.contains("(419361278, True)") && seen.contains("(256, False)"),
         "{seen}"
     );
+}
+
+/// Numbers at the edges: a factor of 0, a range as wide as f64 goes, literals past it.
+const EXTREME: &str = r#"VERSION ""
+NS_ :
+BS_:
+BU_: A B
+BO_ 256 M1: 8 A
+ SG_ Zero : 0|8@1+ (0,5) [0|0] "" B
+ SG_ Huge : 16|16@1- (1e300,1e308) [-1e308|1e308] "" B
+ SG_ Tiny : 32|16@1+ (1e-300,0) [0|0] "" B
+ SG_ Over : 48|8@1+ (1,1e400) [0|1e999] "" B
+BA_DEF_ BO_ "GenMsgCycleTime" INT 0 65535;
+BA_DEF_DEF_ "GenMsgCycleTime" 0;
+BA_ "GenMsgCycleTime" BO_ 256 100;
+"#;
+
+#[test]
+fn extreme_numbers_are_warned_about_and_the_network_still_sends() {
+    let dir = scratch("import", "extreme");
+    let file = dbc(&dir, EXTREME);
+    for signals in ["initial", "sine", "ramp", "walk"] {
+        let net = dir.join(signals);
+        let out = harvemu(&["import", s(&file), "--out", s(&net), "--signals", signals]);
+        let err = stderr(&out);
+        assert!(out.status.success(), "{signals}: {err}");
+        for warning in [
+            "M1 (0x100) signal Zero: factor 0: no raw value stands for a chosen physical one; raw 0 is sent",
+            "M1 (0x100) signal Over: range [0|inf] is not finite: taken as no range",
+            "M1 (0x100) signal Over: offset inf is not finite: taken as 0",
+        ] {
+            assert!(err.contains(warning), "{signals}: {warning}\n{err}");
+        }
+        let log = dir.join(format!("{signals}.log"));
+        let out = harvemu(&[
+            "run",
+            s(&net.join("network.ron")),
+            "--fast",
+            "--for",
+            "1s",
+            "--record",
+            s(&log),
+        ]);
+        assert!(out.status.success(), "{signals}: {}", stderr(&out));
+        let text = std::fs::read_to_string(&log).unwrap();
+        // M1 every 100 ms, B acknowledging: no error frame.
+        assert_eq!(
+            text.lines().filter(|l| l.contains(" 100#")).count(),
+            10,
+            "{signals}: {text}"
+        );
+        assert_eq!(text.lines().count(), 10, "{signals}: {text}");
+    }
 }

@@ -357,11 +357,13 @@ impl ScriptedNode {
             }
             Expr::Ramp { from, to, period_s } => {
                 let t = self.since_boot();
-                if *period_s > 0.0 {
-                    from + (to - from) * (t % period_s) / period_s
+                // Weighted, so that the ends' difference never overflows.
+                let w = if *period_s > 0.0 {
+                    (t % period_s) / period_s
                 } else {
-                    *from
-                }
+                    0.0
+                };
+                from * (1.0 - w) + to * w
             }
             Expr::Sine {
                 mean,

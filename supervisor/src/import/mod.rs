@@ -4,8 +4,8 @@
 //! that, Windows-1252 as DBC editors write it) and parsed by [`protocol::database`]; a file that
 //! does not parse is exit code 2 at its line and column. DIR gets `network.ron` (a `Network` of
 //! the database's name and bit rate), a copy of the DBC under its own name, as UTF-8 (the
-//! scripts name it as `../NAME.dbc`), and `nodes/NODE.ron`, one behaviour script per node that
-//! sends a message ([`plan`]). Nothing is written when DIR holds anything and
+//! scripts name it as `../NAME.dbc`), and `nodes/NODE.ron`, one behaviour script per node (one
+//! that sends nothing only listens) ([`plan`]). Nothing is written when DIR holds anything and
 //! `--force` is not given (exit code 2). Every case the scripts cannot do as the DBC says is
 //! a warning on standard error and a comment in the script concerned.
 

@@ -1,5 +1,5 @@
 //! What `harvemu import` writes for a database: the network file, one node script per node
-//! that sends, and a warning for everything the scripts cannot do as the DBC says. Pure: text
+//! (one that sends nothing only listens), and a warning for everything the scripts cannot do as the DBC says. Pure: text
 //! in, text out.
 
 use bus::bits::BitRate;
@@ -36,8 +36,8 @@ pub struct Plan {
     pub files: Vec<File>,
     /// One line per thing not imported as the DBC says.
     pub warnings: Vec<String>,
-    /// Nodes with a script, messages sent on their own (periodic or on change), event
-    /// messages written as `OnRequest`.
+    /// Nodes (each has a script, a node that sends nothing one that only listens), messages
+    /// sent on their own (periodic or on change), event messages written as `OnRequest`.
     pub counts: (usize, usize, usize),
 }
 
@@ -68,8 +68,11 @@ pub fn plan(db: &Database, dbc_name: &str, stem: &str, signals: Signals) -> Plan
     for node in &db.nodes {
         let sent: Vec<&Message> = db.sent_by(node).collect();
         if sent.is_empty() {
-            warnings.push(format!("node {node} sends nothing: no script for it"));
-            continue;
+            // It is on the bus all the same: its controller acknowledges every frame, without
+            // which a lone sender sees nothing but acknowledgement errors.
+            warnings.push(format!(
+                "node {node} sends nothing: its script only listens (its controller acknowledges frames)"
+            ));
         }
         let mut file = file_name(node);
         while !taken.insert(file.clone()) {
@@ -186,8 +189,20 @@ fn span(s: &Signal) -> (f64, f64) {
     (a.min(b), a.max(b))
 }
 
-/// The generator of one signal.
+/// The generator of one signal; `Const` of its initial value (or 0) where another would need a
+/// number that is not finite (a range wider than f64 spans).
 fn generator(s: &Signal, m: &Message, signals: Signals) -> String {
+    let (lo, hi) = span(s);
+    if (hi - lo).is_finite() {
+        moving(s, m, signals)
+    } else if s.initial().is_finite() {
+        format!("Const({})", num(s.initial()))
+    } else {
+        "Const(0.0)".into()
+    }
+}
+
+fn moving(s: &Signal, m: &Message, signals: Signals) -> String {
     let (lo, hi) = span(s);
     if s.mux == Mux::Multiplexor {
         // Every page in turn.
@@ -327,6 +342,12 @@ fn script(
     }
     let _ = writeln!(t, "    states: [(name: \"running\", code: 1)],");
     let _ = writeln!(t, "    initial: \"running\",");
+    if own.is_empty() && events.is_empty() {
+        let _ = writeln!(
+            t,
+            "    // Sends nothing of the database: on the bus to listen and acknowledge."
+        );
+    }
     let _ = writeln!(t, "    messages: [");
     for (i, m) in own.iter().chain(events.iter()).enumerate() {
         let when = when(m, (i as u32).saturating_mul(7)).unwrap_or_else(|| "OnRequest".into());

@@ -96,11 +96,16 @@ impl Signal {
 
     /// The raw value for a physical one: limited to the signal's range `[min, max]` when it has
     /// one (min < max), rounded to the nearest step of the factor, then limited to what the bits
-    /// hold, as a saturating sensor would. `None` for a value that is not a number, or a factor
-    /// of 0.
+    /// hold, as a saturating sensor would (an infinity too). `None` for a value that is not a
+    /// number. A factor of 0 (or one that is not a finite number) maps every raw value to the
+    /// offset: raw 0 is sent.
     pub fn to_raw(&self, physical: f64) -> Option<i128> {
-        if !physical.is_finite() || self.factor == 0.0 || !self.factor.is_finite() {
+        if physical.is_nan() {
             return None;
+        }
+        if self.factor == 0.0 || !self.factor.is_finite() {
+            let (lo, hi) = self.raw_range();
+            return Some(0i128.clamp(lo, hi));
         }
         let v = if self.min < self.max {
             physical.clamp(self.min, self.max)

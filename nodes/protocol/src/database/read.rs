@@ -73,6 +73,32 @@ pub(super) fn parse(file: &str, text: &str) -> Result<Database, Error> {
                 }
             };
             let key = (mid(&m.id), s.name.clone());
+            // Literals past f64's range read as infinities; a factor of 0 inverts to nothing.
+            let (mut min, mut max) = (number(&s.min), number(&s.max));
+            let mut offset = s.offset;
+            if !(min.is_finite() && max.is_finite()) {
+                warnings.push(Warning {
+                    at: at.clone(),
+                    reason: format!("range [{min}|{max}] is not finite: taken as no range"),
+                });
+                (min, max) = (0.0, 0.0);
+            }
+            if !offset.is_finite() {
+                warnings.push(Warning {
+                    at: at.clone(),
+                    reason: format!("offset {offset} is not finite: taken as 0"),
+                });
+                offset = 0.0;
+            }
+            if s.factor == 0.0 || !s.factor.is_finite() {
+                warnings.push(Warning {
+                    at: at.clone(),
+                    reason: format!(
+                        "factor {}: no raw value stands for a chosen physical one; raw 0 is sent",
+                        s.factor
+                    ),
+                });
+            }
             if let Some(kind) = attrs.float.get(&key) {
                 warnings.push(Warning {
                     at: at.clone(),
@@ -89,9 +115,9 @@ pub(super) fn parse(file: &str, text: &str) -> Result<Database, Error> {
                 },
                 signed: s.value_type == ValueType::Signed,
                 factor: s.factor,
-                offset: s.offset,
-                min: number(&s.min),
-                max: number(&s.max),
+                offset,
+                min,
+                max,
                 unit: s.unit.clone(),
                 receivers: s
                     .receivers

@@ -236,3 +236,15 @@ fn written_back_it_reads_as_the_same_database() {
         assert_eq!(a, &want, "{text}");
     }
 }
+
+#[test]
+fn infinities_saturate_and_a_factor_of_zero_sends_raw_zero() {
+    let mut s = signal(0, 8, ByteOrder::Intel, true);
+    assert_eq!(s.to_raw(f64::INFINITY), Some(127));
+    assert_eq!(s.to_raw(f64::NEG_INFINITY), Some(-128));
+    s.factor = 0.0;
+    s.offset = 5.0;
+    assert_eq!(s.to_raw(5.0), Some(0));
+    assert_eq!(s.to_raw(1e9), Some(0));
+    assert_eq!(s.to_raw(f64::NAN), None);
+}
