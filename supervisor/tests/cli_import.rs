@@ -75,7 +75,9 @@ fn an_import_runs_validates_and_says_what_it_could_not_do() {
         assert!(err.contains(warning), "{warning}\n{err}");
     }
     assert!(
-        err.contains("3 nodes sending 3 messages on their own, 1 event messages"),
+        err.contains(
+            "3 nodes, 3 messages sent on their own, 1 event message for actions to send; 4 warnings."
+        ),
         "{err}"
     );
     let brake = std::fs::read_to_string(out_dir.join("nodes/brake.ron")).unwrap();

@@ -83,17 +83,29 @@ pub fn run(args: &Args) -> crate::Result<()> {
     if events > 0 {
         crate::say!(
             "harvemu: a DBC holds no protocol logic (requests, acknowledgements, calibration, states): \
-             the {events} event messages above are for reactions you add to send"
+             the event messages above are for reactions you add to send"
         );
     }
+    let network = dir.join("network.ron");
     crate::say!(
-        "harvemu: wrote {}: {nodes} nodes sending {own} messages on their own, {events} event messages \
-         for actions to send; {} warnings. Run it: harvemu run {}",
-        dir.join("network.ron").display(),
-        plan.warnings.len(),
-        dir.join("network.ron").display()
+        "harvemu: wrote {}: {}, {} sent on their own, {} for actions to send; {}. Run it: harvemu run {}",
+        network.display(),
+        counted(nodes, "node"),
+        counted(own, "message"),
+        counted(events, "event message"),
+        counted(plan.warnings.len(), "warning"),
+        network.display()
     );
     Ok(())
+}
+
+/// `3 nodes`, `1 node`.
+fn counted(n: usize, what: &str) -> String {
+    if n == 1 {
+        format!("1 {what}")
+    } else {
+        format!("{n} {what}s")
+    }
 }
 
 /// The file's bytes, at most [`nodes::file::MAX_FILE`].
