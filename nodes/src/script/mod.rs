@@ -8,8 +8,10 @@
 //! values; reply, set state, start or stop messages, write a plant input, set a variable), timers
 //! (watchdogs), a boot delay, acknowledgement tracking, per-signal fault hooks (stuck, drift,
 //! noise, offset, dropout), and the acceptance filter of its CAN controller in the registers of
-//! its chip (Atmel CANIDT/CANIDM, SJA1000 ACR/AMR, or a SocketCAN filter list). Scaling, byte
-//! order and ranges come from the message catalogue, never from the script. A script file may
+//! its chip (Atmel CANIDT/CANIDM, SJA1000 ACR/AMR, or a SocketCAN filter list), and generators
+//! of moving values (ramp, sine, random walk, counter, cycle). Scaling, byte order and ranges
+//! come from the message catalogue, or from the DBC file a script of an imported network names
+//! (`database`, [`Def`]), never from the script. A script file may
 //! instead be an instance of a template with parameters ([`expand`]). The format is documented
 //! in `docs/BEHAVIOUR.md`.
 

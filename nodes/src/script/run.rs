@@ -388,12 +388,10 @@ impl ScriptedNode {
                 let next = match self.generated.get(&key) {
                     None => *start,
                     Some(v) => {
-                        let delta = if *step > 0.0 {
-                            self.rng.random_range(-step..=*step)
-                        } else {
-                            0.0
-                        };
-                        v + delta
+                        // A uniform move in -step..=step, however wide (rand's ranges refuse
+                        // one wider than f64 spans).
+                        let u: f64 = self.rng.random();
+                        v + (2.0 * u - 1.0) * step
                     }
                 };
                 // f64::clamp panics on such a range.

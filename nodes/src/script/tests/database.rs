@@ -164,3 +164,20 @@ fn generators_with_numbers_that_mean_nothing_are_problems() {
         ]
     );
 }
+
+#[test]
+fn a_random_walk_as_wide_as_f64_goes_never_panics() {
+    let text = ENGINE.replace(
+        "Ramp(from: 1000.0, to: 2000.0, period_s: 0.1)",
+        "RandomWalk(start: 0.0, step: 1e308, min: -1e308, max: 1e308)",
+    );
+    assert_ne!(text, ENGINE);
+    let mut n = dbc_node(&text);
+    let sent = drive(&mut n, BusTime::from_millis(199), &[]);
+    // Every 20 ms, EngineSpeed within its range: raw 0 to 8031.875 rpm / 0.125 = 64255.
+    assert_eq!(sent.len(), 10);
+    for (_, f) in &sent {
+        let speed = u16::from_le_bytes([f.data()[3], f.data()[4]]);
+        assert!(speed <= 64255, "{speed}");
+    }
+}
