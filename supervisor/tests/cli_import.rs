@@ -134,6 +134,28 @@ fn a_dbc_that_does_not_parse_is_refused_at_its_line_and_column() {
         "{}",
         stderr(&out)
     );
+    // A file with no node and no transmitter has nothing to run.
+    let file = dbc(&dir, "VERSION \"\"\nNS_ :\nBS_:\nBU_:\n");
+    let out = harvemu(&["import", s(&file), "--out", s(&dir.join("x"))]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("no nodes (BU_) and no message with a transmitter: nothing to run"),
+        "{}",
+        stderr(&out)
+    );
+    // A transmitter BU_ does not list is a node all the same, with a warning.
+    let file = dbc(
+        &dir,
+        &DBC.replace("BO_ 513 Event: 1 ENGINE", "BO_ 513 Event: 1 GHOST"),
+    );
+    let out = harvemu(&["import", s(&file), "--out", s(&dir.join("g"))]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("warning: Event (0x201): its transmitter GHOST is not in BU_: taken as a node"),
+        "{}",
+        stderr(&out)
+    );
+    assert!(dir.join("g/nodes/ghost.ron").exists());
     // /dev/zero is no DBC and never ends: refused at the size limit.
     let out = harvemu(&["import", "/dev/zero", "--out", s(&dir.join("x"))]);
     assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));

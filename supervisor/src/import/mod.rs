@@ -51,6 +51,11 @@ pub fn run(args: &Args) -> crate::Result<()> {
         .file_stem()
         .map_or("network".into(), |s| s.to_string_lossy().into_owned());
     let plan = plan(&db, &file_name, &stem, args.signals);
+    if plan.counts.0 == 0 {
+        return Err(Error::BadInput(format!(
+            "{name}: no nodes (BU_) and no message with a transmitter: nothing to run"
+        )));
+    }
     let dir = &args.out;
     if std::fs::metadata(dir).is_ok_and(|m| !m.is_dir()) {
         return Err(Error::BadInput(format!("--out {}: not a folder", dir.display())));

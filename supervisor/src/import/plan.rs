@@ -1,6 +1,6 @@
 //! What `harvemu import` writes for a database: the network file, one node script per node
-//! (one that sends nothing only listens), and a warning for everything the scripts cannot do as the DBC says. Pure: text
-//! in, text out.
+//! (one that sends nothing only listens), and a warning for everything the scripts cannot do as
+//! the DBC says. Pure: text in, text out.
 
 use bus::bits::BitRate;
 use protocol::database::{Database, Message, Mux, Signal};
@@ -65,7 +65,20 @@ pub fn plan(db: &Database, dbc_name: &str, stem: &str, signals: Signals) -> Plan
     let mut node_files = Vec::new();
     let mut counts = (0, 0, 0);
     let mut taken = std::collections::BTreeSet::new();
-    for node in &db.nodes {
+    // The nodes of `BU_`, then any transmitter the file does not list there.
+    let mut nodes: Vec<&str> = db.nodes.iter().map(String::as_str).collect();
+    for m in &db.messages {
+        if let Some(t) = m.transmitter.as_deref()
+            && !nodes.contains(&t)
+        {
+            warnings.push(format!(
+                "{}: its transmitter {t} is not in BU_: taken as a node",
+                shown(m)
+            ));
+            nodes.push(t);
+        }
+    }
+    for &node in &nodes {
         let sent: Vec<&Message> = db.sent_by(node).collect();
         if sent.is_empty() {
             // It is on the bus all the same: its controller acknowledges every frame, without
