@@ -6,8 +6,9 @@
 //! the database's name and bit rate), a copy of the DBC under its own name, as UTF-8 (the
 //! scripts name it as `../NAME.dbc`), and `nodes/NODE.ron`, one behaviour script per node (one
 //! that sends nothing only listens) ([`plan`]). Nothing is written when DIR holds anything and
-//! `--force` is not given (exit code 2). Every case the scripts cannot do as the DBC says is
-//! a warning on standard error and a comment in the script concerned.
+//! `--force` is not given (exit code 2), nor when the file has no node and no transmitter.
+//! Every case the scripts cannot do as the DBC says is a warning on standard error, and a
+//! comment in the script of the node it concerns where there is one (a message's sender).
 
 mod plan;
 
