@@ -2,70 +2,20 @@
 //! reads. The python is `$HARVEMU_PYTHON`, else `python3`; it must have python-can (the tests
 //! fail, never skip, without it). Expected values come from the side that wrote the file.
 
+mod python;
+
+use python::{hex, id, json_lines, run_python};
+
 use bus::filter::CAN_ERR_FLAG;
 use bus::time::Stamp;
 use bus::trace::ErrorFrame;
 use bus::tracefile::blf::{BlfReader, BlfWriter};
 use bus::tracefile::{Entry, Item, ItemWriter};
-use bus::{Frame, Id, extended_id, standard_id};
-use serde_json::Value;
+use bus::Frame;
 use std::path::PathBuf;
-use std::process::Command;
-
-fn python() -> String {
-    std::env::var("HARVEMU_PYTHON").unwrap_or_else(|_| "python3".to_string())
-}
-
-/// Runs `script` with `args`; its standard output.
-fn run_python(script: &str, args: &[&str]) -> String {
-    let py = python();
-    let can = Command::new(&py).args(["-c", "import can"]).output();
-    assert!(
-        can.as_ref().is_ok_and(|o| o.status.success()),
-        "`{py}` cannot `import can` ({}): set HARVEMU_PYTHON to a python with python-can installed",
-        match &can {
-            Ok(o) => String::from_utf8_lossy(&o.stderr)
-                .lines()
-                .last()
-                .unwrap_or_default()
-                .to_string(),
-            Err(e) => e.to_string(),
-        }
-    );
-    let out = Command::new(&py)
-        .arg("-c")
-        .arg(script)
-        .args(args)
-        .output()
-        .unwrap_or_else(|e| panic!("cannot run `{py}`: {e}"));
-    assert!(
-        out.status.success(),
-        "the python script failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).expect("UTF-8 output")
-}
 
 fn scratch(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("{name}-{}.blf", std::process::id()))
-}
-
-fn json_lines(text: &str) -> Vec<Value> {
-    text.lines()
-        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{l}: {e}")))
-        .collect()
-}
-
-fn id(raw: u32, extended: bool) -> Id {
-    if extended {
-        extended_id(raw).unwrap().into()
-    } else {
-        standard_id(raw as u16).unwrap().into()
-    }
-}
-
-fn hex(bytes: &[u8]) -> String {
-    bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
 
 /// A few thousand items of every kind on two interfaces, at whole microseconds and (every
@@ -127,7 +77,7 @@ fn python_can_reads_what_harvemu_writes() {
     drop(w);
     assert!(std::fs::metadata(&path).unwrap().len() > 144);
 
-    let got = json_lines(&run_python(READ_BLF, &[path.to_str().unwrap()]));
+    let got = json_lines(&run_python("can", READ_BLF, &[path.to_str().unwrap()]));
     assert_eq!(got.len(), items.len(), "python-can read {} messages", got.len());
     let mut interfaces: Vec<&str> = Vec::new();
     for (i, (item, m)) in items.iter().zip(&got).enumerate() {
@@ -216,7 +166,7 @@ w.stop()
 #[test]
 fn harvemu_reads_what_python_can_writes() {
     let path = scratch("python-written");
-    let wrote = json_lines(&run_python(WRITE_BLF, &[path.to_str().unwrap()]));
+    let wrote = json_lines(&run_python("can", WRITE_BLF, &[path.to_str().unwrap()]));
     assert_eq!(wrote.len(), 600);
     let file = std::io::BufReader::new(std::fs::File::open(&path).unwrap());
     let read: Vec<(u64, Item)> = BlfReader::new(file).unwrap().collect::<Result<_, _>>().unwrap();

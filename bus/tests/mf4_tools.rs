@@ -4,74 +4,22 @@
 //! python is `$HARVEMU_PYTHON`, else `python3`; it must have python-can and asammdf (the tests
 //! fail, never skip, without them). Expected values come from the side that wrote the file.
 
+mod python;
+
+use python::{hex, id, json_lines, run_python};
+
 use bus::filter::CAN_ERR_FLAG;
 use bus::time::Stamp;
 use bus::trace::ErrorFrame;
 use bus::tracefile::mf4::{Mf4Reader, Mf4Writer};
 use bus::tracefile::{Entry, Item, ItemWriter};
-use bus::{Frame, Id, extended_id, standard_id};
-use serde_json::Value;
+use bus::Frame;
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::PathBuf;
-use std::process::Command;
-
-fn python() -> String {
-    std::env::var("HARVEMU_PYTHON").unwrap_or_else(|_| "python3".to_string())
-}
-
-/// Runs `script` with `args` (in UTC, so that python-can's local start times are UTC); its
-/// standard output.
-fn run_python(script: &str, args: &[&str]) -> String {
-    let py = python();
-    let check = Command::new(&py).args(["-c", "import can, asammdf"]).output();
-    assert!(
-        check.as_ref().is_ok_and(|o| o.status.success()),
-        "`{py}` cannot `import can, asammdf` ({}): set HARVEMU_PYTHON to a python with python-can and asammdf installed",
-        match &check {
-            Ok(o) => String::from_utf8_lossy(&o.stderr)
-                .lines()
-                .last()
-                .unwrap_or_default()
-                .to_string(),
-            Err(e) => e.to_string(),
-        }
-    );
-    let out = Command::new(&py)
-        .env("TZ", "UTC")
-        .arg("-c")
-        .arg(script)
-        .args(args)
-        .output()
-        .unwrap_or_else(|e| panic!("cannot run `{py}`: {e}"));
-    assert!(
-        out.status.success(),
-        "the python script failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).expect("UTF-8 output")
-}
 
 fn scratch(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("{name}-{}.mf4", std::process::id()))
-}
-
-fn json_lines(text: &str) -> Vec<Value> {
-    text.lines()
-        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{l}: {e}")))
-        .collect()
-}
-
-fn id(raw: u32, extended: bool) -> Id {
-    if extended {
-        extended_id(raw).unwrap().into()
-    } else {
-        standard_id(raw as u16).unwrap().into()
-    }
-}
-
-fn hex(bytes: &[u8]) -> String {
-    bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
 
 /// 2024-01-01 00:00:00.123456, on a microsecond.
@@ -150,7 +98,7 @@ fn asammdf_and_python_can_read_what_harvemu_writes() {
     let file = std::fs::read(&path).unwrap();
     let dz = file.chunks(8).filter(|c| c.starts_with(b"##DZ")).count();
     assert!(dz >= 4, "{dz} data blocks");
-    let out = run_python(READ_MF4, &[path.to_str().unwrap()]);
+    let out = run_python("can, asammdf", READ_MF4, &[path.to_str().unwrap()]);
     let lines = json_lines(&out);
     let (head, messages) = lines.split_first().expect("a first line");
     assert_eq!(head["start"], START / 1000);
@@ -276,7 +224,11 @@ fn asammdf_decodes_harvemu_frames_with_a_dbc() {
     let dbc_path = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("mf4-{}.dbc", std::process::id()));
     std::fs::write(&dbc_path, dbc()).unwrap();
     write_mf4(&path, &items);
-    let out = run_python(EXTRACT, &[path.to_str().unwrap(), dbc_path.to_str().unwrap()]);
+    let out = run_python(
+        "can, asammdf",
+        EXTRACT,
+        &[path.to_str().unwrap(), dbc_path.to_str().unwrap()],
+    );
     let signals = json_lines(&out);
     assert_eq!(signals.len(), 2);
     for s in &signals {
@@ -344,7 +296,7 @@ for m in messages:
 #[test]
 fn harvemu_reads_what_python_can_writes() {
     let path = scratch("python-can-written");
-    let out = run_python(WRITE_MF4, &[path.to_str().unwrap()]);
+    let out = run_python("can, asammdf", WRITE_MF4, &[path.to_str().unwrap()]);
     let written = json_lines(&out);
     assert_eq!(written.len(), 1500);
     for level in 0..3 {
