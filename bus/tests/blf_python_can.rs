@@ -6,12 +6,12 @@ mod python;
 
 use python::{hex, id, json_lines, run_python};
 
+use bus::Frame;
 use bus::filter::CAN_ERR_FLAG;
 use bus::time::Stamp;
 use bus::trace::ErrorFrame;
 use bus::tracefile::blf::{BlfReader, BlfWriter};
 use bus::tracefile::{Entry, Item, ItemWriter};
-use bus::Frame;
 use std::path::PathBuf;
 
 fn scratch(name: &str) -> PathBuf {

@@ -8,12 +8,12 @@ mod python;
 
 use python::{hex, id, json_lines, run_python};
 
+use bus::Frame;
 use bus::filter::CAN_ERR_FLAG;
 use bus::time::Stamp;
 use bus::trace::ErrorFrame;
 use bus::tracefile::mf4::{Mf4Reader, Mf4Writer};
 use bus::tracefile::{Entry, Item, ItemWriter};
-use bus::Frame;
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::PathBuf;

@@ -67,6 +67,7 @@ mod tests;
 pub use read::BlfReader;
 pub use write::BlfWriter;
 
+use super::le::{byte, u16_at, u32_at, u64_at};
 use crate::time::Stamp;
 
 /// The file header's size, as python-can and Vector write it.
@@ -155,23 +156,4 @@ fn stamp_of(st: [u16; 8]) -> Result<Stamp, String> {
     u64::try_from(ns)
         .map(Stamp)
         .map_err(|_| format!("{shown} is outside 1970 to 2554, the times harvemu keeps"))
-}
-
-/// The little-endian u16 at `at`, 0 past the end (callers check lengths first).
-fn u16_at(b: &[u8], at: usize) -> u16 {
-    u16::from_le_bytes([byte(b, at), byte(b, at + 1)])
-}
-
-/// The little-endian u32 at `at`, 0 past the end.
-fn u32_at(b: &[u8], at: usize) -> u32 {
-    u32::from_le_bytes([byte(b, at), byte(b, at + 1), byte(b, at + 2), byte(b, at + 3)])
-}
-
-/// The little-endian u64 at `at`, 0 past the end.
-fn u64_at(b: &[u8], at: usize) -> u64 {
-    u64::from(u32_at(b, at)) | (u64::from(u32_at(b, at + 4)) << 32)
-}
-
-fn byte(b: &[u8], at: usize) -> u8 {
-    b.get(at).copied().unwrap_or(0)
 }

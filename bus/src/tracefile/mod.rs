@@ -31,6 +31,7 @@ mod candump_log;
 mod convert;
 mod format;
 mod item;
+mod le;
 #[cfg(test)]
 mod limit_tests;
 mod lines;

@@ -68,6 +68,8 @@
 //!   panics on any input. A header start flagged local time is taken as UTC (the file does not
 //!   say which zone).
 
+use super::le::{byte, u16_at, u32_at, u64_at};
+
 mod blocks;
 mod data;
 mod groups;
@@ -152,22 +154,3 @@ const TRANSPOSED_DEFLATE: u8 = 1;
 const EQUAL_LENGTH: u8 = 1;
 /// The header comment's tree of interface names.
 const NAMES_TREE: &str = "bus channels";
-
-/// The little-endian u16 at `at`, 0 past the end (callers check lengths first).
-fn u16_at(b: &[u8], at: usize) -> u16 {
-    u16::from_le_bytes([byte(b, at), byte(b, at + 1)])
-}
-
-/// The little-endian u32 at `at`, 0 past the end.
-fn u32_at(b: &[u8], at: usize) -> u32 {
-    u32::from_le_bytes([byte(b, at), byte(b, at + 1), byte(b, at + 2), byte(b, at + 3)])
-}
-
-/// The little-endian u64 at `at`, 0 past the end.
-fn u64_at(b: &[u8], at: usize) -> u64 {
-    u64::from(u32_at(b, at)) | (u64::from(u32_at(b, at + 4)) << 32)
-}
-
-fn byte(b: &[u8], at: usize) -> u8 {
-    b.get(at).copied().unwrap_or(0)
-}
