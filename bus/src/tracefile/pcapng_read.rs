@@ -223,26 +223,33 @@ impl<R: Read> PcapngReader<R> {
         Ok(())
     }
 
+    /// The next `N` bytes, the header of the next record (`what`): `None` at a clean end (no
+    /// byte left), an error naming the record when the file ends inside it.
+    fn header<const N: usize>(&mut self, what: &str) -> Result<Option<[u8; N]>, Error> {
+        let (number, offset) = (self.number + 1, self.offset);
+        let mut head = [0u8; N];
+        match fill(&mut self.input, &mut head) {
+            Ok(Ok(true)) => Ok(Some(head)),
+            Ok(Ok(false)) => Ok(None),
+            Ok(Err(got)) => Err(bad(
+                number,
+                offset,
+                format!("the file ends {got} bytes into {what}"),
+            )),
+            Err(e) => Err(bad(number, offset, format!("cannot read: {e}"))),
+        }
+    }
+
     /// The next pcapng block: `None` at a clean end.
     fn next_block(&mut self) -> Result<Option<Item>, Error> {
         loop {
             let Kind::Pcapng { little } = self.kind else {
                 return self.next_pcap();
             };
-            let mut head = [0u8; 8];
             let (number, offset) = (self.number + 1, self.offset);
-            match fill(&mut self.input, &mut head) {
-                Ok(Ok(true)) => {}
-                Ok(Ok(false)) => return Ok(None),
-                Ok(Err(got)) => {
-                    return Err(bad(
-                        number,
-                        offset,
-                        format!("the file ends {got} bytes into a block header"),
-                    ));
-                }
-                Err(e) => return Err(bad(number, offset, format!("cannot read: {e}"))),
-            }
+            let Some(head) = self.header::<8>("a block header")? else {
+                return Ok(None);
+            };
             if head[..4] == [0x0A, 0x0D, 0x0D, 0x0A] {
                 // A new section: its byte order may differ.
                 self.section(head)?;
@@ -401,19 +408,9 @@ impl<R: Read> PcapngReader<R> {
             return Ok(None);
         };
         let (number, offset) = (self.number + 1, self.offset);
-        let mut head = [0u8; 16];
-        match fill(&mut self.input, &mut head) {
-            Ok(Ok(true)) => {}
-            Ok(Ok(false)) => return Ok(None),
-            Ok(Err(got)) => {
-                return Err(bad(
-                    number,
-                    offset,
-                    format!("the file ends {got} bytes into a packet header"),
-                ));
-            }
-            Err(e) => return Err(bad(number, offset, format!("cannot read: {e}"))),
-        }
+        let Some(head) = self.header::<16>("a packet header")? else {
+            return Ok(None);
+        };
         let captured = u32_of(&head, 8, little) as usize;
         if captured > MAX_BLOCK {
             return Err(bad(
