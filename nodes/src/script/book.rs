@@ -4,7 +4,7 @@
 
 use bus::{Frame, Id, extended_id, standard_id};
 use protocol::catalogue::{self, Decoded, MessageDef};
-use protocol::database::{Database, Message, Mux};
+use protocol::database::{Database, Message};
 use std::sync::Arc;
 
 /// A message a script sends or answers.
@@ -85,17 +85,11 @@ impl Received {
             .messages
             .iter()
             .find(|m| m.extended == frame.is_extended() && m.id == frame.raw_id())?;
-        let data = frame.data();
-        let mux = m.multiplexor().and_then(|s| s.extract(data));
         let values = m
-            .signals
-            .iter()
-            .filter(|s| match s.mux {
-                Mux::On(n) => mux == Some(i128::from(n)),
-                _ => true,
-            })
-            .filter_map(|s| {
-                let raw = s.extract(data)?;
+            .decode(frame.data())
+            .into_iter()
+            .filter_map(|(s, raw)| {
+                let raw = raw?;
                 Some((s.name.clone(), raw, s.physical(raw)))
             })
             .collect();

@@ -16,7 +16,7 @@ use bus_runtime::hub::Snapshot;
 use nodes::monitor::Display;
 use nodes::plant::{Plant, ROWS};
 use protocol::catalogue::{self, Value};
-use protocol::database::{Database, Mux};
+use protocol::database::Database;
 use protocol::ident::AppId;
 
 /// How the emulation's clock runs.
@@ -490,14 +490,8 @@ fn dbc_identifier(db: &Database, kernel: u32, frame: Option<Frame>, rate: f64, c
         return view;
     };
     let data = frame.data();
-    let page = m.multiplexor().and_then(|s| s.extract(data));
-    for s in &m.signals {
-        if let Mux::On(n) = s.mux
-            && page != Some(i128::from(n))
-        {
-            continue;
-        }
-        let Some(raw) = s.extract(data) else {
+    for (s, raw) in m.decode(data) {
+        let Some(raw) = raw else {
             view.problem = Some(format!("{} bytes: too short for {}", data.len(), s.name));
             break;
         };

@@ -164,6 +164,20 @@ impl Message {
         v
     }
 
+    /// The signals a payload carries (in a multiplexed message, the multiplexor and the signals
+    /// of its page), each with its raw value; `None` for one the payload is too short for.
+    pub fn decode<'a>(&'a self, data: &[u8]) -> Vec<(&'a Signal, Option<i128>)> {
+        let page = self.multiplexor().and_then(|s| s.extract(data));
+        self.signals
+            .iter()
+            .filter(|s| match s.mux {
+                Mux::On(n) => page == Some(i128::from(n)),
+                _ => true,
+            })
+            .map(|s| (s, s.extract(data)))
+            .collect()
+    }
+
     /// The payload that carries `values` (physical, by signal name; a signal not named sends its
     /// [`Signal::initial`]). In a multiplexed message the multiplexor's value picks which
     /// multiplexed signals are written (the others are left 0). A value that is not a number
