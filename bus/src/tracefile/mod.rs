@@ -41,6 +41,8 @@ mod pcapng_read;
 #[cfg(test)]
 mod pcapng_tests;
 #[cfg(test)]
+mod test_items;
+#[cfg(test)]
 mod tests;
 
 pub use any::{Items, items};

@@ -1,44 +1,11 @@
 use super::*;
 use crate::Error;
-use crate::Frame;
-use crate::trace::ErrorFrame;
+use crate::tracefile::test_items::{data, error, item, remote};
 use crate::tracefile::{Entry, Item, ItemWriter};
 use std::io::{Cursor, Write};
 
 /// 2024-01-01T00:00:00Z, a Monday.
 const NEW_YEAR: u64 = 1_704_067_200_000_000_000;
-
-fn item(at: u64, interface: &str, entry: Entry) -> Item {
-    Item {
-        at: Stamp(at),
-        interface: interface.to_string(),
-        entry,
-    }
-}
-
-fn data(id: u32, extended: bool, bytes: &[u8]) -> Entry {
-    Entry::Frame(if extended {
-        Frame::extended(id, bytes).unwrap()
-    } else {
-        Frame::base(id as u16, bytes).unwrap()
-    })
-}
-
-fn remote(id: u32, extended: bool, dlc: usize) -> Entry {
-    let id: crate::Id = if extended {
-        crate::extended_id(id).unwrap().into()
-    } else {
-        crate::standard_id(id as u16).unwrap().into()
-    };
-    Entry::Frame(Frame::new_remote(id, dlc).unwrap())
-}
-
-fn error(classes: u32, details: [u8; 8]) -> Entry {
-    Entry::Error(Some(ErrorFrame {
-        can_id: crate::filter::CAN_ERR_FLAG | classes,
-        data: details,
-    }))
-}
 
 /// Every kind of item on two interfaces, with nanoseconds, from a start 0.123456789 s past a
 /// whole second (not on a millisecond).
